@@ -1,0 +1,1 @@
+//! Parametrized infinite-horizon MPC with Laguerre basis functions and semi-infinite constraints.

@@ -1,0 +1,6 @@
+//! no_std core of stabilis: the geometry and numerics every domain crate builds on.
+#![no_std]
+#![cfg_attr(docsrs, feature(doc_cfg))]
+
+#[cfg(feature = "std")]
+extern crate std;

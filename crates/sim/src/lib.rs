@@ -1,0 +1,1 @@
+//! Simulator, MCAP logging, model workbench and the `stabilis` command-line runner.

@@ -1,0 +1,2 @@
+"""stabilis: stabilizing unstable systems."""
+from . import _stabilis  # noqa: F401

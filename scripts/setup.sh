@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Installs what stabilis needs on a fresh Debian machine that has Rust and Python:
+# the system OpenBLAS (Clarabel's SDP solver links it) and a Python virtual environment
+# in .venv with the build and test dependencies. Safe to run again: it skips what is there.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+need_apt=()
+for pkg in libopenblas-dev libgfortran-12-dev pkg-config; do
+    dpkg -s "$pkg" >/dev/null 2>&1 || need_apt+=("$pkg")
+done
+if ((${#need_apt[@]})); then
+    echo "setup: installing system packages: ${need_apt[*]}"
+    SUDO=""
+    [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need_apt[@]}" >/dev/null
+fi
+
+if [ ! -x .venv/bin/python ]; then
+    echo "setup: creating .venv"
+    python3 -m venv .venv
+fi
+stamp=.venv/.stabilis-deps
+deps="maturin>=1.5,<2 pytest numpy scipy mcap control"
+if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$deps" ]; then
+    echo "setup: installing Python dependencies into .venv"
+    .venv/bin/python -m pip install -q --upgrade pip
+    # shellcheck disable=SC2086
+    .venv/bin/python -m pip install -q $deps
+    echo "$deps" > "$stamp"
+fi

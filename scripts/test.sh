@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Runs every check of stabilis: formatting, lints, Rust tests, the no_std builds,
+# benchmark compilation, the Python wheel and its tests.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scripts/setup.sh
+
+step() { echo; echo "== $*"; }
+
+step "cargo fmt"
+cargo fmt --all --check
+step "cargo clippy"
+cargo clippy --workspace --all-targets --release -- -D warnings
+step "cargo test"
+cargo test --workspace --release
+step "no_std builds"
+for crate in rigid_body tilt cubli event_est; do
+    cargo build --release -p "$crate" --no-default-features --features libm
+done
+step "benchmarks compile"
+cargo bench --workspace --no-run
+step "Python wheel"
+rm -rf target/wheels
+.venv/bin/maturin build --release -q -m py/Cargo.toml -o target/wheels
+.venv/bin/python -m pip install -q --force-reinstall --no-deps target/wheels/stabilis-*.whl
+step "pytest"
+(cd py && ../.venv/bin/python -m pytest -q tests)
