@@ -4,3 +4,12 @@
 
 #[cfg(feature = "std")]
 extern crate std;
+
+mod error;
+pub use error::Error;
+
+/// Result type of this crate.
+pub type Result<T> = core::result::Result<T, Error>;
+
+#[cfg(feature = "std")]
+pub mod lti;
