@@ -66,6 +66,16 @@ pub enum Error {
         /// What the parameter must satisfy.
         requirement: &'static str,
     },
+    /// A matrix that must be a rotation is not orthonormal with determinant +1.
+    #[error("{name} is not a rotation matrix (|R^T R - I| = {orthogonality_error}, det = {determinant})")]
+    NotRotation {
+        /// Name of the matrix.
+        name: &'static str,
+        /// Frobenius norm of `R^T R - I`.
+        orthogonality_error: f64,
+        /// Its determinant.
+        determinant: f64,
+    },
     /// A vector whose direction is needed is (numerically) zero.
     #[error("{name} is the zero vector; its direction is undefined")]
     ZeroVector {

@@ -5,6 +5,7 @@
 #[cfg(feature = "std")]
 extern crate std;
 
+
 mod error;
 pub use error::Error;
 
@@ -13,3 +14,6 @@ pub type Result<T> = core::result::Result<T, Error>;
 
 #[cfg(feature = "std")]
 pub mod lti;
+pub mod matrix_set;
+pub mod s2;
+pub mod so3;

@@ -1,18 +1,13 @@
 //! Linear-systems core against closed forms, equation residuals and algebraic identities.
 #![allow(clippy::unwrap_used)]
 
+use common::config;
 use nalgebra::DMatrix;
+use nalgebra::Vector3;
 use proptest::prelude::*;
-use proptest::test_runner::RngSeed;
-use rigid_body::{lti, Error};
+use rigid_body::{lti, so3, Error};
 
-fn config() -> ProptestConfig {
-    ProptestConfig {
-        cases: 256,
-        rng_seed: RngSeed::Fixed(0x5eed_1717),
-        ..ProptestConfig::default()
-    }
-}
+mod common;
 
 fn m(rows: usize, cols: usize, data: &[f64]) -> DMatrix<f64> {
     DMatrix::from_row_slice(rows, cols, data)
@@ -131,6 +126,16 @@ proptest! {
         let f = lti::expm(&(-&a)).unwrap();
         let err = (e * f - DMatrix::identity(4, 4)).norm();
         prop_assert!(err < 1e-11 * (2.0 * a.norm()).exp(), "err {err}");
+    }
+
+    #[test]
+    fn expm_of_skew_matrix_is_rodrigues(x in -4.0..4.0, y in -4.0..4.0, z in -4.0..4.0) {
+        let w = Vector3::new(x, y, z);
+        let k = so3::hat(&w);
+        let e = lti::expm(&DMatrix::from_column_slice(3, 3, k.as_slice())).unwrap();
+        let r = so3::exp(&w);
+        let diff = DMatrix::from_column_slice(3, 3, r.matrix().as_slice()) - e;
+        prop_assert!(diff.norm() < 1e-13, "diff {}", diff.norm());
     }
 
     #[test]

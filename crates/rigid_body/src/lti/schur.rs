@@ -33,11 +33,6 @@ impl ComplexSchur {
 
     /// Eigenvalues of `A` (the diagonal of `T`).
     pub fn eigenvalues(&self) -> impl Iterator<Item = Complex<f64>> + '_ {
-        self.t
-            .diagonal()
-            .iter()
-            .copied()
-            .collect::<std::vec::Vec<_>>()
-            .into_iter()
+        (0..self.t.nrows()).map(move |i| self.t[(i, i)])
     }
 }
