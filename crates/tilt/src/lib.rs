@@ -20,6 +20,10 @@ mod math;
 mod model;
 mod placement;
 mod projection;
+#[cfg(feature = "std")]
+pub mod simulation;
+#[cfg(feature = "std")]
+pub mod study;
 mod tuning;
 
 pub use error::TiltError;
