@@ -1,5 +1,4 @@
 //! The `stabilis` command-line runner.
 fn main() {
-    eprintln!("stabilis: no commands yet");
-    std::process::exit(2);
+    std::process::exit(sim::cli::main_with_args(std::env::args_os()));
 }

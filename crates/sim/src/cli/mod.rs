@@ -1,0 +1,167 @@
+//! The `stabilis` command line. Verbs are variants of [`Command`], each defined in its own file
+//! of this directory with `Args` and `fn run(&self) -> Result<Output>`; systems of
+//! `stabilis sim <system>` are variants of [`SimSystem`], defined in `crate::scenarios`.
+//! `--json` is global: every verb returns an [`Output`] holding both renderings.
+use clap::{Parser, Subcommand};
+
+use crate::error::{Result, SimError};
+use crate::progress::Progress;
+use crate::scenarios::{self, Recording, Scenario};
+
+pub mod info;
+
+/// Stabilizing unstable systems: simulate, log, inspect.
+#[derive(Debug, Parser)]
+#[command(name = "stabilis", version, about)]
+pub struct Cli {
+    /// Print machine-readable JSON on stdout instead of the human summary.
+    #[arg(long, global = true)]
+    pub json: bool,
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The verbs.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Simulate a system in closed loop and log the run to MCAP.
+    #[command(subcommand)]
+    Sim(SimSystem),
+    /// Summarise a log: topics, message counts, time span, metadata.
+    Info(info::Args),
+}
+
+/// The systems `stabilis sim` can run.
+#[derive(Debug, Clone, PartialEq, Subcommand)]
+pub enum SimSystem {
+    /// Planar reaction-wheel inverted pendulum balanced by a discrete LQR.
+    WheelPendulum(scenarios::wheel_pendulum::Args),
+}
+
+impl SimSystem {
+    /// The scenario behind the subcommand.
+    pub fn scenario(&self) -> &dyn Scenario {
+        match self {
+            Self::WheelPendulum(args) => args,
+        }
+    }
+
+    /// Parses `system` and its options as they would appear after `stabilis sim` (used by the
+    /// Python bindings so that both front ends share one registry and one set of defaults).
+    pub fn parse_args<I, S>(system: &str, args: I) -> Result<Self>
+    where
+        I: IntoIterator<Item = S>,
+        S: Into<std::ffi::OsString> + Clone,
+    {
+        #[derive(Debug, Parser)]
+        #[command(name = "stabilis sim", no_binary_name = true)]
+        struct Wrapper {
+            #[command(subcommand)]
+            system: SimSystem,
+        }
+        let argv = std::iter::once(std::ffi::OsString::from(system))
+            .chain(args.into_iter().map(Into::into));
+        Wrapper::try_parse_from(argv)
+            .map(|w| w.system)
+            .map_err(|e| SimError::invalid("sim arguments", system, e.render().to_string().trim()))
+    }
+
+    /// Runs the scenario with a progress bar.
+    pub fn run(&self) -> Result<Recording> {
+        let mut progress = Progress::new(100, "simulating");
+        scenarios::run(self.scenario(), &mut progress)
+    }
+}
+
+/// The result of a verb in both renderings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Output {
+    /// For people.
+    pub human: String,
+    /// For machines (`--json`).
+    pub json: serde_json::Value,
+}
+
+impl Command {
+    /// Runs the verb.
+    pub fn run(&self) -> Result<Output> {
+        match self {
+            Self::Sim(system) => sim_output(&system.run()?),
+            Self::Info(args) => args.run(),
+        }
+    }
+}
+
+fn sim_output(recording: &Recording) -> Result<Output> {
+    let mut human = String::new();
+    let system = recording
+        .experiment
+        .get("system")
+        .cloned()
+        .unwrap_or_default();
+    human.push_str(&format!("{system}: "));
+    human.push_str(
+        &recording
+            .summary
+            .iter()
+            .map(|(k, v)| format!("{k} = {v}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+    );
+    if let Some(out) = &recording.out {
+        human.push_str(&format!("\nwrote {}", out.display()));
+    }
+    let topics: serde_json::Map<_, _> = recording
+        .topics
+        .iter()
+        .map(|(name, table)| {
+            (
+                name.clone(),
+                serde_json::json!({"messages": table.len(), "fields": table.fields}),
+            )
+        })
+        .collect();
+    let json = serde_json::json!({
+        "system": system,
+        "out": recording.out.as_ref().map(|p| p.display().to_string()),
+        "summary": recording.summary,
+        "experiment": recording.experiment,
+        "topics": topics,
+    });
+    Ok(Output { human, json })
+}
+
+/// Parses the command line, runs it, prints the result and returns the exit code: 0 on success,
+/// 2 on bad input (clap's usage errors too), 1 when the machine failed.
+pub fn main_with_args<I, S>(args: I) -> i32
+where
+    I: IntoIterator<Item = S>,
+    S: Into<std::ffi::OsString> + Clone,
+{
+    let cli = match Cli::try_parse_from(args) {
+        Ok(cli) => cli,
+        Err(e) => {
+            // Help and version go to stdout with code 0; usage errors to stderr with code 2.
+            let _ = e.print();
+            return e.exit_code();
+        }
+    };
+    match cli.command.run() {
+        Ok(output) => {
+            if cli.json {
+                println!("{}", output.json);
+            } else {
+                println!("{}", output.human);
+            }
+            0
+        }
+        Err(error) => {
+            if cli.json {
+                println!("{}", serde_json::json!({ "error": error.to_string() }));
+            }
+            eprintln!("error: {error}");
+            error.exit_code()
+        }
+    }
+}

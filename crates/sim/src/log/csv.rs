@@ -1,0 +1,76 @@
+//! CSV measurements: a header row, a `t` column in seconds, and the same field names as the
+//! MCAP topics. Read into the same [`Table`] as an MCAP topic.
+use std::path::Path;
+
+use super::Table;
+use crate::error::{Result, SimError};
+
+/// Reads the CSV file at `path` into a table named after the file.
+///
+/// ```
+/// let path = std::env::temp_dir().join("sim_doc_read.csv");
+/// std::fs::write(&path, "t,x\n0,1.5\n0.1,2.5\n").unwrap();
+/// let table = sim::log::read_csv(&path).unwrap();
+/// assert_eq!(table.column("x").unwrap(), &[1.5, 2.5]);
+/// ```
+pub fn read_csv(path: impl AsRef<Path>) -> Result<Table> {
+    let path = path.as_ref();
+    let text = std::fs::read(path).map_err(|e| SimError::io(path, e))?;
+    let csv_error = |reason: String| SimError::Csv {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .trim(csv::Trim::All)
+        .from_reader(text.as_slice());
+    let header: Vec<String> = reader
+        .headers()
+        .map_err(|e| csv_error(format!("cannot read the header row: {e}")))?
+        .iter()
+        .map(String::from)
+        .collect();
+    let t_index = header
+        .iter()
+        .position(|h| h == "t")
+        .ok_or_else(|| SimError::MissingField {
+            context: format!("header row of {}", path.display()),
+            field: "t".into(),
+            available: header.clone(),
+        })?;
+    let fields: Vec<String> = header
+        .iter()
+        .enumerate()
+        .filter(|&(i, _)| i != t_index)
+        .map(|(_, h)| h.clone())
+        .collect();
+    let mut table = Table::new(path.display().to_string(), fields);
+    let mut values = Vec::with_capacity(header.len());
+    for record in reader.records() {
+        let record = record.map_err(|e| csv_error(e.to_string()))?;
+        let line = record.position().map_or(0, |p| p.line());
+        values.clear();
+        let mut t = 0.0;
+        for (i, (cell, name)) in record.iter().zip(&header).enumerate() {
+            let value: f64 = cell.parse().map_err(|_| {
+                csv_error(format!(
+                    "line {line}, column {name:?}: {cell:?} is not a number"
+                ))
+            })?;
+            if !value.is_finite() {
+                return Err(SimError::NotFinite {
+                    context: format!("{} line {line}", path.display()),
+                    field: name.clone(),
+                    value: cell.to_string(),
+                });
+            }
+            if i == t_index {
+                t = value;
+            } else {
+                values.push(value);
+            }
+        }
+        table.push(t, &values)?;
+    }
+    Ok(table)
+}

@@ -1,0 +1,243 @@
+//! Reads an MCAP log into one [`Table`] per topic plus its metadata records. The file is read
+//! front to back, so a log whose writer was killed before the summary still yields every
+//! complete chunk; [`Log::complete`] says whether the data section ended properly.
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+
+use serde_json::{Map, Value};
+
+use super::Table;
+use crate::error::{Result, SimError};
+
+const MAGIC: &[u8] = b"\x89MCAP0\r\n";
+
+/// A whole log: per-topic tables and metadata records by name.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Log {
+    /// The file it was read from.
+    pub path: PathBuf,
+    /// One table per topic, by topic name.
+    pub topics: BTreeMap<String, Table>,
+    /// Metadata records by name (e.g. `experiment`).
+    pub metadata: BTreeMap<String, BTreeMap<String, String>>,
+    /// False when the file stops before its data-end record (a run that was cut off).
+    pub complete: bool,
+    /// Why reading stopped early, when it did.
+    pub problem: Option<String>,
+}
+
+impl Log {
+    /// The table of `topic`, or [`SimError::MissingTopic`] listing the topics there are.
+    pub fn topic(&self, topic: &str) -> Result<&Table> {
+        self.topics
+            .get(topic)
+            .ok_or_else(|| SimError::MissingTopic {
+                path: self.path.clone(),
+                topic: topic.to_string(),
+                available: self.topics.keys().cloned().collect(),
+            })
+    }
+
+    /// The `experiment` metadata record, if the log has one.
+    pub fn experiment(&self) -> Option<&BTreeMap<String, String>> {
+        self.metadata.get("experiment")
+    }
+}
+
+struct Channel {
+    topic: String,
+    /// Fields from the schema; `None` until the first message when the schema names none.
+    fields: Option<Vec<String>>,
+}
+
+/// Reads the MCAP file at `path`.
+pub fn read_mcap(path: impl AsRef<Path>) -> Result<Log> {
+    let path = path.as_ref();
+    let bytes = std::fs::read(path).map_err(|e| SimError::io(path, e))?;
+    read_mcap_bytes(path, &bytes)
+}
+
+/// Reads an MCAP file already in memory; `path` is used in messages only.
+pub fn read_mcap_bytes(path: &Path, bytes: &[u8]) -> Result<Log> {
+    if !bytes.starts_with(MAGIC) {
+        let reason = if bytes.len() < MAGIC.len() {
+            format!("{} bytes long, shorter than the MCAP magic", bytes.len())
+        } else {
+            "does not start with the MCAP magic bytes".to_string()
+        };
+        return Err(SimError::NotMcap {
+            path: path.to_path_buf(),
+            reason,
+        });
+    }
+    let records = mcap::read::ChunkFlattener::new_with_options(
+        bytes,
+        mcap::read::Options::IgnoreEndMagic.into(),
+    )
+    .map_err(|source| SimError::Mcap {
+        path: path.to_path_buf(),
+        source,
+    })?;
+
+    let mut schemas: HashMap<u16, Option<Vec<String>>> = HashMap::new();
+    let mut channels: HashMap<u16, Channel> = HashMap::new();
+    let mut log = Log {
+        path: path.to_path_buf(),
+        topics: BTreeMap::new(),
+        metadata: BTreeMap::new(),
+        complete: false,
+        problem: None,
+    };
+    for record in records {
+        let record = match record {
+            Ok(record) => record,
+            Err(e) => {
+                log.problem = Some(e.to_string());
+                break;
+            }
+        };
+        match record {
+            mcap::records::Record::Schema { header, data } => {
+                let fields = (header.encoding == "jsonschema")
+                    .then(|| schema_fields(&data))
+                    .flatten();
+                schemas.insert(header.id, fields);
+            }
+            mcap::records::Record::Channel(channel) => {
+                if channel.message_encoding != "json" {
+                    return Err(SimError::BadMessage {
+                        context: format!("channel {}", channel.topic),
+                        reason: format!(
+                            "message encoding is {:?}; stabilis reads json",
+                            channel.message_encoding
+                        ),
+                    });
+                }
+                let fields = schemas.get(&channel.schema_id).cloned().flatten();
+                channels.insert(
+                    channel.id,
+                    Channel {
+                        topic: channel.topic,
+                        fields,
+                    },
+                );
+            }
+            mcap::records::Record::Message { header, data } => {
+                let channel =
+                    channels
+                        .get_mut(&header.channel_id)
+                        .ok_or_else(|| SimError::BadMessage {
+                            context: format!(
+                                "message {} of channel id {}",
+                                header.sequence, header.channel_id
+                            ),
+                            reason: "its channel was never declared".into(),
+                        })?;
+                add_message(&mut log.topics, channel, &data)?;
+            }
+            mcap::records::Record::Metadata(metadata) => {
+                log.metadata.insert(metadata.name, metadata.metadata);
+            }
+            mcap::records::Record::DataEnd(_) => {
+                log.complete = true;
+                break;
+            }
+            _ => {}
+        }
+    }
+    if !log.complete && log.problem.is_none() {
+        log.problem = Some("the file ends before its data-end record".into());
+    }
+    // Declared topics without messages still appear, as empty tables.
+    for channel in channels.into_values() {
+        log.topics
+            .entry(channel.topic.clone())
+            .or_insert_with(|| Table::new(channel.topic, channel.fields.unwrap_or_default()));
+    }
+    Ok(log)
+}
+
+/// Number fields of a jsonschema object, `required` order first, then the rest by name.
+fn schema_fields(data: &[u8]) -> Option<Vec<String>> {
+    let schema: Value = serde_json::from_slice(data).ok()?;
+    let properties = schema.get("properties")?.as_object()?;
+    let is_number = |name: &str| {
+        properties
+            .get(name)
+            .and_then(|p| p.get("type"))
+            .and_then(Value::as_str)
+            .is_some_and(|ty| ty == "number" || ty == "integer")
+    };
+    let mut fields: Vec<String> = schema
+        .get("required")
+        .and_then(Value::as_array)
+        .into_iter()
+        .flatten()
+        .filter_map(Value::as_str)
+        .filter(|&name| name != "t" && is_number(name))
+        .map(String::from)
+        .collect();
+    for name in properties.keys() {
+        if name != "t" && is_number(name) && !fields.contains(name) {
+            fields.push(name.clone());
+        }
+    }
+    Some(fields)
+}
+
+fn add_message(
+    topics: &mut BTreeMap<String, Table>,
+    channel: &mut Channel,
+    data: &[u8],
+) -> Result<()> {
+    let index = topics.get(&channel.topic).map_or(0, Table::len);
+    let context = || format!("{} message {index}", channel.topic);
+    let object: Map<String, Value> =
+        serde_json::from_slice(data).map_err(|e| SimError::BadMessage {
+            context: context(),
+            reason: format!("not a JSON object: {e}"),
+        })?;
+    let t = match object.get("t") {
+        Some(value) => number(value, &context(), "t")?,
+        None => {
+            return Err(SimError::MissingField {
+                context: context(),
+                field: "t".into(),
+                available: object.keys().cloned().collect(),
+            })
+        }
+    };
+    let fields = channel.fields.get_or_insert_with(|| {
+        object
+            .iter()
+            .filter(|(name, value)| *name != "t" && value.is_number())
+            .map(|(name, _)| name.clone())
+            .collect()
+    });
+    let table = topics
+        .entry(channel.topic.clone())
+        .or_insert_with(|| Table::new(channel.topic.clone(), fields.clone()));
+    let context = format!("{} at t = {t}", channel.topic);
+    let mut values = Vec::with_capacity(fields.len());
+    for field in fields.iter() {
+        let value = object.get(field).ok_or_else(|| SimError::MissingField {
+            context: context.clone(),
+            field: field.clone(),
+            available: object.keys().cloned().collect(),
+        })?;
+        values.push(number(value, &context, field)?);
+    }
+    table.push(t, &values)
+}
+
+/// A finite number, or a named error (JSON writers turn NaN into `null`).
+fn number(value: &Value, context: &str, field: &str) -> Result<f64> {
+    match value.as_f64() {
+        Some(x) if x.is_finite() => Ok(x),
+        _ => Err(SimError::NotFinite {
+            context: context.to_string(),
+            field: field.to_string(),
+            value: value.to_string(),
+        }),
+    }
+}

@@ -1,0 +1,118 @@
+//! A topic of a log as columns: one time vector and one vector per named field, the shape in
+//! which identification and plotting want measurements.
+use crate::error::{Result, SimError};
+
+/// Time-stamped samples of named fields, stored by column.
+///
+/// ```
+/// use sim::log::Table;
+/// let mut table = Table::new("/demo/output", ["x", "v"]);
+/// table.push(0.0, &[1.0, 0.0]).unwrap();
+/// table.push(0.1, &[0.9, -1.0]).unwrap();
+/// assert_eq!(table.column("v").unwrap(), &[0.0, -1.0]);
+/// assert!(table.column("a").is_err());
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct Table {
+    /// Where the table came from (a topic or a file), used in error messages.
+    pub name: String,
+    /// Sample times in seconds.
+    pub t: Vec<f64>,
+    /// Field names, in the order of `columns`.
+    pub fields: Vec<String>,
+    /// One column per field, each as long as `t`.
+    pub columns: Vec<Vec<f64>>,
+}
+
+impl Table {
+    /// An empty table with the given fields.
+    pub fn new<S: Into<String>>(
+        name: impl Into<String>,
+        fields: impl IntoIterator<Item = S>,
+    ) -> Self {
+        let fields: Vec<String> = fields.into_iter().map(Into::into).collect();
+        let columns = vec![Vec::new(); fields.len()];
+        Self {
+            name: name.into(),
+            t: Vec::new(),
+            fields,
+            columns,
+        }
+    }
+
+    /// A table from whole columns; every column must be as long as `t`.
+    pub fn from_columns(
+        name: impl Into<String>,
+        t: Vec<f64>,
+        fields: Vec<String>,
+        columns: Vec<Vec<f64>>,
+    ) -> Result<Self> {
+        let name = name.into();
+        if fields.len() != columns.len() {
+            return Err(SimError::LengthMismatch {
+                what: format!("number of columns of {name}"),
+                expected: fields.len(),
+                found: columns.len(),
+            });
+        }
+        for (field, column) in fields.iter().zip(&columns) {
+            if column.len() != t.len() {
+                return Err(SimError::LengthMismatch {
+                    what: format!("column {field:?} of {name}"),
+                    expected: t.len(),
+                    found: column.len(),
+                });
+            }
+        }
+        Ok(Self {
+            name,
+            t,
+            fields,
+            columns,
+        })
+    }
+
+    /// Appends one sample; `values` holds one value per field.
+    pub fn push(&mut self, t: f64, values: &[f64]) -> Result<()> {
+        if values.len() != self.fields.len() {
+            return Err(SimError::LengthMismatch {
+                what: format!("sample of {} at t = {t}", self.name),
+                expected: self.fields.len(),
+                found: values.len(),
+            });
+        }
+        self.t.push(t);
+        for (column, &value) in self.columns.iter_mut().zip(values) {
+            column.push(value);
+        }
+        Ok(())
+    }
+
+    /// The column of `field`, or [`SimError::MissingField`] naming the fields there are.
+    pub fn column(&self, field: &str) -> Result<&[f64]> {
+        self.fields
+            .iter()
+            .position(|f| f == field)
+            .map(|i| self.columns[i].as_slice())
+            .ok_or_else(|| SimError::MissingField {
+                context: self.name.clone(),
+                field: field.to_string(),
+                available: self.fields.clone(),
+            })
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    /// True when the table holds no samples.
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// First and last sample time, if there are samples.
+    pub fn span(&self) -> Option<(f64, f64)> {
+        Some((*self.t.first()?, *self.t.last()?))
+    }
+}
