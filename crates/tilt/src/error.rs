@@ -63,6 +63,9 @@ pub enum TiltError {
     /// A state passed to the information tools is not finite or gravity has zero length.
     #[error("invalid state: {0}")]
     InvalidState(&'static str),
+    /// A projection of the core geometry failed (non-finite iterate or eigen-solver failure).
+    #[error("projection failed: {0}")]
+    Geometry(#[from] rigid_body::Error),
     /// The Fisher information is singular, so the Cramer-Rao bound is infinite.
     #[error("Fisher information is singular (rank {rank} of 8); the Cramer-Rao bound does not exist at this state")]
     SingularFisher {

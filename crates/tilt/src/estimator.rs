@@ -3,10 +3,11 @@
 
 use nalgebra::{Matrix3, Vector3};
 
+use rigid_body::{matrix_set, s2};
+
 use crate::least_squares::{self, LeastSquaresEstimate};
-use crate::model::decompose;
 use crate::tuning::{default_tuning, manual_tuning, Tuning};
-use crate::{projection, Layout, TiltError, G0};
+use crate::{Layout, TiltError, G0};
 
 /// Iteration settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -174,11 +175,10 @@ impl Estimator {
     pub fn estimate(&self, measurements: &[Vector3<f64>]) -> Result<Estimate, TiltError> {
         let (m_sum, m_bar) = self.layout.sample_sums(measurements)?;
         let ls = least_squares::from_sums(&self.layout, &m_sum, &m_bar);
-        let start = (
-            projection::matrix_set(&ls.omega_matrix),
-            ls.g.unwrap_or(Vector3::new(0.0, 0.0, -G0)),
-        );
-        self.iterate(measurements, &m_sum, &m_bar, &ls, start)
+        // A zero least-squares gravity (a null set) has no direction; start from "z up".
+        let g0 = ls.g.unwrap_or(Vector3::new(0.0, 0.0, -G0));
+        let start = matrix_set::project(&ls.omega_matrix)?;
+        self.iterate(measurements, &m_sum, &m_bar, &ls, (start, g0))
     }
 
     /// Runs the iteration from a given start `(Omega_0, g_0)` (projected onto M x S^2 first);
@@ -192,8 +192,8 @@ impl Estimator {
         if !omega_matrix.iter().chain(g.iter()).all(|v| v.is_finite()) {
             return Err(TiltError::InvalidState("start point is not finite"));
         }
-        let g0 = projection::sphere(g, G0)
-            .ok_or(TiltError::InvalidState("start gravity has zero length"))?;
+        let g0 = s2::project(g, G0)
+            .map_err(|_| TiltError::InvalidState("start gravity has zero length"))?;
         let (m_sum, m_bar) = self.layout.sample_sums(measurements)?;
         let ls = least_squares::from_sums(&self.layout, &m_sum, &m_bar);
         self.iterate(
@@ -201,7 +201,7 @@ impl Estimator {
             &m_sum,
             &m_bar,
             &ls,
-            (projection::matrix_set(omega_matrix), g0),
+            (matrix_set::project(omega_matrix)?, g0),
         )
     }
 
@@ -211,7 +211,7 @@ impl Estimator {
         m_sum: &Vector3<f64>,
         m_bar: &Matrix3<f64>,
         ls: &LeastSquaresEstimate,
-        start: (Matrix3<f64>, Vector3<f64>),
+        start: (matrix_set::Projection, Vector3<f64>),
     ) -> Result<Estimate, TiltError> {
         let Options {
             tuning,
@@ -223,34 +223,38 @@ impl Estimator {
         let big_p = self.layout.p_outer();
         let p = self.layout.p_sum();
         let l = self.layout.len() as f64;
-        let (mut omega, mut g) = start;
+        let (mut current, mut g) = start;
         let mut iterations = 0;
         let mut converged = false;
         while iterations < max_iterations {
-            let omega_next =
-                projection::matrix_set(&(omega + (m_bar - omega * big_p + g * p.transpose()) * r));
-            let g_step = g - (m_sum - omega_next * p + g * l) * q;
-            let g_next = projection::sphere(&g_step, G0).unwrap_or(g);
+            let omega = current.matrix;
+            let next =
+                matrix_set::project(&(omega + (m_bar - omega * big_p + g * p.transpose()) * r))?;
+            let g_step = g - (m_sum - next.matrix * p + g * l) * q;
+            // The gradient step lands on the origin only on a null set; keep g there.
+            let g_next = s2::project(&g_step, G0).unwrap_or(g);
             iterations += 1;
-            let d_omega = (omega_next - omega).norm();
+            let d_omega = (next.matrix - omega).norm();
             let d_g = (g_next - g).norm();
-            omega = omega_next;
+            current = next;
             g = g_next;
-            if d_g <= tol * G0 && (d_omega <= tol * omega.norm() || d_omega == 0.0) {
+            if d_g <= tol * G0 && (d_omega <= tol * current.matrix.norm() || d_omega == 0.0) {
                 converged = true;
                 break;
             }
         }
-        let (omega_dot, omega_norm, omega_vec) = decompose(&omega);
+        let omega = current.matrix;
+        let omega_norm = current.w.norm();
         let omega_along_plane_normal = self.layout.affine_plane().is_some_and(|plane| {
-            omega_norm > 0.0 && omega_vec.cross(&plane.normal).norm() < plane_alignment_tol * omega_norm
+            omega_norm > 0.0
+                && current.w.cross(&plane.normal).norm() < plane_alignment_tol * omega_norm
         });
         Ok(Estimate {
             g,
             omega_matrix: omega,
-            omega_dot,
+            omega_dot: current.h,
             omega_norm,
-            omega: omega_vec,
+            omega: current.w,
             iterations,
             cost: self.layout.cost(measurements, &omega, &g)?,
             flags: Flags {

@@ -3,7 +3,9 @@
 
 use nalgebra::{Matrix3, Matrix3x4, Vector3};
 
-use crate::{projection, Layout, TiltError, G0};
+use rigid_body::s2;
+
+use crate::{Layout, TiltError, G0};
 
 /// Result of the linear least-squares method.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -62,7 +64,7 @@ pub(crate) fn from_sums(
     LeastSquaresEstimate {
         omega_matrix,
         g_raw,
-        g: projection::sphere(&g_raw, G0),
+        g: s2::project(&g_raw, G0).ok(),
         rank_deficient: layout.affine_plane().is_some(),
     }
 }
