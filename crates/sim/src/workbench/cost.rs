@@ -1,0 +1,153 @@
+//! The paper's variance-weighted frequency-domain cost (spec §6.5),
+//! `V(theta) = sum_w vec(G_theta - Ĝ)^H Cov(vec Ĝ)^-1 vec(G_theta - Ĝ)`, as a sum of squares of
+//! whitened real residuals so that Gauss-Newton and Levenberg-Marquardt apply.
+use nalgebra::{DMatrix, DVector};
+
+use super::frf::{CMatrix, FrfEstimate};
+use super::spectra::C64;
+use crate::error::{Result, SimError};
+
+/// Whitening operators per line, built once from the FRF covariance.
+#[derive(Debug, Clone)]
+pub struct WeightedCost {
+    /// Line frequencies in Hz.
+    pub freqs_hz: Vec<f64>,
+    targets: Vec<CMatrix>,
+    whiten: Vec<CMatrix>,
+    /// Standard deviation of each FRF entry per line (outputs x inputs), for bands and
+    /// standardised errors.
+    pub std: Vec<DMatrix<f64>>,
+    ny: usize,
+    nu: usize,
+}
+
+impl WeightedCost {
+    /// Builds `L^-1` with `Cov = L L^H` for each line. A covariance that is exactly zero
+    /// (noise-free data) cannot weight a cost and is reported as an error.
+    pub fn new(frf: &FrfEstimate) -> Result<Self> {
+        let (ny, nu) = (frf.ny(), frf.nu());
+        let mut whiten = Vec::with_capacity(frf.lines.len());
+        let mut std = Vec::with_capacity(frf.lines.len());
+        for line in &frf.lines {
+            let n = line.cov.nrows();
+            let max_diag = (0..n).map(|i| line.cov[(i, i)].re).fold(0.0, f64::max);
+            if !(max_diag > 0.0) {
+                return Err(SimError::invalid(
+                    format!("FRF noise covariance at {:.3} Hz", line.freq_hz),
+                    "zero",
+                    "the periods are identical (noise-free data); a variance-weighted cost needs noise",
+                ));
+            }
+            // A tiny ridge keeps channels without noise (a constant output) from breaking the
+            // factorisation without changing any other weight noticeably.
+            let mut cov = line.cov.clone();
+            for i in 0..n {
+                cov[(i, i)] += C64::from(1e-12 * max_diag);
+            }
+            let chol = cov.cholesky().ok_or_else(|| {
+                SimError::invalid(
+                    format!("FRF noise covariance at {:.3} Hz", line.freq_hz),
+                    "not positive definite",
+                    "too few periods or experiments to estimate the noise of every channel",
+                )
+            })?;
+            let l = chol.l();
+            let linv = l
+                .solve_lower_triangular(&CMatrix::identity(n, n))
+                .ok_or_else(|| {
+                    SimError::invalid("FRF noise covariance", "singular", "cannot whiten")
+                })?;
+            whiten.push(linv);
+            std.push(DMatrix::from_fn(ny, nu, |i, j| {
+                line.cov[(j * ny + i, j * ny + i)].re.max(0.0).sqrt()
+            }));
+        }
+        Ok(Self {
+            freqs_hz: frf.freqs_hz(),
+            targets: frf.lines.iter().map(|l| l.g.clone()).collect(),
+            whiten,
+            std,
+            ny,
+            nu,
+        })
+    }
+
+    /// Number of real residuals (2 per complex FRF entry and line).
+    pub fn n_residuals(&self) -> usize {
+        2 * self.ny * self.nu * self.targets.len()
+    }
+
+    /// The measured FRF per line.
+    pub fn targets(&self) -> &[CMatrix] {
+        &self.targets
+    }
+
+    fn whitened(&self, k: usize, g: &CMatrix) -> DVector<C64> {
+        let e = DVector::from_iterator(self.ny * self.nu, (g - &self.targets[k]).iter().cloned());
+        &self.whiten[k] * e
+    }
+
+    /// Cost of one line.
+    pub fn line_cost(&self, k: usize, g: &CMatrix) -> f64 {
+        self.whitened(k, g).iter().map(|z| z.norm_sqr()).sum()
+    }
+
+    /// Total cost for model FRFs on every line.
+    pub fn cost(&self, model: &[CMatrix]) -> f64 {
+        model
+            .iter()
+            .enumerate()
+            .map(|(k, g)| self.line_cost(k, g))
+            .sum()
+    }
+
+    /// Real whitened residuals `[Re z; Im z]` per line, stacked.
+    pub fn residuals(&self, model: &[CMatrix]) -> DVector<f64> {
+        let m = self.ny * self.nu;
+        let mut r = DVector::zeros(self.n_residuals());
+        for (k, g) in model.iter().enumerate() {
+            let z = self.whitened(k, g);
+            for (i, v) in z.iter().enumerate() {
+                r[2 * m * k + i] = v.re;
+                r[2 * m * k + m + i] = v.im;
+            }
+        }
+        r
+    }
+
+    /// Jacobian of [`WeightedCost::residuals`] from FRF derivatives `d[k][i] = dG_k/dtheta_i`.
+    pub fn jacobian(&self, d: &[Vec<CMatrix>]) -> DMatrix<f64> {
+        let m = self.ny * self.nu;
+        let p = d.first().map_or(0, |v| v.len());
+        let mut j = DMatrix::zeros(self.n_residuals(), p);
+        for (k, dk) in d.iter().enumerate() {
+            for (i, dg) in dk.iter().enumerate() {
+                let z = &self.whiten[k] * DVector::from_iterator(m, dg.iter().cloned());
+                for (r, v) in z.iter().enumerate() {
+                    j[(2 * m * k + r, i)] = v.re;
+                    j[(2 * m * k + m + r, i)] = v.im;
+                }
+            }
+        }
+        j
+    }
+
+    /// Squared standardised error `|G - Ĝ|^2 / var` per line and entry (outputs x inputs).
+    pub fn standardised(&self, model: &[CMatrix]) -> Vec<DMatrix<f64>> {
+        model
+            .iter()
+            .enumerate()
+            .map(|(k, g)| {
+                DMatrix::from_fn(self.ny, self.nu, |i, j| {
+                    let s = self.std[k][(i, j)];
+                    let e = (g[(i, j)] - self.targets[k][(i, j)]).norm_sqr();
+                    if s > 0.0 {
+                        e / (s * s)
+                    } else {
+                        0.0
+                    }
+                })
+            })
+            .collect()
+    }
+}

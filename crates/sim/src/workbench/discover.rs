@@ -1,0 +1,292 @@
+//! Which effect is missing: fit every candidate, test the best one for significance, add it
+//! if the data demand it, repeat; then say whether what is left is noise.
+use serde::Serialize;
+
+use super::diagnose::{diagnose, matched_sf, Diagnosis, LEVEL};
+use super::fit::{fit, FitResult, ParamEstimate};
+use super::model::Model;
+use super::stats::f_sf;
+use super::Workbench;
+use crate::error::Result;
+
+/// Score of one candidate effect at one step.
+#[derive(Debug, Clone, Serialize)]
+pub struct CandidateScore {
+    /// Effect name.
+    pub effect: String,
+    /// Cost with the effect added and all parameters refitted.
+    pub cost: f64,
+    /// Cost reduction relative to the step's model, %.
+    pub reduction_percent: f64,
+    /// Free parameters added (parameters held for lack of information do not count).
+    pub added_parameters: usize,
+    /// F statistic of the nested-model test.
+    pub f_statistic: f64,
+    /// Its p-value.
+    pub p_value: f64,
+    /// Change of AIC = V/s + 2p (s: noise scale of one squared residual).
+    pub delta_aic: f64,
+    /// Change of BIC = V/s + p ln n.
+    pub delta_bic: f64,
+    /// Passes the F test at the Bonferroni-corrected level and lowers BIC.
+    pub significant: bool,
+}
+
+/// One step of the discovery: a model, its fit and diagnosis, and the candidates tried on it.
+#[derive(Debug, Clone, Serialize)]
+pub struct Step {
+    /// Effect added at this step (`None` for the starting model).
+    pub added: Option<String>,
+    /// Effects in the model.
+    pub effects: Vec<String>,
+    /// Weighted cost.
+    pub cost: f64,
+    /// Cost reduction relative to the starting model, %.
+    pub reduction_percent: f64,
+    /// Cost divided by what noise alone would give after this fit.
+    pub normalized_cost: f64,
+    /// Parameters with standard errors.
+    pub params: Vec<ParamEstimate>,
+    /// Where the misfit sits.
+    pub diagnosis: Diagnosis,
+    /// Candidates scored on this step's model (empty on the last step if at the noise level).
+    pub candidates: Vec<CandidateScore>,
+    /// Parameter vector (model order).
+    #[serde(skip)]
+    pub theta: Vec<f64>,
+    /// Model FRF on the lines.
+    #[serde(skip)]
+    pub model_frf: Vec<super::frf::CMatrix>,
+}
+
+/// Final verdict on the data.
+#[derive(Debug, Clone, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Verdict {
+    /// The remaining cost is what noise alone gives.
+    ExplainedToNoiseLevel {
+        /// Probability of a cost this large from noise alone.
+        p_value: f64,
+    },
+    /// A significant structured misfit remains that no candidate explains.
+    UnexplainedStructuredMisfit {
+        /// Probability of a cost this large from noise alone.
+        p_value: f64,
+        /// Output channels carrying it.
+        outputs: Vec<String>,
+        /// Frequency band (Hz) carrying it.
+        band_hz: Option<(f64, f64)>,
+        /// Largest FRF entries, `(output, input, misfit / expected)`.
+        worst_entries: Vec<(String, String, f64)>,
+    },
+}
+
+impl Verdict {
+    /// A sentence for the summary.
+    pub fn sentence(&self) -> String {
+        match self {
+            Self::ExplainedToNoiseLevel { p_value } => {
+                format!("explained to the noise level (p = {p_value:.3} for the remaining cost under noise alone)")
+            }
+            Self::UnexplainedStructuredMisfit {
+                p_value,
+                outputs,
+                band_hz,
+                worst_entries,
+            } => {
+                let band = band_hz.map_or("spread over the band".to_string(), |(a, b)| {
+                    format!("{a:.2}-{b:.2} Hz")
+                });
+                let entries: Vec<String> = worst_entries
+                    .iter()
+                    .map(|(o, i, r)| format!("{i}->{o} ({r:.1}x)"))
+                    .collect();
+                format!(
+                    "unexplained structured misfit (p = {p_value:.2e}) in outputs [{}], {band}; largest in {}; no candidate effect explains it",
+                    outputs.join(", "),
+                    entries.join(", ")
+                )
+            }
+        }
+    }
+}
+
+/// Result of [`Workbench::discover`].
+#[derive(Debug, Clone, Serialize)]
+pub struct Discovery {
+    /// Steps, starting with the base model.
+    pub steps: Vec<Step>,
+    /// Effects in the order added.
+    pub found: Vec<String>,
+    /// True when a significant misfit remains.
+    pub unexplained: bool,
+    /// The verdict.
+    pub verdict: Verdict,
+    /// Significance level of the tests.
+    pub level: f64,
+}
+
+impl Workbench {
+    /// Fits `model` from `start` and builds its step record.
+    pub(crate) fn step(
+        &self,
+        model: &Model,
+        added: Option<String>,
+        start: Option<&[f64]>,
+        base_cost: Option<f64>,
+    ) -> Result<Step> {
+        let r = fit(model, &self.cost, start, &self.fit_options())?;
+        Ok(self.step_from(model, added, r, base_cost))
+    }
+
+    fn step_from(
+        &self,
+        model: &Model,
+        added: Option<String>,
+        r: FitResult,
+        base_cost: Option<f64>,
+    ) -> Step {
+        let diagnosis = diagnose(&self.frf, &self.cost, &self.noise, &r.model_frf, r.free);
+        let (expected, _) = self.noise.fitted_level(r.free);
+        let base = base_cost.unwrap_or(r.cost);
+        Step {
+            added,
+            effects: model.enabled(),
+            cost: r.cost,
+            reduction_percent: 100.0 * (1.0 - r.cost / base),
+            normalized_cost: r.cost / expected,
+            params: r.params,
+            diagnosis,
+            candidates: Vec::new(),
+            theta: r.theta,
+            model_frf: r.model_frf,
+        }
+    }
+
+    /// Probability of the step's cost under noise alone.
+    pub fn noise_p_value(&self, step: &Step) -> f64 {
+        let free = step.params.iter().filter(|p| !p.held).count();
+        let (mean, _) = self.noise.fitted_level(free);
+        let sd = {
+            let t = &self.noise.total;
+            let m = t.iter().sum::<f64>() / t.len() as f64;
+            (t.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (t.len() as f64 - 1.0)).sqrt()
+        };
+        matched_sf(step.cost, mean, sd)
+    }
+
+    /// Start vector for `model` from an earlier fit: shared parameters keep their values.
+    fn carry_over(&self, from: &Model, theta: &[f64], to: &Model) -> Result<Vec<f64>> {
+        let old = from.parameters()?;
+        Ok(to
+            .parameters()?
+            .iter()
+            .map(|p| {
+                old.iter()
+                    .position(|q| q.name == p.name)
+                    .map_or(p.value, |i| theta[i])
+            })
+            .collect())
+    }
+
+    /// Scores one candidate effect on top of `model` (fitted as `current`).
+    fn score(
+        &self,
+        model: &Model,
+        current: &Step,
+        effect: &str,
+        n_candidates: usize,
+    ) -> Result<(Model, FitResult, CandidateScore)> {
+        let with = model.with_effect(effect)?;
+        let start = self.carry_over(model, &current.theta, &with)?;
+        let r = fit(&with, &self.cost, Some(&start), &self.fit_options())?;
+        let n = self.cost.n_residuals() as f64;
+        let p0 = current.params.iter().filter(|p| !p.held).count();
+        let p1 = r.free;
+        let q = p1.saturating_sub(p0);
+        let s = self.noise.per_residual();
+        let dv = current.cost - r.cost;
+        let (f_statistic, p_value) = if q > 0 && r.cost > 0.0 {
+            let f = (dv / q as f64) / (r.cost / (n - p1 as f64));
+            (f, f_sf(f, q as f64, n - p1 as f64))
+        } else {
+            (0.0, 1.0)
+        };
+        let delta_aic = -dv / s + 2.0 * q as f64;
+        let delta_bic = -dv / s + q as f64 * n.ln();
+        let significant = q > 0 && p_value < LEVEL / n_candidates.max(1) as f64 && delta_bic < 0.0;
+        let score = CandidateScore {
+            effect: effect.to_string(),
+            cost: r.cost,
+            reduction_percent: 100.0 * dv / current.cost,
+            added_parameters: q,
+            f_statistic,
+            p_value,
+            delta_aic,
+            delta_bic,
+            significant,
+        };
+        Ok((with, r, score))
+    }
+
+    /// Runs the discovery loop from the current model.
+    pub fn discover(&self) -> Result<Discovery> {
+        self.discover_with(&mut |_: &str| {})
+    }
+
+    /// [`Workbench::discover`] reporting progress (one message per fitted candidate).
+    pub fn discover_with(&self, progress: &mut dyn FnMut(&str)) -> Result<Discovery> {
+        let mut model = self.model.clone();
+        progress("fitting the starting model");
+        let mut current = self.step(&model, None, None, None)?;
+        let base_cost = current.cost;
+        let mut steps = Vec::new();
+        let mut found = Vec::new();
+        loop {
+            let candidates = model.candidates();
+            let mut best: Option<(Model, FitResult, usize)> = None;
+            let mut scores = Vec::with_capacity(candidates.len());
+            for name in &candidates {
+                progress(&format!("trying {name}"));
+                let (with, r, score) = self.score(&model, &current, name, candidates.len())?;
+                let better = best.as_ref().is_none_or(|(_, b, _)| r.cost < b.cost);
+                scores.push(score);
+                if better {
+                    best = Some((with, r, scores.len() - 1));
+                }
+            }
+            current.candidates = scores;
+            let chosen = best.filter(|(_, _, i)| current.candidates[*i].significant);
+            match chosen {
+                Some((with, r, i)) => {
+                    let name = current.candidates[i].effect.clone();
+                    found.push(name.clone());
+                    let next = self.step_from(&with, Some(name), r, Some(base_cost));
+                    steps.push(std::mem::replace(&mut current, next));
+                    model = with;
+                }
+                None => break,
+            }
+        }
+        let p_value = self.noise_p_value(&current);
+        let verdict = if p_value >= LEVEL {
+            Verdict::ExplainedToNoiseLevel { p_value }
+        } else {
+            let d = &current.diagnosis;
+            Verdict::UnexplainedStructuredMisfit {
+                p_value,
+                outputs: d.flagged_outputs(),
+                band_hz: d.band_hz,
+                worst_entries: d.worst_entries.clone(),
+            }
+        };
+        steps.push(current);
+        Ok(Discovery {
+            steps,
+            found,
+            unexplained: matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. }),
+            verdict,
+            level: LEVEL,
+        })
+    }
+}

@@ -1,0 +1,280 @@
+//! Weighted least-squares fit of a model's parameters to the FRF (Levenberg-Marquardt on the
+//! whitened residuals, box bounds by projection), parameter standard errors from the
+//! Gauss-Newton Hessian, and the identifiability check that holds parameters the data cannot
+//! separate at their documented values.
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+
+use super::cost::WeightedCost;
+use super::frf::CMatrix;
+use super::model::{Model, Parameter};
+use crate::error::{Result, SimError};
+
+/// Fit settings.
+#[derive(Debug, Clone)]
+pub struct FitOptions {
+    /// Iteration budget.
+    pub max_iterations: usize,
+    /// Stop when a step lowers the cost by less than this fraction.
+    pub rel_tolerance: f64,
+    /// Singular-value ratio below which the scaled Jacobian is rank deficient.
+    pub rank_tolerance: f64,
+    /// Sample period of the held inputs (`None`: no zero-order-hold factor).
+    pub hold: Option<f64>,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        Self {
+            max_iterations: 200,
+            rel_tolerance: 1e-10,
+            rank_tolerance: 1e-7,
+            hold: None,
+        }
+    }
+}
+
+/// One fitted parameter.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ParamEstimate {
+    /// Name.
+    pub name: String,
+    /// Estimate.
+    pub value: f64,
+    /// Standard error (absent when held).
+    pub std: Option<f64>,
+    /// Unit.
+    pub unit: String,
+    /// Held at its documented value because the data cannot separate it from others.
+    pub held: bool,
+    /// Ended on a bound.
+    pub at_bound: bool,
+    /// Standard error larger than the magnitude of the estimate.
+    pub poorly_determined: bool,
+}
+
+/// Result of a fit.
+#[derive(Debug, Clone)]
+pub struct FitResult {
+    /// Parameter vector (model order).
+    pub theta: Vec<f64>,
+    /// Per-parameter report.
+    pub params: Vec<ParamEstimate>,
+    /// Weighted cost at the estimate.
+    pub cost: f64,
+    /// Model FRF at the estimate on the cost's lines.
+    pub model_frf: Vec<CMatrix>,
+    /// Iterations used.
+    pub iterations: usize,
+    /// Number of free (estimated) parameters.
+    pub free: usize,
+}
+
+impl FitResult {
+    /// Names of the parameters held at their documented values.
+    pub fn held(&self) -> Vec<String> {
+        self.params
+            .iter()
+            .filter(|p| p.held)
+            .map(|p| p.name.clone())
+            .collect()
+    }
+}
+
+/// Fits all parameters of `model` from `start` (documented values when `None`).
+pub fn fit(
+    model: &Model,
+    cost: &WeightedCost,
+    start: Option<&[f64]>,
+    opts: &FitOptions,
+) -> Result<FitResult> {
+    let params = model.parameters()?;
+    let mut theta: Vec<f64> = match start {
+        Some(s) if s.len() == params.len() => s.to_vec(),
+        Some(s) => {
+            return Err(SimError::LengthMismatch {
+                what: "start parameter vector".into(),
+                expected: params.len(),
+                found: s.len(),
+            })
+        }
+        None => params.iter().map(|p| p.value).collect(),
+    };
+    clamp(&mut theta, &params);
+    let mut held = vec![false; params.len()];
+    let mut iterations = 0;
+    loop {
+        iterations += levenberg_marquardt(model, cost, &params, &held, &mut theta, opts)?;
+        let (g, d) = model.frf_with_jacobian(&theta, &cost.freqs_hz, opts.hold)?;
+        let j = scaled_free_jacobian(cost, &d, &params, &held);
+        match weakest(&j, opts.rank_tolerance) {
+            Some(col) => {
+                let idx = free_indices(&held)[col];
+                held[idx] = true;
+                theta[idx] = params[idx].value;
+            }
+            None => {
+                let r = cost.residuals(&g);
+                let v = r.norm_squared();
+                let estimates = report(&params, &held, &theta, &j, v, cost.n_residuals());
+                let free = held.iter().filter(|h| !**h).count();
+                return Ok(FitResult {
+                    theta,
+                    params: estimates,
+                    cost: v,
+                    model_frf: g,
+                    iterations,
+                    free,
+                });
+            }
+        }
+    }
+}
+
+fn clamp(theta: &mut [f64], params: &[Parameter]) {
+    for (t, p) in theta.iter_mut().zip(params) {
+        *t = t.clamp(p.lower, p.upper);
+    }
+}
+
+fn free_indices(held: &[bool]) -> Vec<usize> {
+    held.iter()
+        .enumerate()
+        .filter(|(_, h)| !**h)
+        .map(|(i, _)| i)
+        .collect()
+}
+
+fn scaled_free_jacobian(
+    cost: &WeightedCost,
+    d: &[Vec<CMatrix>],
+    params: &[Parameter],
+    held: &[bool],
+) -> DMatrix<f64> {
+    let full = cost.jacobian(d);
+    let free = free_indices(held);
+    DMatrix::from_fn(full.nrows(), free.len(), |r, c| {
+        full[(r, free[c])] * params[free[c]].scale()
+    })
+}
+
+/// Column with the largest weight in the smallest right singular vector when the scaled
+/// Jacobian is numerically rank deficient.
+fn weakest(j: &DMatrix<f64>, tol: f64) -> Option<usize> {
+    if j.ncols() == 0 {
+        return None;
+    }
+    let svd = j.clone().svd(false, true);
+    let v_t = svd.v_t?;
+    let s = &svd.singular_values;
+    let max = s.max();
+    let (imin, smin) =
+        s.iter().enumerate().fold(
+            (0, f64::INFINITY),
+            |acc, (i, v)| if *v < acc.1 { (i, *v) } else { acc },
+        );
+    if max > 0.0 && smin > tol * max {
+        return None;
+    }
+    let row = v_t.row(imin);
+    row.iter()
+        .enumerate()
+        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+        .map(|(i, _)| i)
+}
+
+fn levenberg_marquardt(
+    model: &Model,
+    cost: &WeightedCost,
+    params: &[Parameter],
+    held: &[bool],
+    theta: &mut [f64],
+    opts: &FitOptions,
+) -> Result<usize> {
+    let free = free_indices(held);
+    if free.is_empty() {
+        return Ok(0);
+    }
+    let scale: Vec<f64> = free.iter().map(|&i| params[i].scale()).collect();
+    let (g, d) = model.frf_with_jacobian(theta, &cost.freqs_hz, opts.hold)?;
+    let mut r = cost.residuals(&g);
+    let mut v = r.norm_squared();
+    let mut j = scaled_free_jacobian(cost, &d, params, held);
+    let mut lambda = 1e-3;
+    for it in 0..opts.max_iterations {
+        let jtj = j.transpose() * &j;
+        let grad = j.transpose() * &r;
+        let dmax = jtj.diagonal().max();
+        let mut accepted = None;
+        for _ in 0..30 {
+            let mut a = jtj.clone();
+            for i in 0..a.nrows() {
+                a[(i, i)] += lambda * jtj[(i, i)].max(1e-12 * dmax.max(1e-300));
+            }
+            let Some(chol) = a.cholesky() else {
+                lambda *= 10.0;
+                continue;
+            };
+            let step: DVector<f64> = -chol.solve(&grad);
+            let mut trial = theta.to_vec();
+            for (k, &i) in free.iter().enumerate() {
+                trial[i] += step[k] * scale[k];
+            }
+            clamp(&mut trial, params);
+            let gt = model.frf(&trial, &cost.freqs_hz, opts.hold)?;
+            let vt = cost.cost(&gt);
+            if vt.is_finite() && vt < v {
+                accepted = Some((trial, vt));
+                lambda = (lambda / 3.0).max(1e-12);
+                break;
+            }
+            lambda *= 4.0;
+        }
+        let Some((trial, vt)) = accepted else {
+            return Ok(it);
+        };
+        let decrease = v - vt;
+        theta.copy_from_slice(&trial);
+        if decrease <= opts.rel_tolerance * vt {
+            return Ok(it + 1);
+        }
+        let (g, d) = model.frf_with_jacobian(theta, &cost.freqs_hz, opts.hold)?;
+        r = cost.residuals(&g);
+        v = r.norm_squared();
+        j = scaled_free_jacobian(cost, &d, params, held);
+    }
+    Ok(opts.max_iterations)
+}
+
+fn report(
+    params: &[Parameter],
+    held: &[bool],
+    theta: &[f64],
+    j: &DMatrix<f64>,
+    v: f64,
+    n: usize,
+) -> Vec<ParamEstimate> {
+    let free = free_indices(held);
+    let sigma2 = v / (n.saturating_sub(free.len()).max(1)) as f64;
+    let cov = (j.transpose() * j).try_inverse();
+    params
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let std = free.iter().position(|&f| f == i).and_then(|k| {
+                cov.as_ref()
+                    .map(|c| (c[(k, k)].max(0.0) * sigma2).sqrt() * p.scale())
+            });
+            let at_bound = !held[i] && (theta[i] <= p.lower || theta[i] >= p.upper);
+            ParamEstimate {
+                name: p.name.clone(),
+                value: theta[i],
+                std,
+                unit: p.unit.clone(),
+                held: held[i],
+                at_bound,
+                poorly_determined: std.is_some_and(|s| s > theta[i].abs()),
+            }
+        })
+        .collect()
+}

@@ -1,0 +1,310 @@
+//! Non-parametric frequency response from periodic multi-experiment data (spec §6.3-6.4).
+//!
+//! Per excited line the experiments are stacked, `U = [Ū_1 .. Ū_E]`, and the plant is
+//! `Ĝ = Ȳ W` with `W = U^+` (least squares) or `W = R^H (U R^H)^-1` (instrumental variable,
+//! unbiased under feedback because the reference R is independent of the noise). The noise
+//! covariance of `vec Ĝ` follows by error propagation, `Σ_e (w_e w_e^H) ⊗ C_e`, where `C_e`
+//! is the covariance of the period mean of `Y - Ĝ U`, estimated from period-to-period
+//! variation and pooled across experiments.
+use nalgebra::DMatrix;
+use serde::Serialize;
+
+use super::dataset::Dataset;
+use super::spectra::{excited_bins, period_mean, Dft, C64};
+use crate::error::{Result, SimError};
+
+/// Complex matrix.
+pub type CMatrix = DMatrix<C64>;
+
+/// Which non-parametric estimator produced an FRF.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Estimator {
+    /// `Ĝ = Y U^+`: biased under feedback of noise.
+    LeastSquares,
+    /// `Ĝ = (Y R^H)(U R^H)^-1` with the logged excitation R.
+    InstrumentalVariable,
+    /// Welch-averaged cross-spectra `S_yu S_uu^-1` (non-periodic logs).
+    H1Welch,
+    /// Welch-averaged `S_yr S_ur^-1` with the logged excitation (non-periodic closed loop).
+    H1WelchInstrumental,
+}
+
+impl Estimator {
+    /// Human-readable description for summaries.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Self::LeastSquares => "least squares Y U^+ (biased under feedback)",
+            Self::InstrumentalVariable => "instrumental variable (Y R^H)(U R^H)^-1",
+            Self::H1Welch => "H1 Welch S_yu S_uu^-1 (biased under feedback)",
+            Self::H1WelchInstrumental => "Welch instrumental variable S_yr S_ur^-1",
+        }
+    }
+}
+
+/// Which estimator to use for periodic data.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EstimatorChoice {
+    /// Instrumental variable when the excitation is logged, least squares otherwise.
+    Auto,
+    /// Always least squares (the paper's estimator).
+    LeastSquares,
+    /// Instrumental variable; an error when the excitation is missing.
+    InstrumentalVariable,
+}
+
+/// The FRF at one excited line with its noise description.
+#[derive(Debug, Clone)]
+pub struct FrfLine {
+    /// Frequency in Hz.
+    pub freq_hz: f64,
+    /// Estimate, outputs x inputs.
+    pub g: CMatrix,
+    /// Covariance of vec(Ĝ) (column-major), (ny nu) x (ny nu).
+    pub cov: CMatrix,
+    /// The stacking weights W (experiments x inputs): `Ĝ = Ȳ W`.
+    pub weights: CMatrix,
+    /// Per-period noise covariance of `y - Ĝ u` (outputs x outputs).
+    pub period_noise: CMatrix,
+    /// Period-averaged input spectra per experiment (inputs x experiments).
+    pub u_mean: CMatrix,
+    /// Period-averaged output spectra per experiment (outputs x experiments).
+    pub y_mean: CMatrix,
+    /// Coherence per output (non-periodic estimates only).
+    pub coherence: Option<Vec<f64>>,
+}
+
+/// A non-parametric FRF over the excited lines.
+#[derive(Debug, Clone)]
+pub struct FrfEstimate {
+    /// The estimator used.
+    pub estimator: Estimator,
+    /// Input names (columns of G).
+    pub inputs: Vec<String>,
+    /// Output names (rows of G).
+    pub outputs: Vec<String>,
+    /// Sample rate in Hz (for the sample-and-hold factor of models).
+    pub sample_rate_hz: f64,
+    /// One entry per excited line, ascending in frequency.
+    pub lines: Vec<FrfLine>,
+    /// Periods of each experiment (for the noise-level reference distribution).
+    pub periods: Vec<usize>,
+    /// Complex degrees of freedom of the pooled noise covariance.
+    pub noise_dof: usize,
+}
+
+impl FrfEstimate {
+    /// Number of outputs.
+    pub fn ny(&self) -> usize {
+        self.outputs.len()
+    }
+    /// Number of inputs.
+    pub fn nu(&self) -> usize {
+        self.inputs.len()
+    }
+    /// Line frequencies in Hz.
+    pub fn freqs_hz(&self) -> Vec<f64> {
+        self.lines.iter().map(|l| l.freq_hz).collect()
+    }
+}
+
+/// Spectra of one experiment at the excited bins: per bin, channels x periods.
+struct ExperimentSpectra {
+    u: Vec<CMatrix>,
+    y: Vec<CMatrix>,
+    r: Option<Vec<CMatrix>>,
+}
+
+/// Estimates the FRF from periodic experiments (all with the same period).
+pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstimate> {
+    data.validate()?;
+    let layouts: Vec<_> = data
+        .experiments
+        .iter()
+        .map(|e| {
+            e.periodic.ok_or_else(|| {
+                SimError::invalid(
+                    format!("period_samples of {}", e.name),
+                    "absent",
+                    "periodic FRF needs every experiment to be periodic (experiment metadata period_samples, periods)",
+                )
+            })
+        })
+        .collect::<Result<_>>()?;
+    let n = layouts[0].period;
+    if let Some((e, l)) = data
+        .experiments
+        .iter()
+        .zip(&layouts)
+        .find(|(_, l)| l.period != n)
+    {
+        return Err(SimError::invalid(
+            format!("period_samples of {}", e.name),
+            l.period,
+            format!("all experiments must share one period; the first has {n}"),
+        ));
+    }
+    let use_iv = match choice {
+        EstimatorChoice::LeastSquares => false,
+        EstimatorChoice::Auto => data.has_excitation(),
+        EstimatorChoice::InstrumentalVariable => {
+            if let Some(e) = data.experiments.iter().find(|e| e.r.is_none()) {
+                return Err(SimError::invalid(
+                    format!("excitation of {}", e.name),
+                    "absent",
+                    "the instrumental-variable estimate needs the logged excitation topic",
+                ));
+            }
+            true
+        }
+    };
+    let nu = data.inputs.len();
+    let ny = data.outputs.len();
+    let ne = data.experiments.len();
+    if ne < nu {
+        return Err(SimError::invalid(
+            "experiments",
+            ne,
+            format!("a multi-experiment FRF of {nu} inputs needs at least {nu} experiments"),
+        ));
+    }
+    let dft = Dft::new(n);
+    let half = n.div_ceil(2); // bins 1..half are below Nyquist
+
+    // Excited lines from the period-averaged excitation (or input) spectrum.
+    let mut power = vec![0.0; half];
+    for (e, l) in data.experiments.iter().zip(&layouts) {
+        let src = if use_iv {
+            e.r.as_ref().unwrap_or(&e.u)
+        } else {
+            &e.u
+        };
+        for c in 0..nu {
+            let mean = period_mean(src, c, l.transient, n, l.periods);
+            for (k, p) in power.iter_mut().enumerate().skip(1) {
+                *p += dft.bin(mean.iter().cloned(), k).norm_sqr();
+            }
+        }
+    }
+    let bins = excited_bins(&power);
+    if bins.is_empty() {
+        return Err(SimError::invalid(
+            "excitation",
+            "no excited line",
+            format!("no frequency line below Nyquist carries excitation power in periods of {n} samples"),
+        ));
+    }
+
+    let spectra: Vec<ExperimentSpectra> = data
+        .experiments
+        .iter()
+        .zip(&layouts)
+        .map(|(e, l)| {
+            let block = |m: &DMatrix<f64>| -> Vec<CMatrix> {
+                bins.iter()
+                    .map(|&k| {
+                        CMatrix::from_fn(m.ncols(), l.periods, |c, p| {
+                            let start = l.transient + p * n;
+                            dft.bin((start..start + n).map(|i| m[(i, c)]), k)
+                        })
+                    })
+                    .collect()
+            };
+            ExperimentSpectra {
+                u: block(&e.u),
+                y: block(&e.y),
+                r: if use_iv {
+                    e.r.as_ref().map(block)
+                } else {
+                    None
+                },
+            }
+        })
+        .collect();
+
+    let periods: Vec<usize> = layouts.iter().map(|l| l.periods).collect();
+    let noise_dof: usize = periods.iter().map(|p| p - 1).sum();
+    let mut lines = Vec::with_capacity(bins.len());
+    for (bi, &k) in bins.iter().enumerate() {
+        let freq_hz = k as f64 * data.sample_rate_hz / n as f64;
+        let mean = |pick: &dyn Fn(&ExperimentSpectra) -> &CMatrix, rows: usize| {
+            CMatrix::from_fn(rows, ne, |c, e| {
+                let m = pick(&spectra[e]);
+                m.row(c).iter().sum::<C64>() / m.ncols() as f64
+            })
+        };
+        let u = mean(&|s| &s.u[bi], nu);
+        let y = mean(&|s| &s.y[bi], ny);
+        let weights = if use_iv {
+            let r = mean(&|s| s.r.as_ref().map_or(&s.u[bi], |r| &r[bi]), nu);
+            let a = &u * r.adjoint();
+            r.adjoint() * invert(&a, "U R^H", freq_hz)?
+        } else {
+            let a = &u * u.adjoint();
+            u.adjoint() * invert(&a, "U U^H", freq_hz)?
+        };
+        let g = &y * &weights;
+        // Pooled per-period covariance of y - G u.
+        let mut s = CMatrix::zeros(ny, ny);
+        for sp in &spectra {
+            let res = &sp.y[bi] - &g * &sp.u[bi];
+            let p = res.ncols();
+            let m = CMatrix::from_fn(ny, 1, |c, _| res.row(c).iter().sum::<C64>() / p as f64);
+            for q in 0..p {
+                let d = res.column(q) - &m;
+                s += &d * d.adjoint();
+            }
+        }
+        s /= C64::from(noise_dof as f64);
+        let mut cov = CMatrix::zeros(ny * nu, ny * nu);
+        for (e, &p) in periods.iter().enumerate() {
+            let w = weights.row(e).transpose();
+            let outer = &w * w.adjoint();
+            cov += outer.kronecker(&s) / C64::from(p as f64);
+        }
+        lines.push(FrfLine {
+            freq_hz,
+            g,
+            cov,
+            weights,
+            period_noise: s,
+            u_mean: u,
+            y_mean: y,
+            coherence: None,
+        });
+    }
+    Ok(FrfEstimate {
+        estimator: if use_iv {
+            Estimator::InstrumentalVariable
+        } else {
+            Estimator::LeastSquares
+        },
+        inputs: data.inputs.clone(),
+        outputs: data.outputs.clone(),
+        sample_rate_hz: data.sample_rate_hz,
+        lines,
+        periods,
+        noise_dof,
+    })
+}
+
+/// Inverse of a square stacking matrix, with an error naming the line when it is singular.
+pub(crate) fn invert(a: &CMatrix, what: &str, freq_hz: f64) -> Result<CMatrix> {
+    let sv = a.singular_values();
+    let max = sv.max();
+    let min = sv.min();
+    if !(max > 0.0) || min < 1e-12 * max {
+        return Err(SimError::invalid(
+            format!("{what} at {freq_hz:.3} Hz"),
+            format!("condition number {:.3e}", max / min.max(f64::MIN_POSITIVE)),
+            "the inputs are not independently excited at this line (need experiments whose excitations span all inputs)",
+        ));
+    }
+    a.clone().try_inverse().ok_or_else(|| {
+        SimError::invalid(
+            format!("{what} at {freq_hz:.3} Hz"),
+            "singular",
+            "cannot invert",
+        )
+    })
+}

@@ -1,0 +1,145 @@
+//! The model workbench: compare a model with measurements, see where it fails, find which
+//! physical effect is missing, add it and watch the weighted error fall.
+//!
+//! The chain is the flying-platform paper's identification made general:
+//! 1. a non-parametric FRF from all experiments ([`frf`]: least squares, or the
+//!    instrumental-variable estimate when the excitation is logged, which stays unbiased in
+//!    closed loop), with its covariance from period-to-period variation;
+//! 2. the variance-weighted cost ([`cost`]) and what it would be from noise alone ([`noise`]);
+//! 3. Levenberg-Marquardt fits with standard errors ([`fit`]);
+//! 4. diagnosis by line and channel ([`diagnose`]) and the discovery loop ([`discover`]).
+pub mod cost;
+pub mod dataset;
+pub mod diagnose;
+pub mod discover;
+pub mod fit;
+pub mod frf;
+pub mod model;
+pub mod noise;
+pub mod spectra;
+pub mod stats;
+
+use std::sync::Arc;
+
+pub use dataset::{Dataset, Experiment, Periodic};
+pub use discover::{CandidateScore, Discovery, Step, Verdict};
+pub use fit::{FitOptions, FitResult, ParamEstimate};
+pub use frf::{Estimator, EstimatorChoice, FrfEstimate};
+pub use model::{Effect, Model, ModelStructure, Parameter, StateSpace};
+
+use crate::error::{Result, SimError};
+use cost::WeightedCost;
+use noise::NoiseReference;
+
+/// Monte-Carlo draws for the noise reference.
+pub const NOISE_DRAWS: usize = 300;
+
+/// Measurements, their FRF and noise reference, and the current model.
+#[derive(Debug, Clone)]
+pub struct Workbench {
+    data: Dataset,
+    frf: FrfEstimate,
+    cost: WeightedCost,
+    noise: NoiseReference,
+    model: Model,
+}
+
+impl Workbench {
+    /// Estimates the FRF of `data` and prepares the cost for `structure` (no effect enabled).
+    pub fn new(
+        structure: Arc<dyn ModelStructure>,
+        data: Dataset,
+        estimator: EstimatorChoice,
+    ) -> Result<Self> {
+        data.validate()?;
+        for (what, want, have) in [
+            ("input", structure.inputs(), &data.inputs),
+            ("output", structure.outputs(), &data.outputs),
+        ] {
+            if &want != have {
+                let missing: Vec<&String> = want.iter().filter(|n| !have.contains(n)).collect();
+                return Err(SimError::invalid(
+                    format!("{what} channels"),
+                    have.join(","),
+                    format!(
+                        "the {} model needs {} in this order{}",
+                        structure.system(),
+                        want.join(","),
+                        if missing.is_empty() {
+                            String::new()
+                        } else {
+                            format!(
+                                "; missing channel {}",
+                                missing
+                                    .iter()
+                                    .map(|s| s.as_str())
+                                    .collect::<Vec<_>>()
+                                    .join(", ")
+                            )
+                        }
+                    ),
+                ));
+            }
+        }
+        let frf = frf::periodic_frf(&data, estimator)?;
+        let cost = WeightedCost::new(&frf)?;
+        let noise = NoiseReference::periodic(&frf, NOISE_DRAWS, 0x5eed)?;
+        Ok(Self {
+            data,
+            frf,
+            cost,
+            noise,
+            model: Model::new(structure),
+        })
+    }
+
+    /// The measurements.
+    pub fn data(&self) -> &Dataset {
+        &self.data
+    }
+
+    /// The non-parametric FRF.
+    pub fn frf(&self) -> &FrfEstimate {
+        &self.frf
+    }
+
+    /// The weighted cost.
+    pub fn cost(&self) -> &WeightedCost {
+        &self.cost
+    }
+
+    /// The noise reference.
+    pub fn noise(&self) -> &NoiseReference {
+        &self.noise
+    }
+
+    /// The current model.
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// Enables an effect of the structure by name.
+    pub fn add(&mut self, effect: &str) -> Result<()> {
+        self.model = self.model.with_effect(effect)?;
+        Ok(())
+    }
+
+    /// Adds a user-defined effect.
+    pub fn add_user_effect(&mut self, effect: Arc<dyn Effect>) -> Result<()> {
+        self.model = self.model.with_user_effect(effect)?;
+        Ok(())
+    }
+
+    /// Fit options for this data (zero-order hold at the sample period).
+    pub fn fit_options(&self) -> FitOptions {
+        FitOptions {
+            hold: Some(1.0 / self.data.sample_rate_hz),
+            ..FitOptions::default()
+        }
+    }
+
+    /// Fits the current model and diagnoses it (the "compare" of the workflow).
+    pub fn compare(&self) -> Result<Step> {
+        self.step(&self.model, None, None, None)
+    }
+}

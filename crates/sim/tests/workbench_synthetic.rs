@@ -1,0 +1,369 @@
+//! The workbench's statistics on a small system whose truth is known exactly: a two-input,
+//! two-output plant simulated in closed loop in the time domain (exact zero-order hold), with
+//! a hidden effect that the discovery loop has to find.
+#![allow(clippy::unwrap_used)]
+use std::sync::Arc;
+
+use nalgebra::DMatrix;
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use rand_distr::StandardNormal;
+use sim::workbench::{
+    Dataset, Estimator, EstimatorChoice, Experiment, Model, ModelStructure, Parameter, Periodic,
+    StateSpace, Verdict, Workbench,
+};
+use sim::Result;
+
+/// `x' = A x + B u`, `A = [[-a1, k], [0, -a2]]`, `B = diag(g1, g2)`; effect `coupling` is `k`,
+/// effect `lag` a first-order lag `tau` on both inputs, effect `leak` a direct feed-through
+/// `d` from input 1 to output 1.
+#[derive(Debug)]
+struct Toy;
+
+impl ModelStructure for Toy {
+    fn system(&self) -> &str {
+        "toy"
+    }
+    fn inputs(&self) -> Vec<String> {
+        vec!["u1".into(), "u2".into()]
+    }
+    fn outputs(&self) -> Vec<String> {
+        vec!["y1".into(), "y2".into()]
+    }
+    fn effects(&self) -> Vec<String> {
+        vec!["coupling".into(), "lag".into()]
+    }
+    fn describe(&self, effect: &str) -> String {
+        format!("toy effect {effect}")
+    }
+    fn parameters(&self, enabled: &[String]) -> Result<Vec<Parameter>> {
+        let mut p = vec![
+            Parameter::new("a1", 2.0, 0.01, 100.0, "1/s"),
+            Parameter::new("a2", 5.0, 0.01, 100.0, "1/s"),
+            Parameter::new("g1", 1.0, -10.0, 10.0, "1/s"),
+            Parameter::new("g2", 1.0, -10.0, 10.0, "1/s"),
+        ];
+        for e in enabled {
+            match e.as_str() {
+                "coupling" => p.push(Parameter::new("k", 0.5, -20.0, 20.0, "1/s")),
+                "lag" => p.push(Parameter::new("tau", 0.02, 1e-3, 1.0, "s")),
+                _ => return Err(sim::SimError::invalid("effect", e, "unknown")),
+            }
+        }
+        Ok(p)
+    }
+    fn state_space(&self, enabled: &[String], theta: &[f64]) -> Result<StateSpace> {
+        let mut a = DMatrix::from_row_slice(2, 2, &[-theta[0], 0.0, 0.0, -theta[1]]);
+        let mut b = DMatrix::from_row_slice(2, 2, &[theta[2], 0.0, 0.0, theta[3]]);
+        let mut at = 4;
+        for e in enabled {
+            match e.as_str() {
+                "coupling" => {
+                    a[(0, 1)] = theta[at];
+                    at += 1;
+                }
+                "lag" => {
+                    let tau = theta[at];
+                    at += 1;
+                    let mut a4 = DMatrix::zeros(4, 4);
+                    a4.view_mut((0, 0), (2, 2)).copy_from(&a);
+                    a4.view_mut((0, 2), (2, 2)).copy_from(&b);
+                    a4[(2, 2)] = -1.0 / tau;
+                    a4[(3, 3)] = -1.0 / tau;
+                    let mut b4 = DMatrix::zeros(4, 2);
+                    b4[(2, 0)] = 1.0 / tau;
+                    b4[(3, 1)] = 1.0 / tau;
+                    a = a4;
+                    b = b4;
+                }
+                _ => return Err(sim::SimError::invalid("effect", e, "unknown")),
+            }
+        }
+        let n = a.nrows();
+        let mut c = DMatrix::zeros(2, n);
+        c[(0, 0)] = 1.0;
+        c[(1, 1)] = 1.0;
+        Ok(StateSpace {
+            a,
+            b,
+            c,
+            d: DMatrix::zeros(2, 2),
+            delay: 0.0,
+        })
+    }
+}
+
+const FS: f64 = 50.0;
+const N: usize = 100;
+const P: usize = 6;
+const TRANSIENT: usize = 200;
+const AMPLITUDE: f64 = 1.0;
+
+struct Truth {
+    effects: Vec<String>,
+    theta: Vec<f64>,
+    /// Extra delay in samples on the outputs (an effect no candidate models).
+    output_delay: usize,
+}
+
+/// Closed-loop records: `u = r - K y_meas`, process noise on the states, sensor noise on y.
+fn simulate(truth: &Truth, noise: f64, seed: u64) -> Dataset {
+    let model = Model::new(Arc::new(Toy));
+    let model = truth
+        .effects
+        .iter()
+        .fold(model, |m, e| m.with_effect(e).unwrap());
+    let ss = model.state_space(&truth.theta).unwrap();
+    let (phi, gamma) = rigid_body::lti::c2d_zoh(&ss.a, &ss.b, 1.0 / FS).unwrap();
+    let mut rng = StdRng::seed_from_u64(seed);
+    let lines: Vec<usize> = (1..=15).collect();
+    let phases: Vec<Vec<f64>> = (0..2)
+        .map(|_| lines.iter().map(|_| rng.random::<f64>() * 6.283).collect())
+        .collect();
+    let total = TRANSIENT + N * P;
+    let experiments = (0..4)
+        .map(|e| {
+            let (input, set) = (e % 2, e / 2);
+            let mut r = DMatrix::zeros(total, 2);
+            for k in 0..total {
+                let t = (k % N) as f64 / N as f64;
+                r[(k, input)] = lines
+                    .iter()
+                    .zip(&phases[set])
+                    .map(|(&l, ph)| AMPLITUDE * (6.283185307179586 * l as f64 * t + ph).cos())
+                    .sum::<f64>();
+            }
+            let n = ss.a.nrows();
+            let mut x = nalgebra::DVector::zeros(n);
+            let mut u = DMatrix::zeros(total, 2);
+            let mut y = DMatrix::zeros(total, 2);
+            let mut history: Vec<nalgebra::DVector<f64>> = Vec::new();
+            for k in 0..total {
+                let clean = &ss.c * &x;
+                history.push(clean.clone());
+                let lagged = if k >= truth.output_delay {
+                    history[k - truth.output_delay].clone()
+                } else {
+                    clean * 0.0
+                };
+                for i in 0..2 {
+                    y[(k, i)] = lagged[i] + noise * rng.sample::<f64, _>(StandardNormal);
+                }
+                for i in 0..2 {
+                    u[(k, i)] = r[(k, i)] - 0.8 * y[(k, i)];
+                }
+                let w = nalgebra::DVector::from_fn(n, |_, _| {
+                    0.05 * noise * rng.sample::<f64, _>(StandardNormal)
+                });
+                x = &phi * &x + &gamma * u.row(k).transpose() + w;
+            }
+            Experiment {
+                name: format!("experiment {}", e + 1),
+                u,
+                y,
+                r: Some(r),
+                periodic: Some(Periodic {
+                    period: N,
+                    periods: P,
+                    transient: TRANSIENT,
+                }),
+            }
+        })
+        .collect();
+    Dataset {
+        sample_rate_hz: FS,
+        inputs: vec!["u1".into(), "u2".into()],
+        outputs: vec!["y1".into(), "y2".into()],
+        experiments,
+    }
+}
+
+fn base_truth() -> Truth {
+    Truth {
+        effects: vec![],
+        theta: vec![1.5, 4.0, 2.0, 1.2],
+        output_delay: 0,
+    }
+}
+
+fn coupled_truth() -> Truth {
+    Truth {
+        effects: vec!["coupling".into()],
+        theta: vec![1.5, 4.0, 2.0, 1.2, 3.0],
+        output_delay: 0,
+    }
+}
+
+#[test]
+fn frf_of_noise_free_closed_loop_equals_sampled_model() {
+    let truth = coupled_truth();
+    let data = simulate(&truth, 1e-9, 1);
+    for choice in [
+        EstimatorChoice::LeastSquares,
+        EstimatorChoice::InstrumentalVariable,
+    ] {
+        let frf = sim::workbench::frf::periodic_frf(&data, choice).unwrap();
+        assert_eq!(frf.lines.len(), 15);
+        let model = Model::new(Arc::new(Toy)).with_effect("coupling").unwrap();
+        let g = model
+            .frf(&truth.theta, &frf.freqs_hz(), Some(1.0 / FS))
+            .unwrap();
+        for (line, gm) in frf.lines.iter().zip(&g) {
+            let rel = (&line.g - gm).norm() / gm.norm();
+            assert!(
+                rel < 1e-6,
+                "{choice:?} at {} Hz: relative error {rel:e}",
+                line.freq_hz
+            );
+        }
+    }
+}
+
+#[test]
+fn cost_at_the_truth_matches_the_noise_reference() {
+    let truth = coupled_truth();
+    let model = Model::new(Arc::new(Toy)).with_effect("coupling").unwrap();
+    for seed in [2, 3] {
+        let wb = Workbench::new(
+            Arc::new(Toy),
+            simulate(&truth, 0.02, seed),
+            EstimatorChoice::InstrumentalVariable,
+        )
+        .unwrap();
+        let g = model
+            .frf(&truth.theta, &wb.frf().freqs_hz(), Some(1.0 / FS))
+            .unwrap();
+        let ratio = wb.cost().cost(&g) / wb.noise().mean();
+        assert!(
+            (0.7..1.4).contains(&ratio),
+            "seed {seed}: cost at truth / noise mean = {ratio}"
+        );
+    }
+}
+
+#[test]
+fn auto_uses_instrumental_variable_when_excitation_is_logged() {
+    let data = simulate(&base_truth(), 0.1, 3);
+    let wb = Workbench::new(Arc::new(Toy), data.clone(), EstimatorChoice::Auto).unwrap();
+    assert_eq!(wb.frf().estimator, Estimator::InstrumentalVariable);
+    let mut no_r = data;
+    no_r.experiments.iter_mut().for_each(|e| e.r = None);
+    let wb = Workbench::new(Arc::new(Toy), no_r, EstimatorChoice::Auto).unwrap();
+    assert_eq!(wb.frf().estimator, Estimator::LeastSquares);
+}
+
+#[test]
+fn discovers_hidden_coupling_and_recovers_it() {
+    let truth = coupled_truth();
+    let wb = Workbench::new(
+        Arc::new(Toy),
+        simulate(&truth, 0.02, 4),
+        EstimatorChoice::Auto,
+    )
+    .unwrap();
+    let d = wb.discover().unwrap();
+    assert_eq!(d.found, vec!["coupling".to_string()]);
+    assert!(
+        matches!(d.verdict, Verdict::ExplainedToNoiseLevel { .. }),
+        "{}",
+        d.verdict.sentence()
+    );
+    let last = d.steps.last().unwrap();
+    assert!(
+        last.reduction_percent > 95.0,
+        "reduction {}",
+        last.reduction_percent
+    );
+    for (p, t) in last.params.iter().zip(&truth.theta) {
+        let err = (p.value - t).abs();
+        assert!(
+            err < 4.0 * p.std.unwrap() + 1e-3 * t.abs(),
+            "{} = {} +- {:?}, truth {t}",
+            p.name,
+            p.value,
+            p.std
+        );
+        assert!(err < 0.1 * t.abs(), "{}: {} vs {t}", p.name, p.value);
+    }
+}
+
+#[test]
+fn adds_nothing_when_data_are_explained_to_the_noise_level() {
+    for seed in 10..13 {
+        let wb = Workbench::new(
+            Arc::new(Toy),
+            simulate(&base_truth(), 0.02, seed),
+            EstimatorChoice::Auto,
+        )
+        .unwrap();
+        let d = wb.discover().unwrap();
+        assert!(d.found.is_empty(), "seed {seed}: found {:?}", d.found);
+        assert!(!d.unexplained, "seed {seed}: {}", d.verdict.sentence());
+        assert_eq!(d.steps.len(), 1);
+        assert!(d.steps[0].candidates.iter().all(|c| !c.significant));
+    }
+}
+
+#[test]
+fn reports_structured_misfit_that_no_candidate_explains() {
+    let truth = Truth {
+        output_delay: 3,
+        ..coupled_truth()
+    };
+    let wb = Workbench::new(
+        Arc::new(Toy),
+        simulate(&truth, 0.02, 5),
+        EstimatorChoice::Auto,
+    )
+    .unwrap();
+    let d = wb.discover().unwrap();
+    assert!(d.unexplained, "{}", d.verdict.sentence());
+    match &d.verdict {
+        Verdict::UnexplainedStructuredMisfit {
+            outputs, band_hz, ..
+        } => {
+            assert!(!outputs.is_empty());
+            assert!(band_hz.is_some());
+        }
+        v => panic!("unexpected verdict {v:?}"),
+    }
+}
+
+#[test]
+fn bad_data_gives_named_errors() {
+    let good = simulate(&base_truth(), 0.1, 6);
+    let mut nan = good.clone();
+    nan.experiments[2].y[(17, 1)] = f64::NAN;
+    let msg = Workbench::new(Arc::new(Toy), nan, EstimatorChoice::Auto)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.contains("y2") && msg.contains("experiment 3") && msg.contains("sample 17"),
+        "{msg}"
+    );
+
+    let mut missing = good.clone();
+    missing.outputs = vec!["y1".into(), "y3".into()];
+    let msg = Workbench::new(Arc::new(Toy), missing, EstimatorChoice::Auto)
+        .unwrap_err()
+        .to_string();
+    assert!(msg.contains("missing channel y2"), "{msg}");
+
+    let mut short = good.clone();
+    short.experiments[0].periodic = Some(Periodic {
+        period: N,
+        periods: 1,
+        transient: TRANSIENT,
+    });
+    let msg = Workbench::new(Arc::new(Toy), short, EstimatorChoice::Auto)
+        .unwrap_err()
+        .to_string();
+    assert!(msg.contains("periods of experiment 1"), "{msg}");
+
+    let mut few = good;
+    few.experiments.truncate(1);
+    let msg = Workbench::new(Arc::new(Toy), few, EstimatorChoice::Auto)
+        .unwrap_err()
+        .to_string();
+    assert!(msg.contains("at least 2 experiments"), "{msg}");
+}
