@@ -256,6 +256,18 @@ fn double_integrator_lqr_closed_form() {
 }
 
 #[test]
+fn double_integrator_with_position_weight_only() {
+    // Q = diag(1, 0) is singular but (A, Q) is detectable: P = [[√2, 1], [1, √2]], K = [1, √2].
+    let a = m(2, 2, &[0.0, 1.0, 0.0, 0.0]);
+    let b = m(2, 1, &[0.0, 1.0]);
+    let q = m(2, 2, &[1.0, 0.0, 0.0, 0.0]);
+    let s2 = 2f64.sqrt();
+    let sol = lti::lqr(&a, &b, &q, &DMatrix::identity(1, 1)).unwrap();
+    assert!((&sol.p - m(2, 2, &[s2, 1.0, 1.0, s2])).norm() < 1e-12);
+    assert!((&sol.k - m(1, 2, &[1.0, s2])).norm() < 1e-12);
+}
+
+#[test]
 fn scalar_riccati_closed_forms() {
     // CARE 2 a x - x^2 b^2 / r + q = 0: x = r (a + sqrt(a^2 + b^2 q / r)) / b^2.
     let (a, b, q, r) = (0.7, 2.0, 3.0, 0.5);
