@@ -22,7 +22,7 @@ if [ ! -x .venv/bin/python ]; then
     python3 -m venv .venv
 fi
 stamp=.venv/.stabilis-deps
-deps="maturin>=1.5,<2 pytest numpy scipy mcap control"
+deps="maturin>=1.9.4,<2 pytest numpy scipy mcap control"
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$deps" ]; then
     echo "setup: installing Python dependencies into .venv"
     .venv/bin/python -m pip install -q --upgrade pip

@@ -1,7 +1,18 @@
-//! Python bindings of stabilis: the native module `stabilis._stabilis`.
+//! Python bindings of stabilis: the native module `stabilis._stabilis`. Each domain is one file
+//! with `pub fn register(parent: &Bound<PyModule>)` that adds a submodule, registered below with
+//! one line; the Python package re-exports it from `python/stabilis/<domain>.py`.
 use pyo3::prelude::*;
 
+mod errors;
+mod geometry;
+mod log;
+mod sim;
+
 #[pymodule]
-fn _stabilis(_m: &Bound<'_, PyModule>) -> PyResult<()> {
+fn _stabilis(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    errors::register(m)?;
+    geometry::register(m)?;
+    log::register(m)?;
+    sim::register(m)?;
     Ok(())
 }

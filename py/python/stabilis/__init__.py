@@ -1,2 +1,5 @@
 """stabilis: stabilizing unstable systems."""
 from . import _stabilis  # noqa: F401
+from ._stabilis import Error, LogError, SimError
+from . import geometry, log, sim
+from .log import Log, read_csv, read_mcap

@@ -60,11 +60,24 @@ impl SimSystem {
             #[command(subcommand)]
             system: SimSystem,
         }
-        let argv = std::iter::once(std::ffi::OsString::from(system))
-            .chain(args.into_iter().map(Into::into));
+        let args: Vec<std::ffi::OsString> = args.into_iter().map(Into::into).collect();
+        let shown = args
+            .iter()
+            .map(|a| a.to_string_lossy())
+            .collect::<Vec<_>>()
+            .join(" ");
+        let argv = std::iter::once(std::ffi::OsString::from(system)).chain(args);
         Wrapper::try_parse_from(argv)
             .map(|w| w.system)
-            .map_err(|e| SimError::invalid("sim arguments", system, e.render().to_string().trim()))
+            .map_err(|e| {
+                let rendered = e.render().to_string();
+                let reason = rendered.lines().next().unwrap_or_default();
+                SimError::invalid(
+                    format!("options of `stabilis sim {system}`"),
+                    shown,
+                    reason.trim_start_matches("error: "),
+                )
+            })
     }
 
     /// Runs the scenario with a progress bar.
