@@ -2,10 +2,10 @@
 //!
 //! Both equations are first checked for solvability with PBH rank tests (stabilizability of
 //! `(A, B)` and detectability of `(A, Q)` on every eigenvalue of `A` that is not asymptotically
-//! stable), so that an unsolvable problem is reported by name. The discrete equation is solved by
-//! the structure-preserving doubling algorithm (Chu, Fan, Lin, Wang 2004), the continuous one by
-//! the matrix sign function of the Hamiltonian (Newton iteration with determinant scaling); both
-//! results are then polished by Newton steps (Hewer / Kleinman) on the Lyapunov solvers.
+//! stable), so that an unsolvable problem is reported by name. Both are then solved by the
+//! structure-preserving doubling algorithm (SDA; Chu, Fan, Lin, Wang 2004 for the DARE; Chu, Fan,
+//! Lin 2005 for the CARE, after a Cayley transform of the Hamiltonian), and polished by Newton
+//! steps (Hewer / Kleinman) on the Lyapunov solvers.
 
 use super::schur::{complexify, ComplexSchur};
 use super::{dlyap, lyap, shaped, square, symmetric, symmetrized};
@@ -158,30 +158,7 @@ pub fn care(
         return Ok(q.clone());
     }
     let g = symmetrized(&(b * &pr.r_inv_bt));
-    let mut ham = DMatrix::zeros(2 * n, 2 * n);
-    ham.view_mut((0, 0), (n, n)).copy_from(a);
-    ham.view_mut((0, n), (n, n)).copy_from(&(-&g));
-    ham.view_mut((n, 0), (n, n)).copy_from(&(-q));
-    ham.view_mut((n, n), (n, n)).copy_from(&(-a.transpose()));
-    let w = sign(ham)?;
-    // The stable invariant subspace is ker(W + I) = span [I; X].
-    let mut lhs = DMatrix::zeros(2 * n, n);
-    lhs.view_mut((0, 0), (n, n))
-        .copy_from(&w.view((0, n), (n, n)));
-    lhs.view_mut((n, 0), (n, n))
-        .copy_from(&(w.view((n, n), (n, n)) + DMatrix::identity(n, n)));
-    let mut rhs = DMatrix::zeros(2 * n, n);
-    rhs.view_mut((0, 0), (n, n))
-        .copy_from(&(-(w.view((0, 0), (n, n)) + DMatrix::identity(n, n))));
-    rhs.view_mut((n, 0), (n, n))
-        .copy_from(&(-w.view((n, 0), (n, n))));
-    let qr = lhs.qr();
-    let x = qr
-        .r()
-        .solve_upper_triangular(&(qr.q().transpose() * rhs))
-        .ok_or(Error::Singular {
-            name: "stable invariant subspace of the Hamiltonian",
-        })?;
+    let x = care_doubling(a, &g, q)?;
     let mut x = symmetrized(&x);
     // Kleinman–Newton polishing: X+ solves (A - G X)^T X+ + X+ (A - G X) + Q + X G X = 0.
     for _ in 0..3 {
@@ -196,40 +173,73 @@ pub fn care(
         x = next;
     }
     let closed = a - &g * &x;
-    check_closed_loop(&closed, Domain::Continuous, "CARE (sign function)")?;
+    check_closed_loop(&closed, Domain::Continuous, "CARE (doubling)")?;
     Ok(x)
 }
 
-/// Matrix sign function by the scaled Newton iteration `Z <- (Z / c + c Z^{-1}) / 2`.
-fn sign(mut z: DMatrix<f64>) -> Result<DMatrix<f64>> {
+/// CARE by SDA on the Cayley transform `(H - γI)^{-1} (H + γI)` of the Hamiltonian, whose
+/// stable invariant subspace `[I; X]` is that of `H` (Chu, Fan, Lin 2005):
+/// `A_γ = A - γI`, `W = A_γ^T + Q A_γ^{-1} G`, `V = A_γ + G A_γ^{-T} Q`, then
+/// `A0 = I + 2γ V^{-1}`, `G0 = 2γ A_γ^{-1} G W^{-1}`, `H0 = 2γ W^{-1} Q A_γ^{-1}`.
+/// `γ` starts at `max(1, |A|_F)` and is enlarged if one of the inverses does not exist.
+fn care_doubling(a: &DMatrix<f64>, g: &DMatrix<f64>, q: &DMatrix<f64>) -> Result<DMatrix<f64>> {
+    let n = a.nrows();
+    let identity = DMatrix::<f64>::identity(n, n);
+    let mut gamma = a.norm().max(1.0);
+    for _ in 0..4 {
+        let a_gamma = a - &identity * gamma;
+        let Some(a_gamma_inv) = a_gamma.clone().try_inverse() else {
+            gamma *= 1.7;
+            continue;
+        };
+        let w = a_gamma.transpose() + q * &a_gamma_inv * g;
+        let v = &a_gamma + g * a_gamma_inv.transpose() * q;
+        let (Some(w_inv), Some(v_inv)) = (w.try_inverse(), v.try_inverse()) else {
+            gamma *= 1.7;
+            continue;
+        };
+        let a0 = &identity + v_inv * (2.0 * gamma);
+        let g0 = symmetrized(&(&a_gamma_inv * g * &w_inv * (2.0 * gamma)));
+        let h0 = symmetrized(&(&w_inv * q * &a_gamma_inv * (2.0 * gamma)));
+        return doubling(a0, g0, h0, "doubling iteration for the CARE");
+    }
+    Err(Error::Singular {
+        name: "A - γI or its Cayley-transformed Hamiltonian blocks",
+    })
+}
+
+/// SDA: `A+ = A (I + G H)^{-1} A`, `G+ = G + A (I + G H)^{-1} G A^T`,
+/// `H+ = H + A^T H (I + G H)^{-1} A`; `H` converges quadratically to the stabilizing solution.
+fn doubling(
+    mut ak: DMatrix<f64>,
+    mut gk: DMatrix<f64>,
+    mut hk: DMatrix<f64>,
+    algorithm: &'static str,
+) -> Result<DMatrix<f64>> {
     const ITERATIONS: usize = 100;
-    let dim = z.nrows() as f64;
-    let mut scaling = true;
+    let identity = DMatrix::<f64>::identity(ak.nrows(), ak.nrows());
     for _ in 0..ITERATIONS {
-        let lu = z.clone().lu();
-        let log_det: f64 = lu.u().diagonal().iter().map(|d| d.abs().ln()).sum();
-        let inv = lu.try_inverse().ok_or(Error::Singular {
-            name: "Hamiltonian (eigenvalue on the imaginary axis)",
-        })?;
-        let c = if scaling { (log_det / dim).exp() } else { 1.0 };
-        if !c.is_finite() || c == 0.0 {
-            return Err(Error::Singular {
-                name: "Hamiltonian (eigenvalue on the imaginary axis)",
-            });
+        let lu = (&identity + &gk * &hk).lu();
+        let singular = Error::Singular {
+            name: "I + G H in the doubling iteration",
+        };
+        let w_a = lu.solve(&ak).ok_or(singular)?;
+        let w_g = lu.solve(&gk).ok_or(singular)?;
+        let h_next = symmetrized(&(&hk + ak.transpose() * &hk * &w_a));
+        let g_next = symmetrized(&(&gk + &ak * w_g * ak.transpose()));
+        ak = &ak * w_a;
+        let change = (&h_next - &hk).norm();
+        hk = h_next;
+        gk = g_next;
+        if !hk.iter().all(|v| v.is_finite()) {
+            break;
         }
-        let next = (&z / c + inv * c) * 0.5;
-        let change = (&next - &z).norm();
-        let size = next.norm();
-        z = next;
-        if change <= 1e-2 * size {
-            scaling = false;
-        }
-        if change <= 1e3 * f64::EPSILON * size {
-            return Ok(z);
+        if change <= 1e3 * f64::EPSILON * hk.norm().max(f64::MIN_POSITIVE) {
+            return Ok(hk);
         }
     }
     Err(Error::NoConvergence {
-        algorithm: "matrix sign iteration for the CARE",
+        algorithm,
         iterations: ITERATIONS,
     })
 }
@@ -286,45 +296,17 @@ pub fn dare(
     q: &DMatrix<f64>,
     r: &DMatrix<f64>,
 ) -> Result<DMatrix<f64>> {
-    const ITERATIONS: usize = 100;
     let pr = validate(a, b, q, r, Domain::Discrete)?;
-    let n = pr.n;
-    if n == 0 {
+    if pr.n == 0 {
         return Ok(q.clone());
     }
-    let identity = DMatrix::<f64>::identity(n, n);
-    let mut ak = a.clone();
-    let mut gk = symmetrized(&(b * &pr.r_inv_bt));
-    let mut hk = symmetrized(q);
-    let mut converged = false;
-    for _ in 0..ITERATIONS {
-        let lu = (&identity + &gk * &hk).lu();
-        let singular = Error::Singular {
-            name: "I + G H in the doubling iteration",
-        };
-        let w_a = lu.solve(&ak).ok_or(singular)?;
-        let w_g = lu.solve(&gk).ok_or(singular)?;
-        let h_next = symmetrized(&(&hk + ak.transpose() * &hk * &w_a));
-        let g_next = symmetrized(&(&gk + &ak * w_g * ak.transpose()));
-        ak = &ak * w_a;
-        let change = (&h_next - &hk).norm();
-        hk = h_next;
-        gk = g_next;
-        if !hk.iter().all(|v| v.is_finite()) {
-            break;
-        }
-        if change <= 1e3 * f64::EPSILON * hk.norm().max(f64::MIN_POSITIVE) {
-            converged = true;
-            break;
-        }
-    }
-    if !converged {
-        return Err(Error::NoConvergence {
-            algorithm: "doubling iteration for the DARE",
-            iterations: ITERATIONS,
-        });
-    }
-    let mut x = hk;
+    let g = symmetrized(&(b * &pr.r_inv_bt));
+    let mut x = doubling(
+        a.clone(),
+        g,
+        symmetrized(q),
+        "doubling iteration for the DARE",
+    )?;
     // Hewer–Newton polishing: X+ solves Acl^T X+ Acl - X+ + Q + K^T R K = 0.
     for _ in 0..3 {
         let k = dare_gain(a, b, r, &x)?;
