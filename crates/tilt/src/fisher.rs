@@ -44,7 +44,8 @@ pub fn jacobian(
     let w = omega.cross_matrix();
     let p = position.cross_matrix();
     let mut j = Jacobian::zeros();
-    j.fixed_view_mut::<3, 3>(0, 0).copy_from(&(w * p * 2.0 - p * w));
+    j.fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&(w * p * 2.0 - p * w));
     j.fixed_view_mut::<3, 3>(0, 3).copy_from(&p);
     j.fixed_view_mut::<3, 2>(0, 6)
         .copy_from(&(-g_bar.cross_matrix() * basis));

@@ -47,10 +47,7 @@ pub fn a_s(layout: &Layout, q: f64, r: f64) -> [[f64; 2]; 2] {
     let a = (Matrix3::identity() - layout.p_outer() * r).norm();
     let p = layout.p_sum().norm();
     let l = layout.len() as f64;
-    [
-        [a, r * p],
-        [q * p * a, (1.0 - q * l).abs() + q * r * p * p],
-    ]
+    [[a, r * p], [q * p * a, (1.0 - q * l).abs() + q * r * p * p]]
 }
 
 /// Eigenvalues of `A_s(q, r)`, ascending.
@@ -108,13 +105,15 @@ pub fn default_tuning(layout: &Layout) -> Tuning {
     numerical_tuning(layout)
 }
 
-/// Minimises the spectral radius of `A_s` over `q in [1e-3/L, 2/L]`, `r in [1e-3/tr P, 4/tr P]`
-/// by a logarithmic grid followed by a shrinking pattern search (a smooth-enough 2-D problem
-/// for which no solver dependency is warranted in a `no_std` crate).
+/// Minimises the spectral radius of `A_s` over the box `q in [0.1/L, 2/L]`,
+/// `r in [1e-3/tr P, 4/tr P]` by a logarithmic grid followed by a shrinking pattern search
+/// kept inside the box (a 2-D problem for which no solver dependency is warranted in a
+/// `no_std` crate). The lower bound on q keeps the gravity update from stalling: the radius
+/// tends to `max(|I - rP|_F, 1)` as q goes to 0.
 fn numerical_tuning(layout: &Layout) -> Tuning {
     let l = layout.len() as f64;
     let t = layout.p_outer().trace();
-    let (lq_min, lq_max) = (math::ln(1e-3 / l), math::ln(2.0 / l));
+    let (lq_min, lq_max) = (math::ln(0.1 / l), math::ln(2.0 / l));
     let (lr_min, lr_max) = (math::ln(1e-3 / t), math::ln(4.0 / t));
     let radius = |lq: f64, lr: f64| {
         let [lo, hi] = a_s_eigenvalues(layout, math::exp(lq), math::exp(lr));
@@ -136,9 +135,11 @@ fn numerical_tuning(layout: &Layout) -> Tuning {
     while step > 1e-9 {
         let mut improved = false;
         for (dq, dr) in [(step, 0.0), (-step, 0.0), (0.0, step), (0.0, -step)] {
-            let rho = radius(best.0 + dq, best.1 + dr);
+            let lq = (best.0 + dq).clamp(lq_min, lq_max);
+            let lr = (best.1 + dr).clamp(lr_min, lr_max);
+            let rho = radius(lq, lr);
             if rho < best.2 {
-                best = (best.0 + dq, best.1 + dr, rho);
+                best = (lq, lr, rho);
                 improved = true;
             }
         }
