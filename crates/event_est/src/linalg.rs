@@ -1,0 +1,151 @@
+//! Dense helpers on top of nalgebra and `rigid_body::lti`: eigenvalue margins, the centralised
+//! Kalman filter, H2 and H∞ norms of the error dynamics.
+
+use crate::error::EventEstError;
+use nalgebra::{Complex, DMatrix};
+use rigid_body::lti;
+
+/// Spectral radius (largest eigenvalue modulus) of a square matrix.
+pub fn spectral_radius(m: &DMatrix<f64>) -> f64 {
+    m.complex_eigenvalues()
+        .iter()
+        .map(|z| z.norm())
+        .fold(0.0, f64::max)
+}
+
+/// Eigenvalues of the symmetric part of `m`, ascending.
+pub fn sym_eigenvalues(m: &DMatrix<f64>) -> Vec<f64> {
+    let s = (m + m.transpose()) * 0.5;
+    let mut ev: Vec<f64> = s.symmetric_eigenvalues().iter().copied().collect();
+    ev.sort_by(f64::total_cmp);
+    ev
+}
+
+/// Smallest eigenvalue of the symmetric part of `m` (+∞ for an empty matrix).
+pub fn min_eigenvalue(m: &DMatrix<f64>) -> f64 {
+    sym_eigenvalues(m).first().copied().unwrap_or(f64::INFINITY)
+}
+
+/// Largest eigenvalue of the symmetric part of `m` (−∞ for an empty matrix).
+pub fn max_eigenvalue(m: &DMatrix<f64>) -> f64 {
+    sym_eigenvalues(m).last().copied().unwrap_or(f64::NEG_INFINITY)
+}
+
+pub(crate) fn lti_err(what: &'static str) -> impl Fn(rigid_body::Error) -> EventEstError {
+    move |e| EventEstError::Lti {
+        what,
+        reason: e.to_string(),
+    }
+}
+
+/// Discrete Lyapunov solution Σ = A Σ Aᵀ + Q.
+pub fn dlyap(a: &DMatrix<f64>, q: &DMatrix<f64>, what: &'static str) -> Result<DMatrix<f64>, EventEstError> {
+    lti::dlyap(a, q).map_err(lti_err(what))
+}
+
+/// Steady-state centralised Kalman filter in current-estimator form.
+#[derive(Debug, Clone)]
+pub struct Kalman {
+    /// Gain K (n×p): x̂ = x̂⁻ + K (y − C x̂⁻).
+    pub gain: DMatrix<f64>,
+    /// A-priori error covariance Σ⁻.
+    pub prior: DMatrix<f64>,
+    /// A-posteriori error covariance Σ⁺ = (I − KC) Σ⁻.
+    pub posterior: DMatrix<f64>,
+}
+
+/// Centralised steady-state Kalman filter for x+ = A x + v, y = C x + w (covariances V, W).
+pub fn kalman(
+    a: &DMatrix<f64>,
+    c: &DMatrix<f64>,
+    v: &DMatrix<f64>,
+    w: &DMatrix<f64>,
+) -> Result<Kalman, EventEstError> {
+    let prior = lti::dare(&a.transpose(), &c.transpose(), v, w)
+        .map_err(lti_err("Kalman filter DARE (is (A, C) detectable?)"))?;
+    let s = c * &prior * c.transpose() + w;
+    let chol = s
+        .cholesky()
+        .ok_or(EventEstError::NotPositiveDefinite { name: "C Σ Cᵀ + W" })?;
+    let gain = chol.solve(&(c * &prior)).transpose();
+    let n = a.nrows();
+    let posterior = (DMatrix::identity(n, n) - &gain * c) * &prior;
+    let posterior = (&posterior + posterior.transpose()) * 0.5;
+    Ok(Kalman {
+        gain,
+        prior,
+        posterior,
+    })
+}
+
+/// Squared H2 norm of e+ = Â e + B̂ s (output e): tr Σ with Σ = Â Σ Âᵀ + B̂ B̂ᵀ.
+pub fn h2_squared(a_hat: &DMatrix<f64>, b_hat: &DMatrix<f64>) -> Result<f64, EventEstError> {
+    if spectral_radius(a_hat) >= 1.0 {
+        return Err(EventEstError::Verification {
+            condition: "ρ((I−LC)A) < 1 for the H2 cost".into(),
+            margin: spectral_radius(a_hat) - 1.0,
+        });
+    }
+    Ok(dlyap(a_hat, &(b_hat * b_hat.transpose()), "H2 Gramian Σ = ÂΣÂᵀ + B̂B̂ᵀ")?.trace())
+}
+
+/// H∞ norm of G(z) = Ĉ (zI − Â)^{-1} B̂ by a frequency sweep over ω ∈ [0, π]
+/// (log-spaced near 0, where the slow platoon modes peak, then refined around the maximum).
+pub fn hinf_norm(a_hat: &DMatrix<f64>, b_hat: &DMatrix<f64>, c_hat: &DMatrix<f64>) -> f64 {
+    let n = a_hat.nrows();
+    let eval = |omega: f64| -> f64 {
+        let z = Complex::new(omega.cos(), omega.sin());
+        let m: DMatrix<Complex<f64>> =
+            DMatrix::from_fn(n, n, |i, j| {
+                let d = if i == j { z } else { Complex::new(0.0, 0.0) };
+                d - Complex::new(a_hat[(i, j)], 0.0)
+            });
+        let rhs = b_hat.map(|v| Complex::new(v, 0.0));
+        let Some(x) = m.lu().solve(&rhs) else {
+            return f64::INFINITY;
+        };
+        let g = c_hat.map(|v| Complex::new(v, 0.0)) * x;
+        g.singular_values().iter().copied().fold(0.0, f64::max)
+    };
+    let mut grid: Vec<f64> = vec![0.0];
+    let points = 400;
+    for k in 0..points {
+        // 1e-6 .. π, logarithmic.
+        let t = k as f64 / (points - 1) as f64;
+        grid.push(1e-6 * (std::f64::consts::PI / 1e-6).powf(t));
+    }
+    let (mut best_w, mut best) = (0.0, eval(0.0));
+    for &w in &grid {
+        let g = eval(w);
+        if g > best {
+            best = g;
+            best_w = w;
+        }
+    }
+    // Golden-section refinement in the bracket around the best grid point.
+    let idx = grid.iter().position(|&w| w == best_w).unwrap_or(0);
+    let mut lo = grid[idx.saturating_sub(1)];
+    let mut hi = grid[(idx + 1).min(grid.len() - 1)];
+    let phi = 0.5 * (5f64.sqrt() - 1.0);
+    for _ in 0..60 {
+        let m1 = hi - phi * (hi - lo);
+        let m2 = lo + phi * (hi - lo);
+        let (g1, g2) = (eval(m1), eval(m2));
+        best = best.max(g1).max(g2);
+        if g1 > g2 {
+            hi = m2;
+        } else {
+            lo = m1;
+        }
+    }
+    best
+}
+
+/// Cholesky factor (lower) of a symmetric positive definite matrix, or a named error.
+pub fn cholesky_lower(m: &DMatrix<f64>, name: &'static str) -> Result<DMatrix<f64>, EventEstError> {
+    Ok(m
+        .clone()
+        .cholesky()
+        .ok_or(EventEstError::NotPositiveDefinite { name })?
+        .l())
+}
