@@ -24,6 +24,8 @@ pub mod jump;
 pub mod model;
 mod params;
 mod plant;
+#[cfg(feature = "std")]
+pub mod simulate;
 mod state;
 mod trial;
 mod tuning;

@@ -67,14 +67,15 @@ impl ReducedState {
         Self { g, p_h, p_w }
     }
 
-    /// Checks that all fields are finite and that |g| matches the parameters (relative 1e-6).
+    /// Checks that all fields are finite and that |g| matches the parameters to 1 % (loose enough
+    /// for intermediate integrator stages, tight enough to catch a unit vector passed as g).
     pub fn validate(&self, params: &Params) -> Result<(), CubliError> {
         check_finite(&self.g, "g")?;
         check_finite(&self.p_h, "p_h")?;
         check_finite(&self.p_w, "p_w")?;
         let actual = self.g.norm();
         let expected = params.gravity();
-        if (actual - expected).abs() > 1e-6 * expected {
+        if (actual - expected).abs() > 1e-2 * expected {
             return Err(CubliError::GravityMagnitude { expected, actual });
         }
         Ok(())
