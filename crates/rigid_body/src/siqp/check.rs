@@ -1,0 +1,201 @@
+//! Constraint check on [0, ∞) by third-order Taylor bounds (spec/pmpc.md §7.5): a
+//! certified "satisfied within ε" or a violation instant, in finitely many O(s²) steps.
+//!
+//! For the coefficient vector y of g(t_off + τ) = τ(τ)ᵀy the Lagrange remainder gives
+//! `b_l(τ) ≤ g ≤ b_u(τ)` with `b_{u,l} = f0 + f1 τ + f2 τ²/2 ± R τ³/6`, `R = c_τ |(Mᵀ)³ y|`.
+//! Either a bound proves a violation, or the constraint is certainly satisfied up to the
+//! first crossing τ_s of the widened limits, and the origin moves there by the closed-form
+//! shift. The tail certificate `c_τ |y| ≤ min(l_u, −l_l) + ε` ends the search.
+
+use super::fmath::{abs, sqrt};
+use super::{Row, Settings, Side};
+use crate::laguerre::Laguerre;
+
+/// A violation found by the check: instant, side, and signed excess over the limit (> 0).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Violation {
+    pub(super) t: f64,
+    pub(super) side: Side,
+    pub(super) excess: f64,
+}
+
+/// Scratch vectors (length s each) for one row check.
+pub(super) struct Scratch<'a> {
+    pub(super) y: &'a mut [f64],
+    pub(super) y2: &'a mut [f64],
+    pub(super) d1: &'a mut [f64],
+    pub(super) d2: &'a mut [f64],
+    pub(super) d3: &'a mut [f64],
+}
+
+/// Result of checking one row.
+pub(super) enum RowCheck {
+    Satisfied,
+    Violated(Violation),
+    StepLimit,
+}
+
+fn sum(v: &[f64]) -> f64 {
+    v.iter().sum()
+}
+
+fn norm(v: &[f64]) -> f64 {
+    sqrt(v.iter().map(|x| x * x).sum())
+}
+
+/// Smallest positive root of a3 τ³ + a2 τ² + a1 τ + a0 with a0 < 0 < a3.
+pub(super) fn first_positive_root(a3: f64, a2: f64, a1: f64, a0: f64) -> f64 {
+    let p = |t: f64| ((a3 * t + a2) * t + a1) * t + a0;
+    let dp = |t: f64| (3.0 * a3 * t + 2.0 * a2) * t + a1;
+    // Split (0, ∞) at the positive critical points; p is monotone on each piece.
+    let mut cuts = [f64::INFINITY; 2];
+    let disc = a2 * a2 - 3.0 * a3 * a1;
+    if disc >= 0.0 {
+        let sq = sqrt(disc);
+        let (r1, r2) = ((-a2 - sq) / (3.0 * a3), (-a2 + sq) / (3.0 * a3));
+        let mut k = 0;
+        for r in [r1, r2] {
+            if r > 0.0 {
+                cuts[k] = r;
+                k += 1;
+            }
+        }
+    }
+    let bound = 1.0 + abs(a0).max(abs(a1)).max(abs(a2)) / a3;
+    let mut lo = 0.0;
+    let mut hi = bound;
+    for c in cuts {
+        if c < bound && p(c) >= 0.0 {
+            hi = c;
+            break;
+        }
+        if c < bound {
+            lo = c;
+        }
+    }
+    // Safeguarded Newton on the monotone bracket [lo, hi] with p(lo) < 0 <= p(hi).
+    let mut t = 0.5 * (lo + hi);
+    for _ in 0..100 {
+        let v = p(t);
+        if v < 0.0 {
+            lo = t;
+        } else {
+            hi = t;
+        }
+        if hi - lo <= 1e-15 * hi {
+            break;
+        }
+        let d = dp(t);
+        let newton = t - v / d;
+        t = if d > 0.0 && newton > lo && newton < hi {
+            newton
+        } else {
+            0.5 * (lo + hi)
+        };
+        if abs(v) <= 1e-300 {
+            break;
+        }
+    }
+    hi
+}
+
+/// Check `row.lower − ε ≤ τ(t)ᵀ w ≤ row.upper + ε` on [0, horizon) (∞ if `None`).
+pub(super) fn check_row(
+    basis: &Laguerre,
+    row: Row,
+    w: &[f64],
+    settings: &Settings,
+    sc: &mut Scratch<'_>,
+    steps: &mut usize,
+) -> RowCheck {
+    let (eps, horizon, max_steps) = (
+        settings.tolerance,
+        settings.horizon,
+        settings.max_check_steps,
+    );
+    let s = basis.dim();
+    let c0 = basis.tau0_entry();
+    let ctau = basis.sup_norm();
+    let (lo, up) = (row.lower, row.upper);
+    let tail = up.min(-lo) + eps;
+    sc.y[..s].copy_from_slice(&w[..s]);
+    let mut t_off = 0.0;
+    let mut local = 0;
+    loop {
+        if local >= max_steps {
+            return RowCheck::StepLimit;
+        }
+        local += 1;
+        *steps += 1;
+        let y = &*sc.y;
+        let f0 = c0 * sum(y);
+        if f0 > up + 0.5 * eps {
+            return RowCheck::Violated(Violation {
+                t: t_off,
+                side: Side::Upper,
+                excess: f0 - up,
+            });
+        }
+        if f0 < lo - 0.5 * eps {
+            return RowCheck::Violated(Violation {
+                t: t_off,
+                side: Side::Lower,
+                excess: lo - f0,
+            });
+        }
+        if ctau * norm(y) <= tail {
+            return RowCheck::Satisfied;
+        }
+        basis.mt_apply(y, sc.d1);
+        basis.mt_apply(sc.d1, sc.d2);
+        basis.mt_apply(sc.d2, sc.d3);
+        let f1 = c0 * sum(sc.d1);
+        let f2 = c0 * sum(sc.d2);
+        let r = ctau * norm(sc.d3);
+        if r <= 0.0 {
+            return RowCheck::Satisfied;
+        }
+        let bl = |t: f64| f0 + f1 * t + 0.5 * f2 * t * t - r * t * t * t / 6.0;
+        let bu = |t: f64| f0 + f1 * t + 0.5 * f2 * t * t + r * t * t * t / 6.0;
+        if up.is_finite() && f1 >= 0.0 {
+            let tu = (f2 + sqrt(f2 * f2 + 2.0 * r * f1)) / r;
+            let v = bl(tu);
+            if v > up + 0.5 * eps {
+                return RowCheck::Violated(Violation {
+                    t: t_off + tu,
+                    side: Side::Upper,
+                    excess: v - up,
+                });
+            }
+        }
+        if lo.is_finite() && f1 < 0.0 {
+            let tl = (-f2 + sqrt(f2 * f2 - 2.0 * r * f1)) / r;
+            let v = bu(tl);
+            if v < lo - 0.5 * eps {
+                return RowCheck::Violated(Violation {
+                    t: t_off + tl,
+                    side: Side::Lower,
+                    excess: lo - v,
+                });
+            }
+        }
+        let mut ts = f64::INFINITY;
+        if up.is_finite() {
+            ts = ts.min(first_positive_root(r / 6.0, 0.5 * f2, f1, f0 - up - eps));
+        }
+        if lo.is_finite() {
+            ts = ts.min(first_positive_root(r / 6.0, -0.5 * f2, -f1, lo - eps - f0));
+        }
+        if !ts.is_finite() {
+            return RowCheck::Satisfied;
+        }
+        if let Some(tc) = horizon {
+            if t_off + ts >= tc {
+                return RowCheck::Satisfied;
+            }
+        }
+        basis.shift(ts, sc.y, sc.y2);
+        core::mem::swap(&mut sc.y, &mut sc.y2);
+        t_off += ts;
+    }
+}

@@ -1,0 +1,364 @@
+//! Solver tests (spec/pmpc.md §10 items 13–16) against independent references: a dense-scan
+//! extremum oracle, direct Cholesky factorisations and the KKT conditions.
+extern crate std;
+use super::check::{check_row, first_positive_root, RowCheck, Scratch};
+use super::*;
+use nalgebra::DMatrix;
+use proptest::prelude::*;
+use std::vec;
+use std::vec::Vec;
+
+/// Seeded SplitMix64 stream (rigid_body has no `rand` dependency).
+struct TestRng(u64);
+
+impl TestRng {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+}
+
+fn uniform(rng: &mut TestRng, lo: f64, hi: f64) -> f64 {
+    lo + (hi - lo) * ((rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64)
+}
+
+fn rng(seed: u64) -> TestRng {
+    TestRng(seed)
+}
+
+fn g_at(b: &Laguerre, w: &[f64], t: f64) -> f64 {
+    let mut tau = vec![0.0; b.dim()];
+    b.tau(t, &mut tau);
+    tau.iter().zip(w).map(|(p, q)| p * q).sum()
+}
+
+/// Exact oracle: (max g − upper, lower − min g) over [0, ∞), by a dense scan in x = νt on
+/// [0, 150] (beyond it every function of the span is below 1e-40 for s ≤ 20) and Newton
+/// polishing of every sampled local extremum.
+fn oracle(b: &Laguerre, w: &[f64], row: Row) -> (f64, f64) {
+    let s = b.dim();
+    let (mut d1, mut d2) = (vec![0.0; s], vec![0.0; s]);
+    b.mt_apply(w, &mut d1);
+    b.mt_apply(&d1, &mut d2);
+    let h = 0.01 / b.nu();
+    let n = (150.0 / b.nu() / h) as usize;
+    let vals: Vec<f64> = (0..=n).map(|i| g_at(b, w, i as f64 * h)).collect();
+    let (mut gmax, mut gmin) = (vals[0], vals[0]);
+    for i in 0..=n {
+        let interior = i > 0 && i < n;
+        let is_ext = interior
+            && ((vals[i] >= vals[i - 1] && vals[i] >= vals[i + 1])
+                || (vals[i] <= vals[i - 1] && vals[i] <= vals[i + 1]));
+        gmax = gmax.max(vals[i]);
+        gmin = gmin.min(vals[i]);
+        if is_ext {
+            let mut t = i as f64 * h;
+            for _ in 0..30 {
+                let g1 = g_at(b, &d1, t);
+                let g2 = g_at(b, &d2, t);
+                if g2 == 0.0 {
+                    break;
+                }
+                let tn = (t - g1 / g2).clamp((i - 1) as f64 * h, (i + 1) as f64 * h);
+                if (tn - t).abs() < 1e-15 {
+                    break;
+                }
+                t = tn;
+            }
+            let v = g_at(b, w, t);
+            gmax = gmax.max(v);
+            gmin = gmin.min(v);
+        }
+    }
+    (gmax - row.upper, row.lower - gmin)
+}
+
+#[test]
+fn taylor_check_agrees_with_exact_oracle_on_10k_vectors() {
+    let mut r = rng(7);
+    let mut max_steps = 0;
+    for case in 0..10_000 {
+        let s = 4 + (r.next_u64() % 13) as usize;
+        let b = Laguerre::new(s, uniform(&mut r, 0.3, 2.0)).unwrap();
+        let mut w: Vec<f64> = (0..s).map(|_| uniform(&mut r, -1.0, 1.0)).collect();
+        let scale = b.sup_norm() * w.iter().map(|x| x * x).sum::<f64>().sqrt();
+        w.iter_mut().for_each(|x| *x /= scale);
+        let row = match case % 3 {
+            0 => Row {
+                lower: -uniform(&mut r, 0.02, 0.8),
+                upper: uniform(&mut r, 0.02, 0.8),
+            },
+            1 => Row {
+                lower: f64::NEG_INFINITY,
+                upper: uniform(&mut r, 0.0, 0.8),
+            },
+            _ => Row {
+                lower: 0.0,
+                upper: f64::INFINITY,
+            },
+        };
+        let eps = [1e-3, 1e-6, 1e-8][case % 5 % 3];
+        let mut buf = vec![0.0; 5 * s];
+        let (y, rest) = buf.split_at_mut(s);
+        let (y2, rest) = rest.split_at_mut(s);
+        let (d1, rest) = rest.split_at_mut(s);
+        let (d2, d3) = rest.split_at_mut(s);
+        let mut sc = Scratch { y, y2, d1, d2, d3 };
+        let mut steps = 0;
+        let settings = Settings {
+            tolerance: eps,
+            ..Settings::default()
+        };
+        let res = check_row(&b, row, &w, &settings, &mut sc, &mut steps);
+        max_steps = max_steps.max(steps);
+        let (vu, vl) = oracle(&b, &w, row);
+        match res {
+            RowCheck::StepLimit => panic!("case {case}: step cap hit"),
+            RowCheck::Satisfied => assert!(
+                vu <= eps + 1e-12 && vl <= eps + 1e-12,
+                "case {case}: SATISFIED but violation {vu} / {vl} > eps {eps}"
+            ),
+            RowCheck::Violated(v) => {
+                let g = g_at(&b, &w, v.t);
+                let excess = match v.side {
+                    Side::Upper => g - row.upper,
+                    Side::Lower => row.lower - g,
+                };
+                assert!(v.t >= 0.0);
+                assert!(excess > eps / 2.0 - 1e-12, "case {case}: excess {excess}");
+            }
+        }
+    }
+    assert!(max_steps < 10_000);
+}
+
+/// Random feasible problem: Φ = F Fᵀ of rank r and w0 = Φ c, so w = 0 is reachable and every
+/// row (limits straddle 0) is satisfiable.
+fn random_problem(r: &mut TestRng) -> (Laguerre, Vec<Row>, Vec<f64>, Vec<f64>, usize) {
+    let s = 4 + (r.next_u64() % 8) as usize;
+    let nc = 1 + (r.next_u64() % 2) as usize;
+    let d = nc * s;
+    // Rank = degrees of freedom; MPC problems have m·s − n of them (8 in the example).
+    let rank = 2 + (r.next_u64() % (d.min(9) as u64 - 1)) as usize;
+    let f = DMatrix::from_fn(d, rank, |_, _| uniform(r, -1.0, 1.0));
+    let phi = &f * f.transpose();
+    let c = nalgebra::DVector::from_fn(d, |_, _| uniform(r, -3.0, 3.0));
+    let w0 = &phi * c;
+    let rows = (0..nc)
+        .map(|k| match k {
+            0 => Row {
+                lower: -uniform(r, 0.1, 1.0),
+                upper: uniform(r, 0.1, 1.0),
+            },
+            _ => Row {
+                lower: 0.0,
+                upper: f64::INFINITY,
+            },
+        })
+        .collect();
+    let phi_rows: Vec<f64> = phi.transpose().iter().copied().collect();
+    let nu = uniform(r, 0.3, 2.0);
+    (
+        Laguerre::new(s, nu).unwrap(),
+        rows,
+        phi_rows,
+        w0.iter().copied().collect(),
+        rank,
+    )
+}
+
+#[test]
+fn kkt_holds_at_termination_on_random_problems() {
+    let mut r = rng(11);
+    for case in 0..200 {
+        let (b, rows, phi, w0, rank) = random_problem(&mut r);
+        let p = Problem::new(b, &rows, &phi, rank).unwrap();
+        let mut st = WorkspaceStorage::new(&p);
+        let mut ws = st.workspace(&p).unwrap();
+        let settings = Settings {
+            tolerance: 1e-8,
+            max_iter: 100_000,
+            ..Settings::default()
+        };
+        let out = solve(&p, &settings, &w0, false, &mut ws).unwrap();
+        assert_eq!(out.status, Status::Optimal, "case {case}");
+        let d = p.dim();
+        let s = b.dim();
+        // Stationarity in coefficient space: w = w0 − Φ μ.
+        let mut tau = vec![0.0; s];
+        let mut mu = vec![0.0; d];
+        out.multiplier_coefficients(&p, &mut tau, &mut mu);
+        for i in 0..d {
+            let phimu: f64 = (0..d).map(|j| phi[i * d + j] * mu[j]).sum();
+            assert!((out.w[i] - (w0[i] - phimu)).abs() < 1e-9, "case {case}");
+        }
+        for (a, &lam) in out.active.iter().zip(out.lambda) {
+            assert!(lam >= 0.0);
+            let g = g_at(&b, &out.w[a.row * s..(a.row + 1) * s], a.t);
+            let beta = match a.side {
+                Side::Upper => rows[a.row].upper,
+                Side::Lower => rows[a.row].lower,
+            };
+            assert!(
+                (g - beta).abs() < 1e-9,
+                "case {case}: active residual {}",
+                g - beta
+            );
+        }
+        for (k, row) in rows.iter().enumerate() {
+            let (vu, vl) = oracle(&b, &out.w[k * s..(k + 1) * s], *row);
+            assert!(vu <= 1e-8 + 1e-12 && vl <= 1e-8 + 1e-12, "case {case}");
+        }
+        let inc = out.cost_increase(&p, &mut tau);
+        let direct: f64 = 0.5
+            * mu.iter()
+                .zip(w0.iter().zip(out.w))
+                .map(|(m, (a, c))| m * (a - c))
+                .sum::<f64>();
+        assert!((inc - direct).abs() <= 1e-12 * (1.0 + inc.abs()));
+    }
+}
+
+#[test]
+fn cost_is_non_decreasing_over_iterations() {
+    let mut r = rng(13);
+    for _ in 0..50 {
+        let (b, rows, phi, w0, rank) = random_problem(&mut r);
+        let p = Problem::new(b, &rows, &phi, rank).unwrap();
+        let mut st = WorkspaceStorage::new(&p);
+        let mut tau = vec![0.0; b.dim()];
+        let mut last = 0.0;
+        for k in 1..40 {
+            let mut ws = st.workspace(&p).unwrap();
+            let settings = Settings {
+                max_iter: k,
+                ..Settings::default()
+            };
+            let out = solve(&p, &settings, &w0, false, &mut ws).unwrap();
+            let c = out.cost_increase(&p, &mut tau);
+            assert!(c >= last - 1e-12 * (1.0 + c.abs()), "{c} < {last}");
+            last = c;
+            if out.status == Status::Optimal {
+                break;
+            }
+        }
+    }
+}
+
+#[test]
+fn warm_start_from_final_set_needs_one_check() {
+    let mut r = rng(17);
+    for case in 0..50 {
+        let (b, rows, phi, w0, rank) = random_problem(&mut r);
+        let p = Problem::new(b, &rows, &phi, rank).unwrap();
+        let mut st = WorkspaceStorage::new(&p);
+        let mut ws = st.workspace(&p).unwrap();
+        let settings = Settings {
+            max_iter: 100_000,
+            ..Settings::default()
+        };
+        let out = solve(&p, &settings, &w0, false, &mut ws).unwrap();
+        assert!(out.status.is_optimal());
+        let cold: Vec<f64> = out.w.to_vec();
+        let warm = solve(&p, &settings, &w0, true, &mut ws).unwrap();
+        assert!(warm.status.is_optimal());
+        assert_eq!(warm.stats.iterations, 1, "case {case}");
+        for (a, c) in warm.w.iter().zip(&cold) {
+            assert!((a - c).abs() < 1e-9);
+        }
+    }
+}
+
+#[test]
+fn infeasible_and_bad_input_are_reported() {
+    let b = Laguerre::new(3, 1.0).unwrap();
+    let rows = [Row {
+        lower: 0.0,
+        upper: f64::INFINITY,
+    }];
+    // Φ = 0: nothing can move, and g(0) < 0 is fixed.
+    let phi = [0.0; 9];
+    let p = Problem::new(b, &rows, &phi, 1).unwrap();
+    let mut st = WorkspaceStorage::new(&p);
+    let mut ws = st.workspace(&p).unwrap();
+    let out = solve(&p, &Settings::default(), &[-1.0, 0.0, 0.0], false, &mut ws).unwrap();
+    assert_eq!(out.status, Status::Infeasible);
+    assert!(matches!(
+        solve(
+            &p,
+            &Settings::default(),
+            &[f64::NAN, 0.0, 0.0],
+            false,
+            &mut ws
+        ),
+        Err(Error::NonFinite { name: "w0" })
+    ));
+    assert!(matches!(
+        solve(&p, &Settings::default(), &[0.0; 2], false, &mut ws),
+        Err(Error::DimensionMismatch { name: "w0", .. })
+    ));
+    let bad = [Row {
+        lower: 0.5,
+        upper: 1.0,
+    }];
+    assert!(matches!(
+        Problem::new(b, &bad, &phi, 1),
+        Err(Error::InvalidParameter {
+            name: "row lower limit",
+            ..
+        })
+    ));
+    let nan_phi = [f64::NAN; 9];
+    assert!(matches!(
+        Problem::new(b, &rows, &nan_phi, 1),
+        Err(Error::NonFinite { name: "phi" })
+    ));
+}
+
+proptest! {
+    #[test]
+    fn cubic_root_is_the_first_sign_change(a3 in 1e-3f64..10.0, a2 in -10.0f64..10.0,
+                                            a1 in -10.0f64..10.0, a0 in -10.0f64..-1e-6) {
+        let p = |t: f64| ((a3 * t + a2) * t + a1) * t + a0;
+        let root = first_positive_root(a3, a2, a1, a0);
+        prop_assert!(root > 0.0);
+        let scale = a3 * root.powi(3) + a2.abs() * root * root + a1.abs() * root + a0.abs();
+        prop_assert!(p(root).abs() <= 1e-10 * scale);
+        for i in 1..2000 {
+            let t = root * (i as f64) / 2000.0 * (1.0 - 1e-9);
+            prop_assert!(p(t) < 1e-10 * scale);
+        }
+    }
+
+    #[test]
+    fn factor_updates_match_direct_cholesky(
+        n in 1usize..8,
+        remove_at in 0usize..8,
+        entries in proptest::collection::vec(-1.0f64..1.0, 64),
+    ) {
+        let f = DMatrix::from_fn(n, n + 2, |i, j| entries[(i * 8 + j) % 64] + if i == j { 2.0 } else { 0.0 });
+        let k = &f * f.transpose();
+        let mut buf = vec![0.0; 64];
+        let mut fac = factor::Factor { l: &mut buf, cap: 8 };
+        for p in 0..n {
+            let mut row: Vec<f64> = (0..p).map(|j| k[(p, j)]).collect();
+            fac.forward(p, &mut row);
+            let schur = k[(p, p)] - row.iter().map(|x| x * x).sum::<f64>();
+            fac.append(p, &row, schur);
+        }
+        let j = remove_at % n;
+        fac.remove(n, j);
+        let keep: Vec<usize> = (0..n).filter(|&i| i != j).collect();
+        let l = DMatrix::from_fn(n - 1, n - 1, |a, b| if b <= a { buf[a * 8 + b] } else { 0.0 });
+        let rebuilt = &l * l.transpose();
+        for (a, &ia) in keep.iter().enumerate() {
+            for (b, &ib) in keep.iter().enumerate() {
+                prop_assert!((rebuilt[(a, b)] - k[(ia, ib)]).abs() < 1e-10 * (1.0 + k.amax()));
+            }
+            prop_assert!(l[(a, a)] > 0.0);
+        }
+    }
+}
