@@ -115,6 +115,11 @@ fn c2d_zoh_delay_reproduces_exact_delayed_response() {
     }
     let err = lti::c2d_zoh_delay(&m(1, 1, &[a]), &m(1, 1, &[b]), h, -1.0).unwrap_err();
     assert!(err.to_string().starts_with("tau = -1 is invalid"));
+    let err = lti::c2d_zoh_delay(&m(1, 1, &[a]), &m(1, 1, &[b]), h, 1e9).unwrap_err();
+    assert!(
+        err.to_string().contains("must be below 1000 sample times"),
+        "{err}"
+    );
 }
 
 proptest! {

@@ -57,6 +57,9 @@ pub fn c2d_zoh(a: &DMatrix<f64>, b: &DMatrix<f64>, h: f64) -> Result<(DMatrix<f6
     phi_gamma(a, b, h)
 }
 
+/// Largest delay, in whole sample times, that [`c2d_zoh_delay`] accepts.
+pub const MAX_DELAY_STEPS: usize = 1000;
+
 /// Zero-order-hold model of `x'(t) = A x(t) + B u(t - tau)` on the augmented state
 /// `z_k = (x_k, u_{k-q}, ..., u_{k-1})` that buffers the last `q = delay_inputs` inputs
 /// (oldest first), so that `z_{k+1} = a z_k + b u_k`.
@@ -94,6 +97,14 @@ pub fn c2d_zoh_delay(a: &DMatrix<f64>, b: &DMatrix<f64>, h: f64, tau: f64) -> Re
     } else if h - frac <= snap {
         whole += 1.0;
         frac = 0.0;
+    }
+    if whole >= MAX_DELAY_STEPS as f64 {
+        return Err(Error::InvalidParameter {
+            name: "tau",
+            value: tau,
+            requirement:
+                "must be below 1000 sample times (the augmented state buffers tau / h inputs)",
+        });
     }
     let d = whole as usize;
     let (n, m) = (a.nrows(), b.ncols());

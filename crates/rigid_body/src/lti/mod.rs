@@ -22,7 +22,7 @@ mod riccati;
 mod schur;
 
 pub use controllability::{ctrb_gramian, ctrb_matrix};
-pub use discretize::{c2d_zoh, c2d_zoh_delay, expm, DelayedZoh};
+pub use discretize::{c2d_zoh, c2d_zoh_delay, expm, DelayedZoh, MAX_DELAY_STEPS};
 pub use lyapunov::{dlyap, lyap};
 pub use riccati::{care, dare, dlqr, lqr, Lqr};
 
