@@ -1,0 +1,73 @@
+//! The two-agent counterexample of App. F (spec 8.4, acceptance tests 1–3): with communicated
+//! inputs agent 2 tracks a diverging state perfectly and never transmits; with reconstructed
+//! inputs one transmission at k = 1 brings the state to zero at k = 2.
+#![allow(clippy::unwrap_used)]
+
+use event_est::linalg::{max_eigenvalue, spectral_radius};
+use event_est::model::counterexample;
+use event_est::runtime::InputMode;
+use event_est::sim::{simulate, Design, SimConfig, SimLog};
+use nalgebra::{DMatrix, DVector};
+
+fn run(mode: InputMode, steps: usize) -> SimLog {
+    let (sys, l) = counterexample().unwrap();
+    let mut cfg = SimConfig::new(&sys, steps, None, 1);
+    cfg.loss = 0.0;
+    cfg.input_mode = mode;
+    cfg.x0 = DVector::from_vec(vec![0.0, 2.0]);
+    cfg.xhat0 = vec![DVector::from_vec(vec![0.0, 1.0]), DVector::from_vec(vec![0.0, 2.0])];
+    cfg.record = true;
+    simulate(&sys, &Design::scalar(l, &[1.0, 1.0]), &cfg).unwrap().log.unwrap()
+}
+
+fn close(a: &DVector<f64>, b: &[f64]) -> bool {
+    let b = DVector::from_column_slice(b);
+    (a - &b).norm() <= 1e-12 * b.norm().max(1.0)
+}
+
+#[test]
+fn communicated_inputs_diverge_without_any_transmission() {
+    let log = run(InputMode::Communicated, 20);
+    assert!(close(&log.u[0], &[-2.0, 0.0]));
+    for k in 1..=20 {
+        let two_k = 2f64.powi(k as i32);
+        assert!(log.fired[k].iter().all(|f| !f), "k = {k}: someone transmitted");
+        assert!(close(&log.x[k], &[0.0, two_k]), "x({k}) = {}", log.x[k]);
+        assert!(close(&log.xhat[k][1], &[0.0, two_k]));
+        assert!(close(&log.xhat[k][0], &[0.0, 0.0]));
+        if k < 20 {
+            assert!(close(&log.u[k], &[0.0, 0.0]), "u({k}) = {}", log.u[k]);
+        }
+    }
+}
+
+#[test]
+fn reconstructed_inputs_reach_zero_from_k_2() {
+    let log = run(InputMode::Reconstructed, 20);
+    assert_eq!(log.fired[1], vec![false, true], "only agent 2 fires at k = 1");
+    assert!(close(&log.xhat[1][0], &[0.0, 2.0]) && close(&log.xhat[1][1], &[0.0, 2.0]));
+    assert!(close(&log.u[0], &[-2.0, 0.0]));
+    assert!(close(&log.u[1], &[-4.0, 0.0]), "u(1) = {}", log.u[1]);
+    for k in 2..=20 {
+        assert!(log.fired[k].iter().all(|f| !f));
+        assert_eq!(log.x[k], DVector::zeros(2), "x({k})");
+        assert_eq!(log.xhat[k][0], DVector::zeros(2));
+        assert_eq!(log.xhat[k][1], DVector::zeros(2));
+    }
+}
+
+#[test]
+fn cor12_certificate_with_identity() {
+    let (sys, l) = counterexample().unwrap();
+    let af = sys.a_cl();
+    assert!((spectral_radius(&af) - 0.6).abs() < 1e-12);
+    let est = (DMatrix::identity(2, 2) - &l * &sys.c) * &sys.a;
+    assert!(spectral_radius(&est) < 1e-12);
+    let p = DMatrix::<f64>::identity(2, 2);
+    let expected = [-0.64, -1.0, -0.64, -1.0]; // S = ∅, {1}, {2}, {1,2}
+    for (subset, want) in expected.iter().enumerate() {
+        let acl = (DMatrix::identity(2, 2) - sys.lc_subset(&l, subset as u64)) * &af;
+        let m = max_eigenvalue(&(acl.transpose() * &p * &acl - &p));
+        assert!((m - want).abs() < 1e-12, "S = {subset:b}: {m}");
+    }
+}
