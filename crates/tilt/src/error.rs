@@ -23,9 +23,10 @@ pub enum TiltError {
         /// Index of the sensor.
         sensor: usize,
     },
-    /// The positions do not span R^3 (all sensors on a plane or line through the pivot):
-    /// the Fisher information is singular for every state.
-    #[error("sensor positions span only a {rank}-dimensional subspace through the pivot (coplanar with the pivot); they must span R^3")]
+    /// The positions do not span R^3 (all sensors on a plane or line through the pivot): the
+    /// least-squares start is undetermined and the Fisher information is singular whenever
+    /// omega lies in that plane or along its normal (and always for a line).
+    #[error("sensor positions span only a {rank}-dimensional subspace (coplanar with the pivot); they must span R^3")]
     PositionsDoNotSpan {
         /// Numerical rank of `sum p_i p_i^T`.
         rank: usize,
