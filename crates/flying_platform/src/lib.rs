@@ -36,14 +36,24 @@
 //! assert_eq!(ss.delay, 0.045);
 //! ```
 
+pub mod control;
 pub mod effects;
 pub mod error;
+pub mod excitation;
+pub mod experiments;
 pub mod geometry;
 pub mod model;
+pub mod nonlinear;
 pub mod params;
+pub mod simulate;
 
+pub use control::{ActuatorLimits, CascadedController, InnerLqr, OuterGains, YawLaw};
 pub use effects::{Effect, EffectSet, MomentumDrag, ParamSpec};
 pub use error::{Error, Result};
+pub use excitation::{ExperimentDesign, ExperimentSlot, Multisine};
+pub use experiments::{run_experiment, run_experiments, Experiment};
 pub use geometry::{INPUT_NAMES, N_INPUTS};
 pub use model::{Model, StateSpace, OUTPUT_NAMES, STATE_NAMES};
+pub use nonlinear::NonlinearPlant;
 pub use params::{InputMatrix, PlatformParams, G0};
+pub use simulate::{simulate, Dynamics, Noise, Scenario, SimConfig, SimLog, LOG_OUTPUT_NAMES};
