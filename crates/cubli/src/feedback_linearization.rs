@@ -1,6 +1,6 @@
 //! Feedback linearization of the Cubli (spec §4) and the guiding controller that tracks the ideal
 //! jump-up trajectory (spec §4.3, §5.2).
-use nalgebra::{ComplexField, Vector2, Vector3};
+use nalgebra::{ComplexField, SMatrix, SVector, Vector2, Vector3};
 
 use crate::model::inclination;
 use crate::{CubliError, FullState, Gains, Params, TiltPolynomial};
@@ -156,24 +156,31 @@ impl JumpReference {
     }
 }
 
-/// Tracking controller (1.60)–(1.61) with the gain that matches the balancing loop at upright:
-/// u1 = −(C e + B ė + A ë), u2 = −γ ᴵω_h,3.
+/// Tracking controller (1.60)–(1.61): u = K ξ_e on the error state ξ_e = (e, ė, ë, ᴵω_h,3), with
+/// the gain that matches the balancing loop at upright (spec §4.3):
+/// K = −[[C I₂, B I₂, A I₂, 0], [0, 0, 0, γ]].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GuidingController {
     linearization: FeedbackLinearization,
     reference: JumpReference,
-    poly: TiltPolynomial,
-    gamma: f64,
+    gain: SMatrix<f64, 3, 7>,
 }
 
 impl GuidingController {
     /// Guiding controller whose error dynamics have the tilt poles of `gains` (twice) and −γ.
     pub fn new(params: Params, gains: &Gains, reference: JumpReference) -> Self {
+        let k = TiltPolynomial::from_gains(gains, params.mg());
+        let mut gain = SMatrix::<f64, 3, 7>::zeros();
+        for i in 0..2 {
+            gain[(i, i)] = -k.c;
+            gain[(i, 2 + i)] = -k.b;
+            gain[(i, 4 + i)] = -k.a;
+        }
+        gain[(2, 6)] = -gains.gamma;
         Self {
             linearization: FeedbackLinearization::new(params),
             reference,
-            poly: TiltPolynomial::from_gains(gains, params.mg()),
-            gamma: gains.gamma,
+            gain,
         }
     }
 
@@ -187,21 +194,30 @@ impl GuidingController {
         &self.reference
     }
 
-    /// Tracking error (e, ė, ë) and the references at the state's inclination.
-    pub fn error(&self, x: &FullState) -> (Outputs, Reference) {
+    /// The gain K (3 × 7) acting on ξ_e = (e, ė, ë, ᴵω_h,3).
+    pub fn gain(&self) -> &SMatrix<f64, 3, 7> {
+        &self.gain
+    }
+
+    /// Error state ξ_e = (e, ė, ë, ᴵω_h,3) and the reference at the state's inclination.
+    pub fn error(&self, x: &FullState) -> (SVector<f64, 7>, Reference) {
         let p = self.linearization.params();
         let phi = inclination(p, &x.gravity_body(p));
-        (self.linearization.outputs(x), self.reference.at(phi))
+        let o = self.linearization.outputs(x);
+        let r = self.reference.at(phi);
+        let (e, de, dde) = (o.y - r.y, o.y_dot - r.y_dot, o.y_ddot - r.y_ddot);
+        let xi = SVector::<f64, 7>::from_column_slice(&[
+            e[0], e[1], de[0], de[1], dde[0], dde[1], o.omega3,
+        ]);
+        (xi, r)
     }
 
     /// Motor torques; an error near 90° inclination or for a non-finite state.
     pub fn control(&self, x: &FullState) -> Result<Vector3<f64>, CubliError> {
         x.validate()?;
-        let (o, r) = self.error(x);
-        let k = &self.poly;
-        let u1 = -((o.y - r.y) * k.c + (o.y_dot - r.y_dot) * k.b + (o.y_ddot - r.y_ddot) * k.a);
-        let u2 = -self.gamma * o.omega3;
+        let (xi, r) = self.error(x);
+        let u = self.gain * xi;
         self.linearization
-            .torque_from_virtual(x, &(r.y_dddot + u1), u2)
+            .torque_from_virtual(x, &(r.y_dddot + Vector2::new(u[0], u[1])), u[2])
     }
 }
