@@ -301,3 +301,240 @@ pub(crate) fn check_positive(name: &str, value: f64) -> Result<()> {
         ))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{DMatrix, DVector};
+    use proptest::prelude::*;
+
+    /// `x' = A x + B u`, `y = x`.
+    #[derive(Debug)]
+    struct Linear {
+        a: DMatrix<f64>,
+        b: DMatrix<f64>,
+    }
+
+    fn names(prefix: &str, n: usize) -> Vec<String> {
+        (0..n).map(|i| format!("{prefix}{i}")).collect()
+    }
+
+    impl System for Linear {
+        fn state_names(&self) -> Vec<String> {
+            names("x", self.a.nrows())
+        }
+        fn input_names(&self) -> Vec<String> {
+            names("u", self.b.ncols())
+        }
+        fn output_names(&self) -> Vec<String> {
+            names("x", self.a.nrows())
+        }
+        fn parameter_names(&self) -> Vec<String> {
+            Vec::new()
+        }
+        fn nominal_parameters(&self) -> Vec<f64> {
+            Vec::new()
+        }
+        fn dynamics(&self, x: &[f64], u: &[f64], _p: &[f64], dx: &mut [f64]) {
+            let dxv =
+                &self.a * DVector::from_column_slice(x) + &self.b * DVector::from_column_slice(u);
+            dx.copy_from_slice(dxv.as_slice());
+        }
+        fn output(&self, x: &[f64], _u: &[f64], _p: &[f64], y: &mut [f64]) {
+            y.copy_from_slice(x);
+        }
+    }
+
+    fn oscillator() -> Linear {
+        // Lightly damped oscillator with an unstable real mode: both kinds of dynamics.
+        Linear {
+            a: DMatrix::from_row_slice(3, 3, &[0.0, 1.0, 0.0, -4.0, -0.2, 0.0, 0.0, 0.0, 0.5]),
+            b: DMatrix::from_row_slice(3, 1, &[0.0, 1.0, 1.0]),
+        }
+    }
+
+    fn options(period: f64, substeps: usize, delay: InputDelay) -> ZohOptions {
+        ZohOptions {
+            period,
+            substeps,
+            delay,
+            initial_input: vec![0.0],
+        }
+    }
+
+    /// Input sequence used by the delay tests: a few steps of different signs.
+    fn input(k: usize) -> f64 {
+        [1.0, -0.5, 2.0, 0.0, -1.5, 0.7, 0.3, -2.0][k % 8]
+    }
+
+    #[test]
+    fn rk4_matches_exact_zoh_discretisation() {
+        let sys = oscillator();
+        let h = 0.05;
+        let (ad, bd) = rigid_body::lti::c2d_zoh(&sys.a, &sys.b, h).unwrap();
+        let mut sim = Zoh::new(
+            &sys,
+            vec![],
+            vec![1.0, 0.0, 0.2],
+            options(h, 10, InputDelay::none()),
+        )
+        .unwrap();
+        let mut x = DVector::from_column_slice(&[1.0, 0.0, 0.2]);
+        for k in 0..40 {
+            sim.advance(&[input(k)]).unwrap();
+            x = &ad * x + &bd * input(k);
+        }
+        // RK4 local error ~ (h/10)^5 |A|^5 / 120 per substep: well below 1e-9 here.
+        for (s, e) in sim.state().iter().zip(x.iter()) {
+            assert!((s - e).abs() < 1e-9 * e.abs().max(1.0), "{s} vs {e}");
+        }
+        assert!((sim.time() - 2.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn rk4_error_falls_with_fourth_power_of_step() {
+        let sys = oscillator();
+        let exact = rigid_body::lti::expm(&(&sys.a * 1.0)).unwrap()
+            * DVector::from_column_slice(&[1.0, 0.0, 0.2]);
+        let error = |substeps: usize| {
+            let mut sim = Zoh::new(
+                &sys,
+                vec![],
+                vec![1.0, 0.0, 0.2],
+                options(1.0, substeps, InputDelay::none()),
+            )
+            .unwrap();
+            sim.advance(&[0.0]).unwrap();
+            (DVector::from_column_slice(sim.state()) - &exact).norm()
+        };
+        let ratio = error(32) / error(64);
+        assert!(
+            (ratio - 16.0).abs() < 1.0,
+            "error ratio {ratio}, expected 16 for RK4"
+        );
+    }
+
+    #[test]
+    fn fractional_and_integer_delays_match_exact_delayed_discretisation() {
+        let sys = oscillator();
+        let h = 0.1;
+        for tau in [0.0, 0.03, 0.1, 0.17, 0.25] {
+            let delayed = rigid_body::lti::c2d_zoh_delay(&sys.a, &sys.b, h, tau).unwrap();
+            let delay = InputDelay::from_seconds(tau, h).unwrap();
+            let mut sim =
+                Zoh::new(&sys, vec![], vec![0.5, 0.0, 0.0], options(h, 20, delay)).unwrap();
+            let mut z = DVector::zeros(delayed.a.nrows());
+            z[0] = 0.5;
+            for k in 0..30 {
+                sim.advance(&[input(k)]).unwrap();
+                z = &delayed.a * z + &delayed.b * input(k);
+            }
+            for i in 0..3 {
+                let (s, e) = (sim.state()[i], z[i]);
+                assert!(
+                    (s - e).abs() < 1e-9 * e.abs().max(1.0),
+                    "tau {tau}: {s} vs {e}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn delay_from_seconds_splits_whole_and_fraction() {
+        let d = InputDelay::from_seconds(0.0125, 0.005).unwrap();
+        assert_eq!(d.whole_samples(), 2);
+        assert!((d.fraction() - 0.5).abs() < 1e-12);
+        // 0.3 / 0.1 is 2.9999999999999996 in floating point: snapped to 3 whole samples.
+        let d = InputDelay::from_seconds(0.3, 0.1).unwrap();
+        assert_eq!((d.whole_samples(), d.fraction()), (3, 0.0));
+        assert!(InputDelay::from_seconds(-1.0, 0.1).is_err());
+        assert!(InputDelay::from_seconds(0.1, 0.0).is_err());
+    }
+
+    #[test]
+    fn bad_dimensions_are_named() {
+        let sys = oscillator();
+        let err =
+            Zoh::new(&sys, vec![], vec![1.0], options(0.1, 1, InputDelay::none())).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "length mismatch for initial state: expected 3, found 1"
+        );
+        let mut sim = Zoh::new(
+            &sys,
+            vec![],
+            vec![0.0; 3],
+            options(0.1, 1, InputDelay::none()),
+        )
+        .unwrap();
+        let err = sim.advance(&[1.0, 2.0]).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "length mismatch for input: expected 1, found 2"
+        );
+        let err = Zoh::new(
+            &sys,
+            vec![],
+            vec![0.0, f64::NAN, 0.0],
+            options(0.1, 1, InputDelay::none()),
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("\"x1\""), "{err}");
+    }
+
+    /// `x' = u`: the state is the exact integral of the delayed, held input.
+    #[derive(Debug)]
+    struct Integrator;
+    impl System for Integrator {
+        fn state_names(&self) -> Vec<String> {
+            vec!["x".into()]
+        }
+        fn input_names(&self) -> Vec<String> {
+            vec!["u".into()]
+        }
+        fn output_names(&self) -> Vec<String> {
+            vec!["x".into()]
+        }
+        fn parameter_names(&self) -> Vec<String> {
+            Vec::new()
+        }
+        fn nominal_parameters(&self) -> Vec<f64> {
+            Vec::new()
+        }
+        fn dynamics(&self, _x: &[f64], u: &[f64], _p: &[f64], dx: &mut [f64]) {
+            dx[0] = u[0];
+        }
+        fn output(&self, x: &[f64], _u: &[f64], _p: &[f64], y: &mut [f64]) {
+            y[0] = x[0];
+        }
+    }
+
+    proptest! {
+        /// For x' = u the integral of the delayed input is known in closed form: the input issued
+        /// at j T acts on [j T + tau, (j + 1) T + tau) intersected with [0, N T].
+        #[test]
+        fn delayed_integral_is_exact(
+            inputs in proptest::collection::vec(-10.0f64..10.0, 1..20),
+            tau_samples in 0.0f64..3.0,
+        ) {
+            let period = 0.01;
+            let tau = tau_samples * period;
+            let delay = InputDelay::from_seconds(tau, period).unwrap();
+            let mut sim = Zoh::new(&Integrator, vec![], vec![0.0], options(period, 1, delay)).unwrap();
+            for u in &inputs {
+                sim.advance(&[*u]).unwrap();
+            }
+            let end = inputs.len() as f64 * period;
+            let exact: f64 = inputs
+                .iter()
+                .enumerate()
+                .map(|(j, u)| {
+                    let start = j as f64 * period + tau;
+                    let stop = (start + period).min(end);
+                    u * (stop - start).max(0.0)
+                })
+                .sum();
+            prop_assert!((sim.state()[0] - exact).abs() < 1e-12, "{} vs {}", sim.state()[0], exact);
+        }
+    }
+}

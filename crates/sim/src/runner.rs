@@ -115,7 +115,7 @@ where
             .map(|(&std, name)| {
                 Normal::new(0.0, std)
                     .ok()
-                    .filter(|_| std.is_finite())
+                    .filter(|_| std.is_finite() && std >= 0.0)
                     .ok_or_else(|| {
                         SimError::invalid(
                             format!("noise std of {name}"),
@@ -175,4 +175,122 @@ where
         }
     }
     Ok(trajectory)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::wheel_pendulum::WheelPendulum;
+
+    fn options(noise_std: Vec<f64>, seed: u64) -> RunOptions {
+        RunOptions {
+            duration: 2.0,
+            sample_rate_hz: 100.0,
+            substeps: 2,
+            delay: InputDelay::none(),
+            noise_std,
+            seed,
+        }
+    }
+
+    /// Open-loop run from rest at upright: the true state stays exactly zero, so the measured
+    /// outputs are the noise alone.
+    fn noise_only(noise_std: Vec<f64>, seed: u64) -> Trajectory {
+        let system = WheelPendulum::default();
+        let mut zero = |_t: f64, _y: &[f64], u: &mut [f64]| u[0] = 0.0;
+        run_closed_loop(
+            &system,
+            system.nominal_parameters(),
+            vec![0.0; 3],
+            &mut zero,
+            &options(noise_std, seed),
+            |_| Ok(()),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn noise_is_seeded_and_has_the_requested_spread() {
+        let std = vec![0.01, 0.1, 1.0];
+        let a = noise_only(std.clone(), 5);
+        assert_eq!(a, noise_only(std.clone(), 5));
+        assert_ne!(a.output, noise_only(std.clone(), 6).output);
+        assert!(a.state.columns.iter().flatten().all(|&x| x == 0.0));
+        for (column, sigma) in a.output.columns.iter().zip(&std) {
+            let n = column.len() as f64;
+            let sample_std = (column.iter().map(|v| v * v).sum::<f64>() / n).sqrt();
+            // 201 samples: the sample standard deviation is within 15 % with high probability
+            // (its relative standard error is 1 / sqrt(2 n) = 5 %).
+            assert!(
+                (sample_std / sigma - 1.0).abs() < 0.15,
+                "{sample_std} vs {sigma}"
+            );
+        }
+        assert_eq!(a.output.len(), 201);
+        assert_eq!(a.output.t[200], 2.0);
+    }
+
+    #[test]
+    fn observer_sees_every_sample_and_can_stop_the_run() {
+        let system = WheelPendulum::default();
+        let mut zero = |_t: f64, _y: &[f64], u: &mut [f64]| u[0] = 0.0;
+        let mut seen = 0;
+        let err = run_closed_loop(
+            &system,
+            system.nominal_parameters(),
+            vec![0.01, 0.0, 0.0],
+            &mut zero,
+            &options(vec![], 0),
+            |s| {
+                seen += 1;
+                if s.t >= 0.5 {
+                    Err(SimError::invalid("test", s.t, "stop"))
+                } else {
+                    Ok(())
+                }
+            },
+        )
+        .unwrap_err();
+        assert_eq!(seen, 51);
+        assert!(err.to_string().starts_with("invalid test = 0.5"));
+    }
+
+    #[test]
+    fn bad_options_are_named() {
+        let system = WheelPendulum::default();
+        let mut zero = |_t: f64, _y: &[f64], u: &mut [f64]| u[0] = 0.0;
+        let p = system.nominal_parameters();
+        let run = |o: RunOptions, zero: &mut dyn Controller| {
+            run_closed_loop(&system, p.clone(), vec![0.0; 3], zero, &o, |_| Ok(()))
+        };
+        let err = run(options(vec![0.1], 0), &mut zero).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "length mismatch for noise standard deviations: expected 3, found 1"
+        );
+        let err = run(options(vec![0.1, -1.0, 0.0], 0), &mut zero).unwrap_err();
+        assert!(
+            err.to_string()
+                .starts_with("invalid noise std of phi_dot = -1"),
+            "{err}"
+        );
+        let err = run(
+            RunOptions {
+                duration: -1.0,
+                ..options(vec![], 0)
+            },
+            &mut zero,
+        )
+        .unwrap_err();
+        assert!(
+            err.to_string().starts_with("invalid duration = -1"),
+            "{err}"
+        );
+        let mut nan = |_t: f64, _y: &[f64], u: &mut [f64]| u[0] = f64::NAN;
+        let err = run(options(vec![], 0), &mut nan).unwrap_err();
+        assert!(
+            err.to_string().contains("controller output at t = 0"),
+            "{err}"
+        );
+    }
 }

@@ -191,7 +191,7 @@ pub struct LqrWeights {
 }
 
 impl Default for LqrWeights {
-    /// Bryson's rule: 1 deg of tilt, 0.5 rad/s of tilt rate, 200 rad/s of wheel speed and
+    /// Bryson's rule: 1 deg of tilt, 0.5 rad/s of tilt rate, 20 rad/s of wheel speed and
     /// 0.05 N m of torque cost the same.
     fn default() -> Self {
         let inverse_square = |x: f64| 1.0 / (x * x);
@@ -199,7 +199,7 @@ impl Default for LqrWeights {
             q: [
                 inverse_square(1f64.to_radians()),
                 inverse_square(0.5),
-                inverse_square(200.0),
+                inverse_square(20.0),
             ],
             r: inverse_square(0.05),
         }
@@ -241,5 +241,196 @@ impl Lqr {
     pub fn torque(&self, y: &[f64]) -> f64 {
         let raw = -(self.k[0] * y[0] + self.k[1] * y[1] + self.k[2] * y[2]);
         raw.clamp(-self.torque_max, self.torque_max)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::integrate::InputDelay;
+    use crate::runner::{run_closed_loop, RunOptions, Trajectory};
+
+    const RATE: f64 = 200.0;
+    const TORQUE_MAX: f64 = 0.2;
+
+    fn lqr() -> Lqr {
+        Lqr::design(
+            &WheelPendulumParams::default(),
+            &LqrWeights::default(),
+            1.0 / RATE,
+            TORQUE_MAX,
+        )
+        .unwrap()
+    }
+
+    fn run(tilt_deg: f64, control: bool, delay: f64, duration: f64, seed: u64) -> Trajectory {
+        let system = WheelPendulum::default();
+        let lqr = lqr();
+        let mut controller = |_t: f64, y: &[f64], u: &mut [f64]| {
+            u[0] = if control { lqr.torque(y) } else { 0.0 };
+        };
+        let options = RunOptions {
+            duration,
+            sample_rate_hz: RATE,
+            substeps: 4,
+            delay: InputDelay::from_seconds(delay, 1.0 / RATE).unwrap(),
+            noise_std: vec![1e-3, 5e-3, 0.05],
+            seed,
+        };
+        run_closed_loop(
+            &system,
+            system.nominal_parameters(),
+            vec![tilt_deg.to_radians(), 0.0, 0.0],
+            &mut controller,
+            &options,
+            |_| Ok(()),
+        )
+        .unwrap()
+    }
+
+    fn peak(v: &[f64]) -> f64 {
+        v.iter().fold(0.0f64, |m, x| m.max(x.abs()))
+    }
+
+    #[test]
+    fn linearisation_matches_finite_differences() {
+        let system = WheelPendulum::default();
+        let p = system.nominal_parameters();
+        let (a, b) = system.params.linearize();
+        let eps = 1e-6;
+        let f = |x: &[f64], u: f64| {
+            let mut dx = [0.0; 3];
+            system.dynamics(x, &[u], &p, &mut dx);
+            dx
+        };
+        for j in 0..3 {
+            let mut plus = [0.0; 3];
+            let mut minus = [0.0; 3];
+            plus[j] = eps;
+            minus[j] = -eps;
+            let (fp, fm) = (f(&plus, 0.0), f(&minus, 0.0));
+            for i in 0..3 {
+                let fd = (fp[i] - fm[i]) / (2.0 * eps);
+                assert!(
+                    (fd - a[(i, j)]).abs() < 1e-6 * a[(i, j)].abs().max(1.0),
+                    "A[{i},{j}]: {fd} vs {}",
+                    a[(i, j)]
+                );
+            }
+        }
+        let (fp, fm) = (f(&[0.0; 3], eps), f(&[0.0; 3], -eps));
+        for i in 0..3 {
+            let fd = (fp[i] - fm[i]) / (2.0 * eps);
+            assert!((fd - b[(i, 0)]).abs() < 1e-6 * b[(i, 0)].abs().max(1.0));
+        }
+    }
+
+    #[test]
+    fn upright_is_unstable_and_the_lqr_closed_loop_is_stable() {
+        let (a, _) = WheelPendulumParams::default().linearize();
+        let open = a.complex_eigenvalues();
+        assert!(open.iter().any(|l| l.re > 5.0), "open loop {open}");
+        let closed = lqr().closed_loop.complex_eigenvalues();
+        let radius = closed.iter().map(|l| l.norm()).fold(0.0, f64::max);
+        // Inside the unit circle, and the slowest mode (the wheel spinning down) decays at
+        // more than 0.5 /s.
+        let slowest_rate = -radius.ln() * RATE;
+        assert!(
+            radius < 1.0 && slowest_rate > 0.5,
+            "spectral radius {radius}, rate {slowest_rate} /s"
+        );
+    }
+
+    #[test]
+    fn lqr_gain_is_optimal_against_perturbed_gains() {
+        // Independent check of the Riccati solution: the LQR cost x0^T P x0 of the designed gain,
+        // summed along the discrete closed loop, is below that of every nearby gain.
+        let params = WheelPendulumParams::default();
+        let weights = LqrWeights::default();
+        let (a, b) = params.linearize();
+        let (ad, bd) = rigid_body::lti::c2d_zoh(&a, &b, 1.0 / RATE).unwrap();
+        let q = DMatrix::from_diagonal(&nalgebra::DVector::from_row_slice(&weights.q));
+        let cost = |k: &DMatrix<f64>| {
+            let mut x = nalgebra::DVector::from_row_slice(&[0.05, 0.0, 0.0]);
+            let mut total = 0.0;
+            for _ in 0..20_000 {
+                let u = -(k * &x);
+                total += (x.transpose() * &q * &x)[(0, 0)] + weights.r * u[0] * u[0];
+                x = &ad * x + &bd * u;
+            }
+            total
+        };
+        let k = DMatrix::from_row_slice(1, 3, &lqr().k);
+        let best = cost(&k);
+        for j in 0..3 {
+            for scale in [0.98, 1.02] {
+                let mut other = k.clone();
+                other[(0, j)] *= scale;
+                assert!(cost(&other) > best, "gain {j} scaled by {scale} is cheaper");
+            }
+        }
+    }
+
+    #[test]
+    fn balances_from_five_degrees_with_noise_and_torque_limit() {
+        let run = run(5.0, true, 0.0, 5.0, 7);
+        let phi = run.state.column("phi").unwrap();
+        let tau = run.input.column("tau").unwrap();
+        let last_second = &phi[phi.len() - RATE as usize..];
+        assert!(
+            peak(last_second).to_degrees() < 0.2,
+            "tilt {} deg in the last second",
+            peak(last_second).to_degrees()
+        );
+        // The limit is active at the start: the design is tested under saturation.
+        assert!((peak(tau) - TORQUE_MAX).abs() < 1e-15);
+        let omega = run.state.column("omega_w").unwrap();
+        assert!(peak(omega) < 200.0, "wheel speed {}", peak(omega));
+    }
+
+    #[test]
+    fn balances_with_one_and_a_half_samples_of_delay() {
+        let run = run(3.0, true, 1.5 / RATE, 4.0, 1);
+        let phi = run.state.column("phi").unwrap();
+        assert!(peak(&phi[phi.len() - RATE as usize..]).to_degrees() < 0.3);
+    }
+
+    #[test]
+    fn falls_without_control_as_the_linearisation_predicts() {
+        let run = run(1.0, false, 0.0, 1.5, 0);
+        let phi = run.state.column("phi").unwrap();
+        assert!(
+            peak(phi).to_degrees() > 45.0,
+            "only reached {} deg",
+            peak(phi).to_degrees()
+        );
+        // Early on (tilt < 1.5 deg) the fall follows exp(A t) x0 of the linearisation.
+        let (a, _) = WheelPendulumParams::default().linearize();
+        let x0 = nalgebra::DVector::from_row_slice(&[1f64.to_radians(), 0.0, 0.0]);
+        let k = (0.2 * RATE) as usize;
+        let linear = rigid_body::lti::expm(&(a * 0.2)).unwrap() * x0;
+        assert!(
+            (phi[k] - linear[0]).abs() < 1e-3 * linear[0],
+            "{} vs {}",
+            phi[k],
+            linear[0]
+        );
+    }
+
+    #[test]
+    fn bad_parameters_are_named() {
+        let mut p = WheelPendulumParams::default().to_vec();
+        p[1] = 0.0;
+        let err = WheelPendulumParams::from_slice(&p).unwrap_err();
+        assert!(err.to_string().starts_with("invalid theta_w = 0"), "{err}");
+        assert!(WheelPendulumParams::from_slice(&p[..3]).is_err());
+        let err = Lqr::design(
+            &WheelPendulumParams::default(),
+            &LqrWeights::default(),
+            0.005,
+            -1.0,
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("torque limit"));
     }
 }

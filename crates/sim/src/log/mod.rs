@@ -12,3 +12,6 @@ pub use experiment::{Experiment, Periodic, EXPERIMENT};
 pub use reader::{read_mcap, read_mcap_bytes, Log};
 pub use table::Table;
 pub use writer::{LogWriter, TopicId, DEFAULT_FLUSH_EVERY};
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,308 @@
+//! Round trips through the writer and readers, logs cut off in three ways, and the named errors.
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use proptest::prelude::*;
+
+use super::*;
+use crate::error::SimError;
+
+fn temp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("sim-log-tests-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+/// Writes `n` messages of a ramp on one topic (x = 2 t, v = -t) and returns the writer unfinished.
+fn ramp(path: &std::path::Path, n: usize, flush_every: usize) -> LogWriter {
+    let mut log = LogWriter::with_flush_every(path, flush_every).unwrap();
+    log.write_metadata(EXPERIMENT, Experiment::new(100.0).to_metadata())
+        .unwrap();
+    let topic = log.add_topic("/demo/output", &["x", "v"]).unwrap();
+    for k in 0..n {
+        let t = k as f64 / 100.0;
+        log.write(topic, t, &[2.0 * t, -t]).unwrap();
+    }
+    log
+}
+
+fn check_ramp(log: &Log, n: usize) {
+    let table = log.topic("/demo/output").unwrap();
+    assert_eq!(table.len(), n);
+    for (k, ((t, x), v)) in table
+        .t
+        .iter()
+        .zip(table.column("x").unwrap())
+        .zip(table.column("v").unwrap())
+        .enumerate()
+    {
+        assert_eq!(*t, k as f64 / 100.0);
+        assert_eq!((*x, *v), (2.0 * t, -t));
+    }
+}
+
+#[test]
+fn finished_log_reads_back_with_metadata() {
+    let path = temp("finished.mcap");
+    ramp(&path, 300, DEFAULT_FLUSH_EVERY).finish().unwrap();
+    let log = read_mcap(&path).unwrap();
+    assert!(log.complete && log.problem.is_none());
+    check_ramp(&log, 300);
+    assert_eq!(log.experiment().unwrap()["sample_rate_hz"], "100");
+    assert_eq!(log.topic("/demo/output").unwrap().fields, ["x", "v"]);
+}
+
+#[test]
+fn dropped_writer_leaves_a_complete_log() {
+    let path = temp("dropped.mcap");
+    drop(ramp(&path, 250, DEFAULT_FLUSH_EVERY));
+    let log = read_mcap(&path).unwrap();
+    assert!(log.complete, "{:?}", log.problem);
+    check_ramp(&log, 250);
+}
+
+#[test]
+fn panic_while_writing_leaves_a_complete_log() {
+    let path = temp("panicked.mcap");
+    let moved = path.clone();
+    let result = std::panic::catch_unwind(move || {
+        let _log = ramp(&moved, 120, DEFAULT_FLUSH_EVERY);
+        panic!("simulated failure in the middle of a run");
+    });
+    assert!(result.is_err());
+    let log = read_mcap(&path).unwrap();
+    assert!(log.complete);
+    check_ramp(&log, 120);
+}
+
+#[test]
+fn killed_writer_leaves_every_flushed_chunk() {
+    // Forgetting the writer skips every destructor, as a killed process would: buffered bytes
+    // are lost, chunks already flushed must still read.
+    let path = temp("killed.mcap");
+    std::mem::forget(ramp(&path, 1050, 100));
+    let log = read_mcap(&path).unwrap();
+    assert!(!log.complete);
+    assert!(log.problem.is_some());
+    let n = log.topic("/demo/output").unwrap().len();
+    assert!((1000..=1050).contains(&n), "read {n} messages");
+    check_ramp(&log, n);
+    assert_eq!(log.experiment().unwrap()["sample_rate_hz"], "100");
+}
+
+#[test]
+fn missing_file_wrong_format_and_missing_topic_are_named() {
+    let err = read_mcap(temp("absent.mcap")).unwrap_err();
+    assert!(matches!(err, SimError::FileNotFound { .. }));
+    assert!(err.to_string().starts_with("file not found: "), "{err}");
+
+    let text = temp("text.mcap");
+    std::fs::write(&text, "t,x\n0,1\n").unwrap();
+    let err = read_mcap(&text).unwrap_err();
+    assert!(err.to_string().contains("not an MCAP file"), "{err}");
+    std::fs::write(&text, "").unwrap();
+    assert!(matches!(
+        read_mcap(&text).unwrap_err(),
+        SimError::NotMcap { .. }
+    ));
+
+    let path = temp("topics.mcap");
+    ramp(&path, 3, DEFAULT_FLUSH_EVERY).finish().unwrap();
+    let err = read_mcap(&path).unwrap().topic("/demo/input").unwrap_err();
+    assert!(
+        err.to_string()
+            .starts_with("missing channel \"/demo/input\"")
+            && err.to_string().ends_with("available: /demo/output"),
+        "{err}"
+    );
+    let log = read_mcap(&path).unwrap();
+    let err = log.topic("/demo/output").unwrap().column("a").unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "missing field \"a\" in /demo/output; available: x, v"
+    );
+}
+
+#[test]
+fn writer_refuses_bad_messages() {
+    let mut log = LogWriter::create(temp("refused.mcap")).unwrap();
+    let topic = log.add_topic("/demo/output", &["x", "v"]).unwrap();
+    let err = log.write(topic, 0.0, &[1.0, f64::NAN]).unwrap_err();
+    assert!(err.to_string().contains("field \"v\""), "{err}");
+    let err = log.write(topic, 0.0, &[1.0]).unwrap_err();
+    assert!(matches!(
+        err,
+        SimError::LengthMismatch {
+            expected: 2,
+            found: 1,
+            ..
+        }
+    ));
+    assert!(log.write(topic, -1.0, &[1.0, 2.0]).is_err());
+    assert!(log.add_topic("/demo/output", &["y"]).is_err());
+    assert!(log.add_topic("/demo/other", &["t"]).is_err());
+    assert!(log.add_topic("/demo/other", &["y", "y"]).is_err());
+}
+
+/// Writes raw JSON messages with the mcap crate, as another tool might.
+fn raw_log(name: &str, schema: &str, messages: &[&str]) -> PathBuf {
+    let path = temp(name);
+    let mut writer = mcap::Writer::new(std::io::BufWriter::new(
+        std::fs::File::create(&path).unwrap(),
+    ))
+    .unwrap();
+    let schema = writer
+        .add_schema("demo", "jsonschema", schema.as_bytes())
+        .unwrap();
+    let channel = writer
+        .add_channel(schema, "/raw", "json", &BTreeMap::new())
+        .unwrap();
+    for (k, message) in messages.iter().enumerate() {
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: k as u32,
+            log_time: k as u64,
+            publish_time: k as u64,
+        };
+        writer
+            .write_to_known_channel(&header, message.as_bytes())
+            .unwrap();
+    }
+    writer.finish().unwrap();
+    path
+}
+
+const SCHEMA: &str = r#"{"type":"object","properties":{"t":{"type":"number"},"b":{"type":"number"},"a":{"type":"number"},"label":{"type":"string"}}}"#;
+
+#[test]
+fn foreign_logs_read_by_schema_and_bad_values_are_named() {
+    let path = raw_log(
+        "foreign.mcap",
+        SCHEMA,
+        &[
+            r#"{"t":0,"a":1,"b":2,"label":"x"}"#,
+            r#"{"t":0.5,"a":3,"b":4,"label":"y"}"#,
+        ],
+    );
+    let log = read_mcap(&path).unwrap();
+    let table = log.topic("/raw").unwrap();
+    // Without `required`, number properties come in name order; strings are skipped.
+    assert_eq!(table.fields, ["a", "b"]);
+    assert_eq!(table.column("b").unwrap(), &[2.0, 4.0]);
+    assert_eq!(table.t, [0.0, 0.5]);
+
+    let path = raw_log("missing-field.mcap", SCHEMA, &[r#"{"t":0,"a":1}"#]);
+    let err = read_mcap(&path).unwrap_err();
+    assert!(
+        err.to_string()
+            .starts_with("missing field \"b\" in /raw at t = 0"),
+        "{err}"
+    );
+
+    let path = raw_log("null.mcap", SCHEMA, &[r#"{"t":0,"a":null,"b":1}"#]);
+    let err = read_mcap(&path).unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "field \"a\" in /raw at t = 0 is not a finite number: null"
+    );
+
+    let path = raw_log("no-t.mcap", SCHEMA, &[r#"{"a":1,"b":1}"#]);
+    let err = read_mcap(&path).unwrap_err();
+    assert!(
+        err.to_string()
+            .starts_with("missing field \"t\" in /raw message 0"),
+        "{err}"
+    );
+
+    let path = raw_log("not-json.mcap", SCHEMA, &["[1, 2]"]);
+    let err = read_mcap(&path).unwrap_err();
+    assert!(
+        err.to_string()
+            .starts_with("bad message in /raw message 0: not a JSON object"),
+        "{err}"
+    );
+
+    // No usable schema: the fields are the numbers of the first message.
+    let path = raw_log("schemaless.mcap", "{}", &[r#"{"t":1,"z":5,"y":6}"#]);
+    let table = read_mcap(&path).unwrap().topic("/raw").unwrap().clone();
+    assert_eq!(table.fields, ["y", "z"]);
+}
+
+#[test]
+fn csv_reads_into_the_same_table() {
+    let path = temp("good.csv");
+    std::fs::write(&path, "x, t ,v\n1,0,2\n3,0.5,4\n").unwrap();
+    let table = read_csv(&path).unwrap();
+    assert_eq!(table.fields, ["x", "v"]);
+    assert_eq!(table.t, [0.0, 0.5]);
+    assert_eq!(table.column("v").unwrap(), &[2.0, 4.0]);
+}
+
+#[test]
+fn csv_errors_are_named() {
+    let cases = [
+        (
+            "no-t.csv",
+            "x,v\n1,2\n",
+            "missing field \"t\" in header row of",
+        ),
+        ("nan.csv", "t,x\n0,1\n1,nan\n", "field \"x\" in"),
+        (
+            "word.csv",
+            "t,x\n0,one\n",
+            "line 2, column \"x\": \"one\" is not a number",
+        ),
+        ("ragged.csv", "t,x\n0,1\n1\n", "bad CSV file"),
+    ];
+    for (name, text, expected) in cases {
+        let path = temp(name);
+        std::fs::write(&path, text).unwrap();
+        let err = read_csv(&path).unwrap_err();
+        assert!(err.to_string().contains(expected), "{name}: {err}");
+    }
+    assert!(matches!(
+        read_csv(temp("absent.csv")).unwrap_err(),
+        SimError::FileNotFound { .. }
+    ));
+}
+
+#[test]
+fn experiment_periodic_keys_round_trip() {
+    let experiment = Experiment {
+        sample_rate_hz: 250.0,
+        periodic: Some(Periodic {
+            period_samples: 1024,
+            periods: 8,
+            transient_samples: 2048,
+            excited: vec!["F1x".into(), "F2z".into()],
+        }),
+        extra: BTreeMap::from([("system".to_string(), "flying_platform".to_string())]),
+    };
+    let map = experiment.to_metadata();
+    assert_eq!(map["excited"], "F1x,F2z");
+    assert_eq!(Experiment::from_metadata(&map).unwrap(), experiment);
+    let mut partial = map.clone();
+    partial.remove("periods");
+    let err = Experiment::from_metadata(&partial).unwrap_err();
+    assert!(
+        err.to_string().contains("missing field \"periods\""),
+        "{err}"
+    );
+}
+
+proptest! {
+    /// Every finite f64 survives the JSON text of a message bit for bit.
+    #[test]
+    fn values_round_trip_exactly(values in proptest::collection::vec(proptest::num::f64::NORMAL | proptest::num::f64::SUBNORMAL | proptest::num::f64::ZERO, 1..40)) {
+        let path = temp("prop.mcap");
+        let mut log = LogWriter::create(&path).unwrap();
+        let topic = log.add_topic("/p/q", &["value"]).unwrap();
+        for (k, v) in values.iter().enumerate() {
+            log.write(topic, k as f64 * 0.001, &[*v]).unwrap();
+        }
+        log.finish().unwrap();
+        let read = read_mcap(&path).unwrap();
+        let column = read.topic("/p/q").unwrap().column("value").unwrap().to_vec();
+        prop_assert_eq!(column.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), values.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
+    }
+}
