@@ -454,3 +454,104 @@ impl Problem {
         format!("no solution satisfies together: {}", names.join("; "))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::linalg::{max_eigenvalue, spectral_radius};
+    use proptest::prelude::*;
+
+    fn sym_from(v: &[f64], d: usize) -> DMatrix<f64> {
+        let m = DMatrix::from_column_slice(d, d, &v[..d * d]);
+        (&m + m.transpose()) * 0.5
+    }
+
+    proptest! {
+        #[test]
+        fn svec_round_trip_and_inner_product(v in proptest::collection::vec(-3.0f64..3.0, 32), d in 1usize..5) {
+            let a = sym_from(&v, d);
+            let b = sym_from(&v[16..], d);
+            prop_assert!((smat(&svec(&a)) - &a).amax() < 1e-14);
+            let dot: f64 = svec(&a).iter().zip(svec(&b)).map(|(x, y)| x * y).sum();
+            prop_assert!((dot - (&a * &b).trace()).abs() < 1e-12);
+            // Diagonal entry (k, k) sits at k(k+3)/2.
+            prop_assert!((svec(&a)[(d - 1) * (d + 2) / 2] - a[(d - 1, d - 1)]).abs() < 1e-15);
+        }
+
+        /// Every stable A has a Lyapunov certificate P ≻ 0 with AᵀPA − P ≺ 0, found by the SDP.
+        #[test]
+        fn lyapunov_feasibility_for_schur_matrices(v in proptest::collection::vec(-1.0f64..1.0, 9), rho in 0.1f64..0.95) {
+            let a0 = DMatrix::from_column_slice(3, 3, &v);
+            let r0 = spectral_radius(&a0);
+            prop_assume!(r0 > 1e-3);
+            let a = a0 * (rho / r0);
+            let mut vars = Vars::default();
+            let p = vars.sym(3);
+            let mut prob = Problem::new(vars);
+            {
+                // [[P, PA], [AᵀP, P]] ⪰ ε, P ⪯ 100 I (bounded), minimise tr P.
+                let l = prob.lmi("Lyapunov decrease", 6);
+                l.add_sym(p, 0, 1.0);
+                l.add_sym_times(p, &a, 0, 3, 1.0);
+                l.add_sym(p, 3, 1.0);
+                let l = prob.lmi("P ⪯ 100 I", 3);
+                l.add_sym(p, 0, -1.0);
+                l.add_const(0, 0, &(DMatrix::identity(3, 3) * 100.0));
+                let l = prob.lmi("P ⪰ I", 3);
+                l.add_sym(p, 0, 1.0);
+                l.add_const(0, 0, &(-DMatrix::<f64>::identity(3, 3)));
+            }
+            for i in 0..3 {
+                prob.objective[p.index(i, i)] = 1.0;
+            }
+            match prob.solve("Lyapunov", 1e-6) {
+                Ok(sol) => {
+                    let pm = p.value(&sol.x);
+                    prop_assert!(max_eigenvalue(&(a.transpose() * &pm * &a - &pm)) < 0.0);
+                }
+                // P ⪯ 100 I may be too small for strongly non-normal A: then the SDP must say so.
+                Err(EventEstError::Infeasible { .. }) => {
+                    let pm = rigid_body::lti::dlyap(&a.transpose(), &DMatrix::identity(3, 3)).unwrap();
+                    prop_assert!(pm.norm() > 10.0);
+                }
+                Err(e) => prop_assert!(false, "{e}"),
+            }
+        }
+    }
+
+    #[test]
+    fn tiny_sdp_has_the_known_optimum() {
+        // minimise t s.t. [[t, 1], [1, t]] ⪰ 0: t = 1.
+        let mut vars = Vars::default();
+        let t = vars.scalar();
+        let mut prob = Problem::new(vars);
+        let l = prob.lmi("[[t,1],[1,t]]", 2);
+        l.add_scalar_identity(t, 0, 2, 1.0);
+        l.add_const(0, 1, &DMatrix::from_element(1, 1, 1.0));
+        prob.objective[0] = 1.0;
+        let sol = prob.solve("tiny", 0.0).unwrap();
+        assert!((sol.x[0] - 1.0).abs() < 1e-7);
+    }
+
+    #[test]
+    fn infeasible_problem_names_the_conflicting_conditions() {
+        // x ⪰ 1 and x ⪯ 0 with a harmless third constraint y ⪰ 0 that is not part of the conflict.
+        let mut vars = Vars::default();
+        let x = vars.sym(2);
+        let y = vars.scalar();
+        let mut prob = Problem::new(vars);
+        let l = prob.lmi("X ⪰ I", 2);
+        l.add_sym(x, 0, 1.0);
+        l.add_const(0, 0, &(-DMatrix::<f64>::identity(2, 2)));
+        let l = prob.lmi("X ⪯ 0", 2);
+        l.add_sym(x, 0, -1.0);
+        let l = prob.lmi("y ⪰ 0", 1);
+        l.add_scalar_identity(y, 0, 1, 1.0);
+        let err = prob.solve("conflict", 0.0).unwrap_err();
+        let EventEstError::Infeasible { condition, .. } = &err else {
+            panic!("expected Infeasible, got {err}");
+        };
+        assert!(condition.contains("X ⪰ I") && condition.contains("X ⪯ 0"), "{condition}");
+        assert!(!condition.contains("y ⪰ 0"), "{condition}");
+    }
+}

@@ -423,3 +423,115 @@ impl<'a> Agent<'a> {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn scalar_net<'a>(delta_inv: &'a [f64], a_cl: &'a mut [f64]) -> Network<'a> {
+        let data = NetworkData {
+            n: 1,
+            a: &[0.9],
+            b: &[1.0],
+            c: &[1.0],
+            f: &[-0.5],
+            l: &[0.5],
+            delta_inv,
+            outputs: &[0, 1],
+            inputs: &[0, 1],
+        };
+        Network::new(data, a_cl).unwrap()
+    }
+
+    #[test]
+    fn trigger_fires_at_equality() {
+        let d = [0.5];
+        let view = DMatrixView::from_slice_generic(&d[..], Dyn(1), Dyn(1));
+        assert!(trigger_fires(view, &[2.0])); // |0.5 · 2| = 1
+        assert!(!trigger_fires(view, &[1.999_999]));
+        assert!(trigger_fires(view, &[-2.0]));
+    }
+
+    #[test]
+    fn agents_without_outputs_never_fire() {
+        let d: [f64; 0] = [];
+        let view = DMatrixView::from_slice_generic(&d[..], Dyn(0), Dyn(0));
+        assert!(!trigger_fires(view, &[]));
+    }
+
+    #[test]
+    fn dimension_errors_name_the_input() {
+        let mut a_cl = [0.0];
+        let data = NetworkData {
+            n: 1,
+            a: &[0.9, 0.0],
+            b: &[1.0],
+            c: &[1.0],
+            f: &[-0.5],
+            l: &[0.5],
+            delta_inv: &[1.0],
+            outputs: &[0, 1],
+            inputs: &[0, 1],
+        };
+        let err = Network::new(data, &mut a_cl).unwrap_err();
+        assert!(matches!(err, EventEstError::Dimension { name: "A", .. }), "{err}");
+        let mut a_cl = [0.0];
+        let net = scalar_net(&[1.0], &mut a_cl);
+        let mut ws = [0.0; 3];
+        let mut agent = Agent::new(&net, 0, &mut ws, InputMode::Communicated, LocalUpdate::OnlyOnEvent).unwrap();
+        assert_eq!(agent.predict(None), Err(EventEstError::MissingInput));
+        assert!(matches!(agent.trigger(&[1.0, 2.0]), Err(EventEstError::Dimension { .. })));
+        let mut ws = [0.0; 3];
+        assert!(matches!(
+            Agent::new(&net, 3, &mut ws, InputMode::Reconstructed, LocalUpdate::OnlyOnEvent),
+            Err(EventEstError::AgentIndex { index: 3, agents: 1 })
+        ));
+    }
+
+    proptest! {
+        /// Matrix thresholds fire on the Euclidean norm of Δ^{-1} r.
+        #[test]
+        fn matrix_trigger_is_the_euclidean_norm(
+            m in proptest::collection::vec(-2.0f64..2.0, 4),
+            r in proptest::collection::vec(-2.0f64..2.0, 2),
+        ) {
+            let q = [m[0] * r[0] + m[2] * r[1], m[1] * r[0] + m[3] * r[1]];
+            let norm = (q[0] * q[0] + q[1] * q[1]).sqrt();
+            prop_assume!((norm - 1.0).abs() > 1e-9);
+            let view = DMatrixView::from_slice_generic(&m[..], Dyn(2), Dyn(2));
+            prop_assert_eq!(trigger_fires(view, &r), norm >= 1.0);
+        }
+
+        /// For scalar thresholds the trigger is |r| ≥ Δ.
+        #[test]
+        fn scalar_trigger_is_abs_above_threshold(delta in 1e-3f64..10.0, r in -20.0f64..20.0) {
+            prop_assume!((r.abs() - delta).abs() > 1e-9 * delta);
+            let d = [1.0 / delta];
+            let view = DMatrixView::from_slice_generic(&d[..], Dyn(1), Dyn(1));
+            prop_assert_eq!(trigger_fires(view, &[r]), r.abs() >= delta);
+        }
+
+        /// One agent step equals the estimator equations written out for a scalar plant.
+        #[test]
+        fn scalar_step_matches_the_equations(x0 in -5.0f64..5.0, y in -5.0f64..5.0, delta in 0.01f64..3.0) {
+            let d = [1.0 / delta];
+            let mut a_cl = [0.0];
+            let net = scalar_net(&d, &mut a_cl);
+            let mut ws = [0.0; 3];
+            let mut agent = Agent::new(&net, 0, &mut ws, InputMode::Reconstructed, LocalUpdate::OnlyOnEvent).unwrap();
+            agent.reset(&[x0]).unwrap();
+            agent.predict(None).unwrap();
+            let pred = (0.9 - 0.5) * x0;
+            prop_assert!((agent.prediction()[0] - pred).abs() < 1e-12);
+            let fired = agent.trigger(&[y]).unwrap();
+            prop_assert_eq!(fired, (y - pred).abs() >= delta);
+            agent.update(&[y], core::iter::empty()).unwrap();
+            let want = if fired { pred + 0.5 * (y - pred) } else { pred };
+            prop_assert!((agent.estimate()[0] - want).abs() < 1e-12);
+            let mut u = [0.0];
+            agent.control(&mut u).unwrap();
+            prop_assert!((u[0] + 0.5 * want).abs() < 1e-12);
+        }
+    }
+}
