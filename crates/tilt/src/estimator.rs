@@ -69,7 +69,7 @@ impl Options {
                 requirement: "must be at least 1",
             });
         }
-        if !(self.plane_alignment_tol >= 0.0) {
+        if self.plane_alignment_tol.is_nan() || self.plane_alignment_tol < 0.0 {
             return Err(TiltError::InvalidOption {
                 name: "plane_alignment_tol",
                 value: self.plane_alignment_tol,

@@ -34,6 +34,8 @@ pub use fisher::{
 pub use layout::{AffinePlane, Layout, MAX_SENSORS};
 pub use least_squares::{least_squares, LeastSquaresEstimate};
 pub use model::{ideal_measurements, omega_matrix};
-pub use placement::{d_criterion, d_criterion_bound, optimality_residuals, platonic_layout};
+pub use placement::{
+    d_criterion, d_criterion_bound, optimal_placement, optimality_residuals, platonic_layout,
+};
 pub use rigid_body::s2::G0;
 pub use tuning::{a_s, a_s_eigenvalues, default_tuning, manual_tuning, Tuning, TuningRule};

@@ -14,3 +14,11 @@ pub(crate) fn ln(x: f64) -> f64 {
 pub(crate) fn exp(x: f64) -> f64 {
     ComplexField::exp(x)
 }
+
+pub(crate) fn sin(x: f64) -> f64 {
+    ComplexField::sin(x)
+}
+
+pub(crate) fn cos(x: f64) -> f64 {
+    ComplexField::cos(x)
+}

@@ -322,3 +322,44 @@ fn theta_is_the_inertia_of_unit_masses() {
         .sum();
     assert!((layout.theta() - direct).norm() < 1e-12);
 }
+
+#[test]
+fn optimal_placement_reaches_the_bound() {
+    let mut buffer = [Vector3::zeros(); MAX_SENSORS];
+    for l in (4..=20).filter(|&l| l != 5) {
+        let (positions, ratio) = tilt::optimal_placement(l, &mut buffer).unwrap();
+        let layout = Layout::new(positions).unwrap();
+        // The reported ratio is the criterion of the returned layout.
+        assert!((d_criterion(&layout, &down()) / d_criterion_bound(l, G0) - ratio).abs() < 1e-12);
+        assert!(ratio > 1.0 - 1e-6, "L = {l}: ratio {ratio}");
+        assert!(
+            optimality_residuals(&layout).iter().all(|&r| r < 1e-6),
+            "L = {l}"
+        );
+    }
+    assert!(matches!(
+        tilt::optimal_placement(3, &mut buffer),
+        Err(TiltError::InvalidOption { .. })
+    ));
+}
+
+#[test]
+fn five_sensors_cannot_reach_the_bound() {
+    // (2.65) needs a rank-1 projector u u^T on the complement of 1 with u_i^2 = 1/5 and
+    // sum u_i = 0: impossible with an odd number of entries +-1/sqrt(5). The ascent's result
+    // must still beat every random layout on the sphere.
+    let mut buffer = [Vector3::zeros(); MAX_SENSORS];
+    let (positions, ratio) = tilt::optimal_placement(5, &mut buffer).unwrap();
+    assert!(positions.iter().all(|p| (p.norm() - 1.0).abs() < 1e-12));
+    assert!(ratio > 0.98 && ratio < 1.0, "{ratio}");
+    let mut rng = StdRng::seed_from_u64(55);
+    let bound = d_criterion_bound(5, G0);
+    for _ in 0..20_000 {
+        let random: Vec<_> = (0..5)
+            .map(|_| gaussian_vector(&mut rng).normalize())
+            .collect();
+        if let Ok(layout) = Layout::new(&random) {
+            assert!(d_criterion(&layout, &down()) / bound <= ratio);
+        }
+    }
+}
