@@ -24,4 +24,8 @@ rm -rf target/wheels
 .venv/bin/maturin build --release -q -m py/Cargo.toml -o target/wheels
 .venv/bin/python -m pip install -q --force-reinstall --no-deps target/wheels/stabilis-*.whl
 step "pytest"
+# From py/, where `stabilis` is not importable from source: the tests use the installed wheel and
+# the release binary (the interop tests run `stabilis info`).
+cargo build --release -q -p sim --bin stabilis
+export STABILIS_BIN="$PWD/target/release/stabilis"
 (cd py && ../.venv/bin/python -m pytest -q tests)

@@ -30,8 +30,9 @@ pub struct Args {
     /// Delay from controller to motor, s (fractions of a sample are simulated exactly).
     #[arg(long, default_value_t = 0.0)]
     pub delay: f64,
-    /// Standard deviations of the sensor noise on phi (rad), phi_dot (rad/s), omega_w (rad/s).
-    #[arg(long, num_args = 3, value_delimiter = ',', default_values_t = [1e-3, 5e-3, 0.05])]
+    /// Standard deviations of the sensor noise on phi (rad), phi_dot (rad/s), omega_w (rad/s),
+    /// comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = [1e-3, 5e-3, 0.05])]
     pub noise: Vec<f64>,
     /// Leave the motor off: the pendulum falls.
     #[arg(long)]
