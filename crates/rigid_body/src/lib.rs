@@ -5,7 +5,6 @@
 #[cfg(feature = "std")]
 extern crate std;
 
-
 mod error;
 pub use error::Error;
 
@@ -15,5 +14,7 @@ pub type Result<T> = core::result::Result<T, Error>;
 #[cfg(feature = "std")]
 pub mod lti;
 pub mod matrix_set;
+pub mod laguerre;
 pub mod s2;
+pub mod siqp;
 pub mod so3;
