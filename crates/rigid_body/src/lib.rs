@@ -11,10 +11,10 @@ pub use error::Error;
 /// Result type of this crate.
 pub type Result<T> = core::result::Result<T, Error>;
 
+pub mod laguerre;
 #[cfg(feature = "std")]
 pub mod lti;
 pub mod matrix_set;
-pub mod laguerre;
 pub mod s2;
 pub mod siqp;
 pub mod so3;
