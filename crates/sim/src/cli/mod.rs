@@ -37,6 +37,9 @@ pub enum Command {
 pub enum SimSystem {
     /// Planar reaction-wheel inverted pendulum balanced by a discrete LQR.
     WheelPendulum(scenarios::wheel_pendulum::Args),
+    /// Ducted-fan flying platform under the cascaded hover controller (hover, disturbance,
+    /// step, and the 18 identification experiments).
+    FlyingPlatform(scenarios::flying_platform::Args),
 }
 
 impl SimSystem {
@@ -44,6 +47,7 @@ impl SimSystem {
     pub fn scenario(&self) -> &dyn Scenario {
         match self {
             Self::WheelPendulum(args) => args,
+            Self::FlyingPlatform(args) => args,
         }
     }
 

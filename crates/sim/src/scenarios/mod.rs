@@ -9,6 +9,7 @@ use crate::error::Result;
 use crate::log::{Experiment, LogWriter, Table, TopicId, EXPERIMENT};
 use crate::progress::Progress;
 
+pub mod flying_platform;
 pub mod wheel_pendulum;
 
 /// Options every scenario takes.
