@@ -78,3 +78,62 @@ impl SampledController for NoControl {
         Ok(Vector3::zeros())
     }
 }
+
+/// The jump-up controller of Algorithm 1 after braking: the guiding controller every call
+/// (call it at 10 ms) until the inclination drops below `switch_inclination`, then the balancing
+/// controller every `balance_every` calls (2 gives 20 ms), holding its torque in between.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JumpController {
+    guide: GuidingController,
+    balance: Backstepping,
+    switch_inclination: f64,
+    balance_every: usize,
+    calls_since_switch: Option<usize>,
+    held: Vector3<f64>,
+}
+
+impl JumpController {
+    /// Guide, then balance below `switch_inclination` (rad), updating balance every `balance_every` calls.
+    pub fn new(
+        guide: GuidingController,
+        balance: Backstepping,
+        switch_inclination: f64,
+        balance_every: usize,
+    ) -> Self {
+        Self {
+            guide,
+            balance,
+            switch_inclination,
+            balance_every: balance_every.max(1),
+            calls_since_switch: None,
+            held: Vector3::zeros(),
+        }
+    }
+
+    /// Whether the balancing controller has taken over.
+    pub fn balancing(&self) -> bool {
+        self.calls_since_switch.is_some()
+    }
+}
+
+impl SampledController for JumpController {
+    fn sample(&mut self, y: &Measurement, _dt: f64) -> Result<Vector3<f64>, CubliError> {
+        let model = *self.guide.params();
+        let x = y.state(&model)?;
+        if self.calls_since_switch.is_none()
+            && crate::model::inclination(&model, &x.gravity_body(&model)) < self.switch_inclination
+        {
+            self.calls_since_switch = Some(0);
+        }
+        match self.calls_since_switch {
+            None => self.guide.control(&x),
+            Some(k) => {
+                if k % self.balance_every == 0 {
+                    self.held = self.balance.control(&x.reduced(&model))?;
+                }
+                self.calls_since_switch = Some(k + 1);
+                Ok(self.held)
+            }
+        }
+    }
+}

@@ -31,7 +31,7 @@ mod trial;
 mod tuning;
 
 pub use backstepping::{Backstepping, Gains, IntegralBackstepping};
-pub use controller::{Measurement, NoControl, SampledController};
+pub use controller::{JumpController, Measurement, NoControl, SampledController};
 pub use error::CubliError;
 pub use feedback_linearization::{
     FeedbackLinearization, GuidingController, JumpReference, Outputs, Reference,

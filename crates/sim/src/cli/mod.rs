@@ -37,6 +37,8 @@ pub enum Command {
 pub enum SimSystem {
     /// Planar reaction-wheel inverted pendulum balanced by a discrete LQR.
     WheelPendulum(scenarios::wheel_pendulum::Args),
+    /// Reaction-wheel cube on its corner: balance, disturbance, jump-up (MCAP `/cubli/*`).
+    Cubli(scenarios::cubli::Args),
     /// Ducted-fan flying platform under the cascaded hover controller (hover, disturbance,
     /// step, and the 18 identification experiments).
     FlyingPlatform(scenarios::flying_platform::Args),
@@ -47,6 +49,7 @@ impl SimSystem {
     pub fn scenario(&self) -> &dyn Scenario {
         match self {
             Self::WheelPendulum(args) => args,
+            Self::Cubli(args) => args,
             Self::FlyingPlatform(args) => args,
         }
     }

@@ -10,6 +10,7 @@ use crate::log::{Experiment, LogWriter, Table, TopicId, EXPERIMENT};
 use crate::progress::Progress;
 
 pub mod flying_platform;
+pub mod cubli;
 pub mod wheel_pendulum;
 
 /// Options every scenario takes.
