@@ -195,7 +195,16 @@ impl ExperimentDesign {
 
     /// [`ExperimentDesign::paper`] with [`ExperimentDesign::LAMBDA_WITHIN_LIMITS`].
     pub fn within_limits(seed: u64) -> Result<Self> {
-        Self::new(Self::LAMBDA_WITHIN_LIMITS, 50.0, 250, &(1..=20).collect::<Vec<_>>(), 1000, 10, 200, seed)
+        Self::new(
+            Self::LAMBDA_WITHIN_LIMITS,
+            50.0,
+            250,
+            &(1..=20).collect::<Vec<_>>(),
+            1000,
+            10,
+            200,
+            seed,
+        )
     }
 
     /// A design with the given settings; both signals share the amplitude spectrum.

@@ -37,6 +37,7 @@
 //! ```
 
 pub mod control;
+pub mod controllability;
 pub mod effects;
 pub mod error;
 pub mod excitation;
