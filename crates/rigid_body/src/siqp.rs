@@ -167,6 +167,7 @@ pub struct Problem<'a> {
     rows: &'a [Row],
     phi: &'a [f64],
     max_active: usize,
+    phi_scale: f64,
 }
 
 impl<'a> Problem<'a> {
@@ -213,11 +214,13 @@ impl<'a> Problem<'a> {
                 requirement: "room for at least one active instant",
             });
         }
+        let phi_scale = (0..dim).map(|i| phi[i * dim + i]).fold(0.0, f64::max);
         Ok(Self {
             basis,
             rows,
             phi,
             max_active,
+            phi_scale,
         })
     }
 
@@ -390,7 +393,7 @@ impl<'a> Workspace<'a> {
 
     /// Try to append the candidate whose τ is in `self.tau` and Φv in `self.uq`; returns the
     /// Schur complement or `None` if dependent on the working set (or at capacity).
-    fn try_append(&mut self, cand: Active, dep_tol: f64) -> Option<f64> {
+    fn try_append(&mut self, cand: Active, dep_tol: f64, scale: f64) -> Option<f64> {
         let p = self.n_active;
         if p >= self.cap {
             return None;
@@ -403,7 +406,8 @@ impl<'a> Workspace<'a> {
         }
         self.chol.forward(p, self.l);
         let schur = vqu - self.l[..p].iter().map(|x| x * x).sum::<f64>();
-        if schur.is_nan() || schur <= dep_tol * vqu {
+        let tau2: f64 = self.tau.iter().map(|x| x * x).sum();
+        if schur.is_nan() || schur <= dep_tol * vqu.max(scale * tau2) {
             return None;
         }
         self.chol.append(p, self.l, schur);
@@ -649,7 +653,10 @@ fn seed(problem: &Problem<'_>, settings: &Settings, ws: &mut Workspace<'_>, stat
         problem.basis.tau(a.t, ws.tau);
         problem.phi_v(a.row, a.side.sign(), ws.tau, ws.uq);
         // `try_append` writes slot n_active <= i, so unread candidates survive.
-        if ws.try_append(a, settings.dependence_tol).is_none() {
+        if ws
+            .try_append(a, settings.dependence_tol, problem.phi_scale)
+            .is_none()
+        {
             stats.drops += 1;
         }
     }
@@ -723,6 +730,10 @@ fn run(
                 .zip(&ws.uq[q.row * s..(q.row + 1) * s])
                 .map(|(a, b)| a * b)
                 .sum::<f64>();
+        // Absolute floor of the dependence test: a row fixed by the equalities (e.g. the
+        // state at t = 0) has v_qᵀΦv_q at rounding level, not exactly zero.
+        let tau2: f64 = ws.tau.iter().map(|x| x * x).sum();
+        let dep_floor = settings.dependence_tol * vqu.max(problem.phi_scale * tau2);
         let mut theta_acc = 0.0;
         loop {
             let p = ws.n_active;
@@ -745,7 +756,7 @@ fn run(
                     .zip(&ws.dw[q.row * s..(q.row + 1) * s])
                     .map(|(a, b)| a * b)
                     .sum::<f64>();
-            let dependent = p >= ws.cap || kappa.is_nan() || kappa <= settings.dependence_tol * vqu;
+            let dependent = p >= ws.cap || kappa.is_nan() || kappa <= dep_floor;
             let theta_f = if dependent { f64::INFINITY } else { cq / kappa };
             let mut theta_p = f64::INFINITY;
             let mut jstar = usize::MAX;

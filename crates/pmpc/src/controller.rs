@@ -1,0 +1,225 @@
+//! The online controller: solve the semi-infinite QP at every sample, warm-started from the
+//! previous working set shifted by T_d, with the shifted previous plan as fallback (which keeps
+//! recursive feasibility and the Lyapunov decrease when the solver stops early).
+
+use crate::constraints::Constraints;
+use crate::error::{Error, Result};
+use crate::problem::Problem;
+use nalgebra::DMatrix;
+use rigid_body::laguerre::Laguerre;
+use rigid_body::siqp::{self, Active, Settings, Stats, Status, WorkspaceStorage};
+
+/// Where the applied plan came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Source {
+    /// The solver converged.
+    Optimal,
+    /// The solver stopped with this status; the previous plan, shifted by T_d, is applied.
+    Fallback(Status),
+}
+
+/// Diagnostics of the last step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepInfo {
+    /// Origin of the applied plan.
+    pub source: Source,
+    /// Solver counters.
+    pub stats: Stats,
+    /// Open-loop cost ½zᵀHz of the applied plan (the MPC Lyapunov function).
+    pub cost: f64,
+    /// Size of the final working set.
+    pub active: usize,
+}
+
+/// Parametrized infinite-horizon MPC (spec/pmpc.md §5).
+///
+/// ```
+/// use nalgebra::{dmatrix, DMatrix};
+/// use pmpc::{Constraints, Pmpc};
+/// use rigid_body::laguerre::Laguerre;
+/// // Double integrator, |u| <= 1.
+/// let a = dmatrix![0.0, 1.0; 0.0, 0.0];
+/// let b = dmatrix![0.0; 1.0];
+/// let c = Constraints::boxes(&[(f64::NEG_INFINITY, f64::INFINITY); 2], &[(-1.0, 1.0)]);
+/// let basis = Laguerre::new(8, 1.0).unwrap();
+/// let mut mpc = Pmpc::new(&a, &b, &DMatrix::identity(2, 2), &DMatrix::identity(1, 1), &c, basis, 0.05).unwrap();
+/// let u = mpc.step(&[1.0, 0.0]).unwrap();
+/// assert!(u[0].abs() <= 1.0 + 1e-6);
+/// ```
+#[derive(Debug, Clone)]
+pub struct Pmpc {
+    problem: Problem,
+    td: f64,
+    settings: Settings,
+    warm_start: bool,
+    storage: WorkspaceStorage,
+    warm: Vec<Active>,
+    has_plan: bool,
+    z: Vec<f64>,
+    z_shifted: Vec<f64>,
+    w0: Vec<f64>,
+    mu: Vec<f64>,
+    tau: Vec<f64>,
+    u: Vec<f64>,
+    info: StepInfo,
+}
+
+impl Pmpc {
+    /// Offline set-up for `ẋ = Ax + Bu`, cost ½∫(xᵀQx + uᵀRu)dt, stage constraints for all
+    /// t ≥ 0, Laguerre basis (s functions, decay ν) and sampling time `td`.
+    pub fn new(
+        a: &DMatrix<f64>,
+        b: &DMatrix<f64>,
+        q: &DMatrix<f64>,
+        r: &DMatrix<f64>,
+        constraints: &Constraints,
+        basis: Laguerre,
+        td: f64,
+    ) -> Result<Self> {
+        if !td.is_finite() || td <= 0.0 {
+            return Err(Error::InvalidParameter {
+                name: "Td",
+                value: td,
+                requirement: "the sampling time must be finite and > 0",
+            });
+        }
+        let problem = Problem::new(a, b, q, r, constraints, basis)?;
+        let storage = WorkspaceStorage::new(&problem.siqp()?);
+        let nvar = problem.num_variables();
+        let l = problem.rows().len() * basis.dim();
+        let cap = problem.dof().max(1);
+        Ok(Self {
+            td,
+            settings: Settings::default(),
+            warm_start: true,
+            storage,
+            warm: Vec::with_capacity(cap),
+            has_plan: false,
+            z: vec![0.0; nvar],
+            z_shifted: vec![0.0; nvar],
+            w0: vec![0.0; l],
+            mu: vec![0.0; l],
+            tau: vec![0.0; basis.dim()],
+            u: vec![0.0; problem.m()],
+            info: StepInfo {
+                source: Source::Optimal,
+                stats: Stats::default(),
+                cost: 0.0,
+                active: 0,
+            },
+            problem,
+        })
+    }
+
+    /// Replace the solver settings (tolerance ε, iteration budget, ...).
+    pub fn with_settings(mut self, settings: Settings) -> Self {
+        self.settings = settings;
+        self
+    }
+
+    /// Enable or disable warm starting from the shifted working set.
+    pub fn with_warm_start(mut self, warm: bool) -> Self {
+        self.warm_start = warm;
+        self
+    }
+
+    /// Solver settings.
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    /// The offline problem data.
+    pub fn problem(&self) -> &Problem {
+        &self.problem
+    }
+
+    /// Sampling time T_d.
+    pub fn sampling_time(&self) -> f64 {
+        self.td
+    }
+
+    /// Forget the previous plan and working set.
+    pub fn reset(&mut self) {
+        self.has_plan = false;
+        self.warm.clear();
+    }
+
+    /// Solve for the measured state `x` and return the input ũ(0) to apply now. The whole
+    /// input trajectory of the plan is available through [`Pmpc::input_at`]. Allocation-free.
+    pub fn step(&mut self, x: &[f64]) -> Result<&[f64]> {
+        crate::check_vector("x", x, self.problem.n())?;
+        self.problem.unconstrained_coefficients(x, &mut self.w0);
+        let sp = self.problem.siqp()?;
+        let mut ws = self.storage.workspace(&sp)?;
+        let warm = self.warm_start && self.has_plan;
+        if warm {
+            ws.set_active(&self.warm);
+        }
+        let out = siqp::solve(&sp, &self.settings, &self.w0, warm, &mut ws)?;
+        let stats = out.stats;
+        let status = out.status;
+        let source = if status == Status::Optimal {
+            out.multiplier_coefficients(&sp, &mut self.tau, &mut self.mu);
+            self.warm.clear();
+            for a in out.active {
+                if a.t >= self.td {
+                    self.warm.push(Active {
+                        t: a.t - self.td,
+                        ..*a
+                    });
+                }
+            }
+            let active = out.active.len();
+            self.problem.coefficients(x, &self.mu, &mut self.z);
+            self.info.active = active;
+            Source::Optimal
+        } else if self.has_plan {
+            self.z.copy_from_slice(&self.z_shifted);
+            self.warm.retain_mut(|a| {
+                a.t -= self.td;
+                a.t >= 0.0
+            });
+            Source::Fallback(status)
+        } else if status == Status::Infeasible {
+            return Err(Error::Infeasible { x: x.to_vec() });
+        } else {
+            return Err(Error::NotConverged(match status {
+                Status::IterationLimit => "iteration limit",
+                _ => "constraint-check step limit",
+            }));
+        };
+        self.has_plan = true;
+        self.problem.shift(&self.z, self.td, &mut self.z_shifted);
+        self.problem
+            .input_at(&self.z, 0.0, &mut self.tau, &mut self.u);
+        self.info = StepInfo {
+            source,
+            stats,
+            cost: self.problem.cost(&self.z),
+            active: self.info.active,
+        };
+        Ok(&self.u)
+    }
+
+    /// Diagnostics of the last step.
+    pub fn last_step(&self) -> StepInfo {
+        self.info
+    }
+
+    /// Coefficients z = (η_x, η_u) of the current plan.
+    pub fn plan(&self) -> &[f64] {
+        &self.z
+    }
+
+    /// Planned input ũ(t), t seconds after the last step, into `out` (length m).
+    pub fn input_at(&self, t: f64, out: &mut [f64]) {
+        let mut tau = vec![0.0; self.problem.basis().dim()];
+        self.problem.input_at(&self.z, t, &mut tau, out);
+    }
+
+    /// Predicted state x̃(t), t seconds after the last step, into `out` (length n).
+    pub fn state_at(&self, t: f64, out: &mut [f64]) {
+        let mut tau = vec![0.0; self.problem.basis().dim()];
+        self.problem.state_at(&self.z, t, &mut tau, out);
+    }
+}

@@ -1,0 +1,319 @@
+//! Offline set-up of the per-step problem (spec/pmpc.md §4.2, §7.3): the upper-bound QP
+//!
+//! ```text
+//! min ½ zᵀHz  s.t.  A_eq z = (0, x0),  lower ≤ τ(t)ᵀ(C_z z)_k ≤ upper  ∀ t ≥ 0
+//! ```
+//!
+//! reduced to constraint-coefficient space by the range-space matrices
+//! S = Z(ZᵀHZ)⁻¹Zᵀ (Z a null-space basis of A_eq), G (x0 ↦ equality-only minimiser b̂),
+//! Φ = C_z S C_zᵀ, Ψ = C_z G and S C_zᵀ. Online work is then a few small mat-vecs.
+
+use crate::constraints::Constraints;
+use crate::error::{Error, Result};
+use nalgebra::{DMatrix, DVector, SymmetricEigen};
+use rigid_body::laguerre::Laguerre;
+use rigid_body::siqp;
+
+/// Row-major copy of a matrix, for the allocation-free online mat-vecs.
+fn row_major(m: &DMatrix<f64>) -> Vec<f64> {
+    m.transpose().as_slice().to_vec()
+}
+
+/// `out = M x` for a row-major `rows × cols` matrix.
+pub(crate) fn matvec(m: &[f64], cols: usize, x: &[f64], out: &mut [f64]) {
+    for (o, row) in out.iter_mut().zip(m.chunks_exact(cols)) {
+        *o = row.iter().zip(x).map(|(a, b)| a * b).sum();
+    }
+}
+
+/// The parametrized infinite-horizon problem of one system, with all offline matrices.
+#[derive(Debug, Clone)]
+pub struct Problem {
+    n: usize,
+    m: usize,
+    basis: Laguerre,
+    a: DMatrix<f64>,
+    b: DMatrix<f64>,
+    q: DMatrix<f64>,
+    r: DMatrix<f64>,
+    constraints: Constraints,
+    h: DMatrix<f64>,
+    aeq: DMatrix<f64>,
+    cz: DMatrix<f64>,
+    rows: Vec<siqp::Row>,
+    phi: Vec<f64>,
+    psi: Vec<f64>,
+    g: Vec<f64>,
+    scz: Vec<f64>,
+    dof: usize,
+}
+
+impl Problem {
+    /// Build H, A_eq, C_z and the range-space matrices for `ẋ = Ax + Bu`, cost
+    /// ½∫(xᵀQx + uᵀRu)dt and the stage constraints, in the span of `basis`.
+    pub fn new(
+        a: &DMatrix<f64>,
+        b: &DMatrix<f64>,
+        q: &DMatrix<f64>,
+        r: &DMatrix<f64>,
+        constraints: &Constraints,
+        basis: Laguerre,
+    ) -> Result<Self> {
+        let n = a.nrows();
+        if n == 0 || a.ncols() != n {
+            return Err(Error::Shape {
+                name: "A",
+                rows: a.nrows(),
+                cols: a.ncols(),
+                expected_rows: a.nrows().max(1),
+                expected_cols: a.nrows().max(1),
+            });
+        }
+        let m = b.ncols();
+        crate::check_shape("B", b, n, m.max(1))?;
+        crate::check_shape("Q", q, n, n)?;
+        crate::check_shape("R", r, m, m)?;
+        for (name, mat) in [("A", a), ("B", b), ("Q", q), ("R", r)] {
+            crate::check_finite(name, mat.as_slice())?;
+        }
+        for (name, mat) in [("Q", q), ("R", r)] {
+            let asym = (mat - mat.transpose()).amax();
+            if asym > 1e-12 * mat.amax().max(1.0) || mat.clone().cholesky().is_none() {
+                return Err(Error::NotPositiveDefinite(name));
+            }
+        }
+        constraints.validate(n, m)?;
+        let s = basis.dim();
+        let nc = constraints.len();
+        let big_n = (n + m) * s;
+        let p = n * s + n;
+
+        let mut h = DMatrix::zeros(big_n, big_n);
+        let is = DMatrix::<f64>::identity(s, s);
+        h.view_mut((0, 0), (n * s, n * s))
+            .copy_from(&q.kronecker(&is));
+        h.view_mut((n * s, n * s), (m * s, m * s))
+            .copy_from(&r.kronecker(&is));
+
+        let mut buf = vec![0.0; p * big_n];
+        basis.equality_matrix(n, m, &row_major(a), &row_major(b), &mut buf)?;
+        let aeq = DMatrix::from_row_slice(p, big_n, &buf);
+        let mut buf = vec![0.0; nc * s * big_n];
+        basis.stage_matrix(
+            n,
+            m,
+            &row_major(&constraints.cx),
+            &row_major(&constraints.cu),
+            &mut buf,
+        )?;
+        let cz = DMatrix::from_row_slice(nc * s, big_n, &buf);
+
+        // Full row rank of A_eq and a null-space basis Z from the projector I − V Vᵀ.
+        if p > big_n {
+            return Err(Error::TooFewBasisFunctions { s, n, m });
+        }
+        let svd = aeq.clone().svd(true, true);
+        let smax = svd.singular_values.max();
+        let smin = svd.singular_values.min();
+        if smin <= 1e-10 * smax {
+            return Err(Error::RankDeficient(if smax > 0.0 {
+                smin / smax
+            } else {
+                0.0
+            }));
+        }
+        let vt = svd.v_t.as_ref().ok_or(Error::RankDeficient(0.0))?;
+        let u = svd.u.as_ref().ok_or(Error::RankDeficient(0.0))?;
+        let projector = DMatrix::<f64>::identity(big_n, big_n) - vt.transpose() * vt;
+        let eig = SymmetricEigen::new(projector);
+        let dof = big_n - p;
+        let keep: Vec<usize> = (0..big_n).filter(|&i| eig.eigenvalues[i] > 0.5).collect();
+        let z = DMatrix::from_fn(big_n, keep.len(), |i, j| eig.eigenvectors[(i, keep[j])]);
+        let s_mat = if keep.is_empty() {
+            DMatrix::zeros(big_n, big_n)
+        } else {
+            let reduced = z.transpose() * &h * &z;
+            let chol = reduced
+                .cholesky()
+                .ok_or(Error::NotPositiveDefinite("reduced Hessian Z^T H Z"))?;
+            &z * chol.inverse() * z.transpose()
+        };
+        // Particular solution of A_eq z = (0, x0) by the pseudo-inverse, projected to the
+        // equality-only minimiser: b̂ = (I − S H) A⁺ (0, x0).
+        let sinv = DMatrix::from_diagonal(&svd.singular_values.map(|v| 1.0 / v));
+        let pinv = vt.transpose() * sinv * u.transpose();
+        let e_x0 = DMatrix::from_fn(p, n, |i, j| if i == n * s + j { 1.0 } else { 0.0 });
+        let g = (DMatrix::<f64>::identity(big_n, big_n) - &s_mat * &h) * pinv * e_x0;
+        let phi = &cz * &s_mat * cz.transpose();
+        let phi = (&phi + phi.transpose()) * 0.5;
+        let psi = &cz * &g;
+        let scz = &s_mat * cz.transpose();
+        let rows = constraints
+            .lower
+            .iter()
+            .zip(&constraints.upper)
+            .map(|(&lower, &upper)| siqp::Row { lower, upper })
+            .collect();
+        Ok(Self {
+            n,
+            m,
+            basis,
+            a: a.clone(),
+            b: b.clone(),
+            q: q.clone(),
+            r: r.clone(),
+            constraints: constraints.clone(),
+            h,
+            aeq,
+            cz,
+            rows,
+            phi: row_major(&phi),
+            psi: row_major(&psi),
+            g: row_major(&g),
+            scz: row_major(&scz),
+            dof,
+        })
+    }
+
+    /// Number of states n.
+    pub fn n(&self) -> usize {
+        self.n
+    }
+
+    /// Number of inputs m.
+    pub fn m(&self) -> usize {
+        self.m
+    }
+
+    /// The basis.
+    pub fn basis(&self) -> &Laguerre {
+        &self.basis
+    }
+
+    /// Number of decision variables (n+m)s.
+    pub fn num_variables(&self) -> usize {
+        (self.n + self.m) * self.basis.dim()
+    }
+
+    /// Number of equality constraints ns + n.
+    pub fn num_equalities(&self) -> usize {
+        self.n * self.basis.dim() + self.n
+    }
+
+    /// Degrees of freedom left by the equalities, m·s − n.
+    pub fn dof(&self) -> usize {
+        self.dof
+    }
+
+    /// The system, weights and constraints this problem was built from.
+    pub fn system(
+        &self,
+    ) -> (
+        &DMatrix<f64>,
+        &DMatrix<f64>,
+        &DMatrix<f64>,
+        &DMatrix<f64>,
+        &Constraints,
+    ) {
+        (&self.a, &self.b, &self.q, &self.r, &self.constraints)
+    }
+
+    /// H = blkdiag(Q⊗I_s, R⊗I_s).
+    pub fn hessian(&self) -> &DMatrix<f64> {
+        &self.h
+    }
+
+    /// A_eq (rows: Galerkin dynamics, then initial condition).
+    pub fn equality_matrix(&self) -> &DMatrix<f64> {
+        &self.aeq
+    }
+
+    /// b_eq = (0, x0).
+    pub fn equality_rhs(&self, x0: &[f64]) -> DVector<f64> {
+        let mut v = DVector::zeros(self.num_equalities());
+        v.rows_mut(self.n * self.basis.dim(), self.n)
+            .copy_from_slice(x0);
+        v
+    }
+
+    /// C_z = [Cx⊗I_s, Cu⊗I_s].
+    pub fn stage_matrix(&self) -> &DMatrix<f64> {
+        &self.cz
+    }
+
+    /// Constraint rows in solver form.
+    pub fn rows(&self) -> &[siqp::Row] {
+        &self.rows
+    }
+
+    /// The problem in the form the semi-infinite solver takes.
+    pub fn siqp(&self) -> Result<siqp::Problem<'_>> {
+        Ok(siqp::Problem::new(
+            self.basis,
+            &self.rows,
+            &self.phi,
+            self.dof.max(1),
+        )?)
+    }
+
+    /// Unconstrained constraint coefficients w0 = Ψ x into `out` (length nc·s).
+    pub fn unconstrained_coefficients(&self, x: &[f64], out: &mut [f64]) {
+        matvec(&self.psi, self.n, x, out);
+    }
+
+    /// z = G x − S C_zᵀ μ into `out` (length (n+m)s), from the solver's multiplier
+    /// coefficients μ.
+    pub fn coefficients(&self, x: &[f64], mu: &[f64], out: &mut [f64]) {
+        let l = self.rows.len() * self.basis.dim();
+        for (i, o) in out.iter_mut().enumerate() {
+            let gx: f64 = self.g[i * self.n..(i + 1) * self.n]
+                .iter()
+                .zip(x)
+                .map(|(a, b)| a * b)
+                .sum();
+            let sm: f64 = self.scz[i * l..(i + 1) * l]
+                .iter()
+                .zip(mu)
+                .map(|(a, b)| a * b)
+                .sum();
+            *o = gx - sm;
+        }
+    }
+
+    /// Cost ½ zᵀHz.
+    pub fn cost(&self, z: &[f64]) -> f64 {
+        let zv = DVector::from_column_slice(z);
+        0.5 * zv.dot(&(&self.h * &zv))
+    }
+
+    /// w = C_z z (coefficients of every constraint function).
+    pub fn constraint_coefficients(&self, z: &[f64]) -> DVector<f64> {
+        &self.cz * DVector::from_column_slice(z)
+    }
+
+    /// x̃(t) = (I_n⊗τ(t)ᵀ) η_x into `out` (length n); `tau` is scratch of length s.
+    pub fn state_at(&self, z: &[f64], t: f64, tau: &mut [f64], out: &mut [f64]) {
+        self.eval_blocks(&z[..self.n * self.basis.dim()], t, tau, out);
+    }
+
+    /// ũ(t) = (I_m⊗τ(t)ᵀ) η_u into `out` (length m); `tau` is scratch of length s.
+    pub fn input_at(&self, z: &[f64], t: f64, tau: &mut [f64], out: &mut [f64]) {
+        self.eval_blocks(&z[self.n * self.basis.dim()..], t, tau, out);
+    }
+
+    fn eval_blocks(&self, coeffs: &[f64], t: f64, tau: &mut [f64], out: &mut [f64]) {
+        let s = self.basis.dim();
+        self.basis.tau(t, tau);
+        for (o, blk) in out.iter_mut().zip(coeffs.chunks_exact(s)) {
+            *o = blk.iter().zip(tau.iter()).map(|(a, b)| a * b).sum();
+        }
+    }
+
+    /// Shift every s-block of z by h (E(h)ᵀ per block): the same trajectory seen from time h.
+    pub fn shift(&self, z: &[f64], h: f64, out: &mut [f64]) {
+        let s = self.basis.dim();
+        for (zi, oi) in z.chunks_exact(s).zip(out.chunks_exact_mut(s)) {
+            self.basis.shift(h, zi, oi);
+        }
+    }
+}
