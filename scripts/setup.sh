@@ -9,6 +9,8 @@ need_apt=()
 for pkg in libopenblas-dev libgfortran-12-dev pkg-config; do
     dpkg -s "$pkg" >/dev/null 2>&1 || need_apt+=("$pkg")
 done
+# Debian's python3 ships venv (ensurepip) separately.
+python3 -c "import ensurepip" >/dev/null 2>&1 || need_apt+=(python3-venv)
 if ((${#need_apt[@]})); then
     echo "setup: installing system packages: ${need_apt[*]}"
     SUDO=""
