@@ -185,8 +185,33 @@ fn check_vec(name: &'static str, v: &DVector<f64>, n: usize) -> Result<(), Event
     Ok(())
 }
 
+/// What an observer of [`simulate_with`] sees after each step k ≥ 1.
+#[derive(Debug, Clone, Copy)]
+pub struct Step<'s> {
+    /// Step index k (time k·Ts).
+    pub k: usize,
+    /// Plant state x(k).
+    pub x: &'s DVector<f64>,
+    /// Input u(k−1) that drove the plant into x(k) (without actuator noise).
+    pub u: &'s DVector<f64>,
+    /// Which agents transmitted at k.
+    pub fired: &'s [bool],
+    /// |x(k) − x̂_i(k)| per agent.
+    pub agent_errors: &'s [f64],
+}
+
 /// Runs the networked closed loop of `sys` with `design` under `cfg`.
 pub fn simulate(sys: &System, design: &Design, cfg: &SimConfig) -> Result<SimResult, EventEstError> {
+    simulate_with(sys, design, cfg, |_| {})
+}
+
+/// [`simulate`], calling `observer` after every step (for streaming logs of long runs).
+pub fn simulate_with<F: FnMut(&Step<'_>)>(
+    sys: &System,
+    design: &Design,
+    cfg: &SimConfig,
+    mut observer: F,
+) -> Result<SimResult, EventEstError> {
     let (n, p, nu, na) = (sys.n(), sys.p(), sys.b.ncols(), sys.agents());
     if design.l.nrows() != n || design.l.ncols() != p {
         return Err(EventEstError::Dimension {
@@ -275,6 +300,7 @@ pub fn simulate(sys: &System, design: &Design, cfg: &SimConfig) -> Result<SimRes
     let mut lost = vec![vec![false; na]; na];
     let mut fire_count = vec![0usize; na];
     let mut err2 = vec![0.0; na];
+    let mut agent_err = vec![0.0; na];
     let mut max_inter: f64 = 0.0;
     let mut max_state = x.amax();
     let mut mean = DVector::zeros(n);
@@ -360,17 +386,26 @@ pub fn simulate(sys: &System, design: &Design, cfg: &SimConfig) -> Result<SimRes
                 max_inter = max_inter.max(d.sqrt());
             }
         }
-        if k > cfg.window_start {
-            for (i, agent) in agents.iter().enumerate() {
+        for (i, agent) in agents.iter().enumerate() {
+            agent_err[i] = agent
+                .estimate()
+                .iter()
+                .zip(x.iter())
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum::<f64>()
+                .sqrt();
+            if k > cfg.window_start {
                 fire_count[i] += usize::from(fired[i]);
-                err2[i] += agent
-                    .estimate()
-                    .iter()
-                    .zip(x.iter())
-                    .map(|(a, b)| (a - b) * (a - b))
-                    .sum::<f64>();
+                err2[i] += agent_err[i] * agent_err[i];
             }
         }
+        observer(&Step {
+            k,
+            x: &x,
+            u: &u,
+            fired: &fired,
+            agent_errors: &agent_err,
+        });
         if let Some(l) = log.as_mut() {
             l.x.push(x.clone());
             l.xhat.push(agents.iter().map(|a| DVector::from_column_slice(a.estimate())).collect());

@@ -72,6 +72,8 @@ pub struct Step1 {
     pub status: String,
     /// Solve time reported by Clarabel, seconds.
     pub solve_time: f64,
+    /// Interior-point iterations.
+    pub iterations: u32,
     /// Number of scalar decision variables.
     pub variables: usize,
     /// Number of inter-agent stability LMIs.
@@ -311,6 +313,7 @@ pub fn step1(sys: &System, stability: Stability) -> Result<Step1, EventEstError>
         kalman_cost,
         status: sol.status,
         solve_time: sol.solve_time,
+        iterations: sol.iterations,
         variables: prob.vars.len(),
         stability_lmis,
         stability_margins: margins,
@@ -539,6 +542,11 @@ pub struct Synthesis {
 /// Step 1, Step 2 and analysis for one J_max.
 pub fn synthesize(sys: &System, stability: Stability, j_max: f64) -> Result<Synthesis, EventEstError> {
     let step1 = step1(sys, stability)?;
+    complete(sys, step1, j_max)
+}
+
+/// Step 2 and analysis on a given Step-1 result (e.g. to pick J_max as a multiple of c*).
+pub fn complete(sys: &System, step1: Step1, j_max: f64) -> Result<Synthesis, EventEstError> {
     budget_gamma(sys, step1.c_star, j_max)?;
     let unit = step2_unit(sys, &step1.l, 1.0)?;
     let delta = thresholds(sys, &unit, step1.c_star, j_max)?;

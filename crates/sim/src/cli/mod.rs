@@ -42,6 +42,9 @@ pub enum SimSystem {
     /// Ducted-fan flying platform under the cascaded hover controller (hover, disturbance,
     /// step, and the 18 identification experiments).
     FlyingPlatform(scenarios::flying_platform::Args),
+    /// Vehicle platoon with distributed event-based state estimation over a lossy network
+    /// (gains and thresholds synthesised by LMIs; MCAP `/platoon/*`).
+    Platoon(scenarios::platoon::Args),
 }
 
 impl SimSystem {
@@ -51,6 +54,7 @@ impl SimSystem {
             Self::WheelPendulum(args) => args,
             Self::Cubli(args) => args,
             Self::FlyingPlatform(args) => args,
+            Self::Platoon(args) => args,
         }
     }
 

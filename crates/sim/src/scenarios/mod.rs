@@ -11,6 +11,7 @@ use crate::progress::Progress;
 
 pub mod flying_platform;
 pub mod cubli;
+pub mod platoon;
 pub mod wheel_pendulum;
 
 /// Options every scenario takes.

@@ -1,0 +1,164 @@
+//! `stabilis sim platoon`: a platoon of vehicles, each an agent with its own sensor and motor,
+//! estimating the whole platoon from measurements broadcast only when the innovation exceeds
+//! a synthesised threshold, over a network that loses packets (event_est).
+use crate::error::{Result, SimError};
+use crate::log::Experiment;
+use crate::progress::Progress;
+use crate::scenarios::{Common, Recorder, Scenario};
+use event_est::model::platoon;
+use event_est::runtime::LocalUpdate;
+use event_est::sim::{simulate_with, Design, SimConfig};
+use event_est::synth::{complete, step1, Stability};
+use nalgebra::DVector;
+
+/// Topic prefix of this system's log.
+pub const TOPIC: &str = "/platoon";
+
+/// Sampling period of the platoon, s.
+const TS: f64 = 0.02;
+
+/// Options of the platoon run.
+#[derive(Debug, Clone, PartialEq, clap::Args)]
+pub struct Args {
+    /// Options shared by all scenarios.
+    #[command(flatten)]
+    pub common: Common,
+    /// Number of vehicles (= agents).
+    #[arg(long, default_value_t = 3)]
+    pub vehicles: usize,
+    /// Packet loss probability per link.
+    #[arg(long, default_value_t = 0.1)]
+    pub loss: f64,
+    /// Bound J_max on the estimation error power; default 37 times the full-communication
+    /// cost c* (0.38 for three vehicles, as in the paper).
+    #[arg(long)]
+    pub j_max: Option<f64>,
+    /// Inter-agent stability condition: thm11, cor12 or cor13 (default cor12 up to 4
+    /// vehicles, cor13 beyond).
+    #[arg(long)]
+    pub condition: Option<String>,
+    /// Thresholds Δ_i to use instead of the synthesised ones, comma-separated.
+    #[arg(long, value_delimiter = ',')]
+    pub thresholds: Option<Vec<f64>>,
+    /// Initial surplus velocity of the leading vehicle, m/s.
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
+    pub leader_speed: f64,
+    /// Agents also use their own measurement when they do not transmit.
+    #[arg(long)]
+    pub local_update: bool,
+}
+
+impl Scenario for Args {
+    fn common(&self) -> &Common {
+        &self.common
+    }
+
+    fn run(&self, recorder: &mut Recorder, progress: &mut Progress) -> Result<()> {
+        let domain = |what: &str| {
+            let what = what.to_string();
+            move |e: event_est::EventEstError| SimError::domain(what.clone(), e)
+        };
+        let (sys, noise) = platoon(self.vehicles).map_err(domain("platoon model"))?;
+        let m = self.vehicles;
+        if !(self.common.duration.is_finite() && self.common.duration > TS) {
+            return Err(SimError::invalid("duration", self.common.duration, "must exceed one sample (0.02 s)"));
+        }
+        let stability = match &self.condition {
+            Some(name) => Stability::parse(name).map_err(domain("--condition"))?,
+            None if m <= 4 => Stability::Cor12,
+            None => Stability::Cor13,
+        };
+        let started = std::time::Instant::now();
+        let s1 = step1(&sys, stability).map_err(domain("Step 1 (gains)"))?;
+        let j_max = self.j_max.unwrap_or(37.0 * s1.c_star);
+        let c_star = s1.c_star;
+        let synthesis = complete(&sys, s1, j_max).map_err(domain("Step 2 (thresholds)"))?;
+        let synthesis_s = started.elapsed().as_secs_f64();
+        let design = match &self.thresholds {
+            Some(t) if t.len() != m => {
+                return Err(SimError::invalid("thresholds", format!("{t:?}"), format!("need one per vehicle ({m})")))
+            }
+            Some(t) => Design::scalar(synthesis.design.l.clone(), t),
+            None => synthesis.design.clone(),
+        };
+        progress.set(10);
+
+        let steps = (self.common.duration / TS).round() as usize;
+        let mut cfg = SimConfig::new(&sys, steps, Some(noise), self.common.seed);
+        cfg.loss = self.loss;
+        cfg.local_update = if self.local_update { LocalUpdate::Always } else { LocalUpdate::OnlyOnEvent };
+        cfg.x0 = DVector::zeros(sys.n());
+        cfg.x0[0] = self.leader_speed;
+
+        let delta: Vec<f64> = design.delta.iter().map(|d| d[(0, 0)]).collect();
+        let mut experiment = Experiment::new(1.0 / TS);
+        for (key, value) in [
+            ("system", "platoon".to_string()),
+            ("vehicles", m.to_string()),
+            ("duration_s", self.common.duration.to_string()),
+            ("seed", self.common.seed.to_string()),
+            ("loss", self.loss.to_string()),
+            ("condition", format!("{stability:?}")),
+            ("j_max", j_max.to_string()),
+            ("c_star", c_star.to_string()),
+            ("thresholds", join(&delta)),
+            ("leader_speed", self.leader_speed.to_string()),
+        ] {
+            experiment.extra.insert(key.into(), value);
+        }
+        recorder.experiment(&experiment)?;
+        let names = |prefix: &str| (1..=m).map(|i| format!("{prefix}{i}")).collect::<Vec<_>>();
+        let mut state_names = Vec::with_capacity(sys.n());
+        for i in 1..=m {
+            state_names.push(format!("p{i}"));
+            if i < m {
+                state_names.push(format!("d{i}"));
+            }
+        }
+        let state = recorder.add_topic(&format!("{TOPIC}/state"), &state_names)?;
+        let input = recorder.add_topic(&format!("{TOPIC}/input"), &names("u"))?;
+        let error = recorder.add_topic(&format!("{TOPIC}/error"), &names("e"))?;
+        let transmit = recorder.add_topic(&format!("{TOPIC}/transmit"), &names("tx"))?;
+
+        let mut failure = None;
+        let mut flags = vec![0.0; m];
+        let result = simulate_with(&sys, &design, &cfg, |step| {
+            if failure.is_some() {
+                return;
+            }
+            let t = step.k as f64 * TS;
+            for (f, fired) in flags.iter_mut().zip(step.fired) {
+                *f = f64::from(u8::from(*fired));
+            }
+            let res = recorder
+                .record(state, t, step.x.as_slice())
+                .and_then(|_| recorder.record(input, t, step.u.as_slice()))
+                .and_then(|_| recorder.record(error, t, step.agent_errors))
+                .and_then(|_| recorder.record(transmit, t, &flags));
+            if let Err(e) = res {
+                failure = Some(e);
+            }
+            progress.set(10 + (90 * step.k / steps.max(1)) as u64);
+        })
+        .map_err(domain("networked simulation"))?;
+        if let Some(e) = failure {
+            return Err(e);
+        }
+        recorder.summarize("vehicles", m);
+        recorder.summarize("condition", format!("{stability:?}"));
+        recorder.summarize("c_star", c_star);
+        recorder.summarize("j_max", j_max);
+        recorder.summarize("certified_bound", synthesis.bound.bound);
+        recorder.summarize("thresholds", delta);
+        recorder.summarize("synthesis_s", synthesis_s);
+        recorder.summarize("rates", result.rates.clone());
+        recorder.summarize("total_rate", result.total_rate);
+        recorder.summarize("error_power", result.error_power);
+        recorder.summarize("max_inter_agent_error", result.max_inter_agent);
+        Ok(())
+    }
+}
+
+fn join(v: &[f64]) -> String {
+    v.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(",")
+}
