@@ -4,6 +4,7 @@
 use pyo3::prelude::*;
 
 mod errors;
+mod event_est;
 mod geometry;
 mod log;
 mod sim;
@@ -11,6 +12,7 @@ mod sim;
 #[pymodule]
 fn _stabilis(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
+    event_est::register(m)?;
     geometry::register(m)?;
     log::register(m)?;
     sim::register(m)?;
