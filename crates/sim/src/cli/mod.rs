@@ -9,6 +9,7 @@ use crate::progress::Progress;
 use crate::scenarios::{self, Recording, Scenario};
 
 pub mod info;
+pub mod tilt;
 
 /// Stabilizing unstable systems: simulate, log, inspect.
 #[derive(Debug, Parser)]
@@ -30,6 +31,9 @@ pub enum Command {
     Sim(SimSystem),
     /// Summarise a log: topics, message counts, time span, metadata.
     Info(info::Args),
+    /// Estimate tilt, angular velocity and angular acceleration from accelerometers only
+    /// (`/imu/accel` and the `imu` metadata record).
+    Tilt(tilt::Args),
 }
 
 /// The systems `stabilis sim` can run.
@@ -113,6 +117,7 @@ impl Command {
         match self {
             Self::Sim(system) => sim_output(&system.run()?),
             Self::Info(args) => args.run(),
+            Self::Tilt(args) => args.run(),
         }
     }
 }
