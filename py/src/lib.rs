@@ -6,21 +6,17 @@ use pyo3::prelude::*;
 mod cubli;
 mod errors;
 mod event_est;
-mod flying_platform;
 mod geometry;
 mod log;
 mod sim;
-mod tilt;
 
 #[pymodule]
 fn _stabilis(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
     event_est::register(m)?;
-    flying_platform::register(m)?;
     cubli::register(m)?;
     geometry::register(m)?;
     log::register(m)?;
     sim::register(m)?;
-    tilt::register(m)?;
     Ok(())
 }
