@@ -9,6 +9,7 @@ mod event_est;
 mod geometry;
 mod log;
 mod sim;
+mod tilt;
 
 #[pymodule]
 fn _stabilis(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -18,5 +19,6 @@ fn _stabilis(m: &Bound<'_, PyModule>) -> PyResult<()> {
     geometry::register(m)?;
     log::register(m)?;
     sim::register(m)?;
+    tilt::register(m)?;
     Ok(())
 }
