@@ -60,3 +60,8 @@ def test_bad_options_are_named():
         stabilis.sim.run("wheel-pendulum", 1.0, tilt_deg=120)
     with pytest.raises(stabilis.SimError, match="invalid value 'abc'"):
         stabilis.sim.run("wheel-pendulum", 1.0, tilt_deg="abc")
+
+
+def test_wrong_lengths_are_value_errors():
+    with pytest.raises(ValueError, match="length mismatch for noise standard deviations: expected 3, found 2"):
+        stabilis.sim.run("wheel-pendulum", 1.0, noise=(0.1, 0.1))

@@ -306,3 +306,31 @@ proptest! {
         prop_assert_eq!(column.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), values.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
     }
 }
+
+#[test]
+fn tables_check_their_lengths() {
+    let err = Table::from_columns("/demo/x", vec![0.0, 1.0], vec!["a".into()], vec![vec![1.0]])
+        .unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "length mismatch for column \"a\" of /demo/x: expected 2, found 1"
+    );
+    let err = Table::from_columns(
+        "/demo/x",
+        vec![0.0],
+        vec!["a".into(), "b".into()],
+        vec![vec![1.0]],
+    )
+    .unwrap_err();
+    assert!(matches!(
+        err,
+        SimError::LengthMismatch {
+            expected: 2,
+            found: 1,
+            ..
+        }
+    ));
+    let mut table = Table::new("/demo/x", ["a"]);
+    assert!(table.push(0.0, &[1.0, 2.0]).is_err());
+    assert!(table.is_empty() && table.span().is_none());
+}
