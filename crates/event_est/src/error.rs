@@ -7,7 +7,9 @@ use std::string::String;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum EventEstError {
     /// A matrix or vector has the wrong shape.
-    #[error("{name} has shape {found_rows}x{found_cols}, expected {expected_rows}x{expected_cols}")]
+    #[error(
+        "{name} has shape {found_rows}x{found_cols}, expected {expected_rows}x{expected_cols}"
+    )]
     Dimension {
         /// Which input.
         name: &'static str,

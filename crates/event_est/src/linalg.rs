@@ -28,7 +28,10 @@ pub fn min_eigenvalue(m: &DMatrix<f64>) -> f64 {
 
 /// Largest eigenvalue of the symmetric part of `m` (−∞ for an empty matrix).
 pub fn max_eigenvalue(m: &DMatrix<f64>) -> f64 {
-    sym_eigenvalues(m).last().copied().unwrap_or(f64::NEG_INFINITY)
+    sym_eigenvalues(m)
+        .last()
+        .copied()
+        .unwrap_or(f64::NEG_INFINITY)
 }
 
 pub(crate) fn lti_err(what: &'static str) -> impl Fn(rigid_body::Error) -> EventEstError {
@@ -39,7 +42,11 @@ pub(crate) fn lti_err(what: &'static str) -> impl Fn(rigid_body::Error) -> Event
 }
 
 /// Discrete Lyapunov solution Σ = A Σ Aᵀ + Q.
-pub fn dlyap(a: &DMatrix<f64>, q: &DMatrix<f64>, what: &'static str) -> Result<DMatrix<f64>, EventEstError> {
+pub fn dlyap(
+    a: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+    what: &'static str,
+) -> Result<DMatrix<f64>, EventEstError> {
     lti::dlyap(a, q).map_err(lti_err(what))
 }
 
@@ -64,9 +71,9 @@ pub fn kalman(
     let prior = lti::dare(&a.transpose(), &c.transpose(), v, w)
         .map_err(lti_err("Kalman filter DARE (is (A, C) detectable?)"))?;
     let s = c * &prior * c.transpose() + w;
-    let chol = s
-        .cholesky()
-        .ok_or(EventEstError::NotPositiveDefinite { name: "C Σ Cᵀ + W" })?;
+    let chol = s.cholesky().ok_or(EventEstError::NotPositiveDefinite {
+        name: "C Σ Cᵀ + W"
+    })?;
     let gain = chol.solve(&(c * &prior)).transpose();
     let n = a.nrows();
     let posterior = (DMatrix::identity(n, n) - &gain * c) * &prior;
@@ -86,7 +93,12 @@ pub fn h2_squared(a_hat: &DMatrix<f64>, b_hat: &DMatrix<f64>) -> Result<f64, Eve
             margin: spectral_radius(a_hat) - 1.0,
         });
     }
-    Ok(dlyap(a_hat, &(b_hat * b_hat.transpose()), "H2 Gramian Σ = ÂΣÂᵀ + B̂B̂ᵀ")?.trace())
+    Ok(dlyap(
+        a_hat,
+        &(b_hat * b_hat.transpose()),
+        "H2 Gramian Σ = ÂΣÂᵀ + B̂B̂ᵀ",
+    )?
+    .trace())
 }
 
 /// H∞ norm of G(z) = Ĉ (zI − Â)^{-1} B̂ by a frequency sweep over ω ∈ [0, π]
@@ -95,11 +107,10 @@ pub fn hinf_norm(a_hat: &DMatrix<f64>, b_hat: &DMatrix<f64>, c_hat: &DMatrix<f64
     let n = a_hat.nrows();
     let eval = |omega: f64| -> f64 {
         let z = Complex::new(omega.cos(), omega.sin());
-        let m: DMatrix<Complex<f64>> =
-            DMatrix::from_fn(n, n, |i, j| {
-                let d = if i == j { z } else { Complex::new(0.0, 0.0) };
-                d - Complex::new(a_hat[(i, j)], 0.0)
-            });
+        let m: DMatrix<Complex<f64>> = DMatrix::from_fn(n, n, |i, j| {
+            let d = if i == j { z } else { Complex::new(0.0, 0.0) };
+            d - Complex::new(a_hat[(i, j)], 0.0)
+        });
         let rhs = b_hat.map(|v| Complex::new(v, 0.0));
         let Some(x) = m.lu().solve(&rhs) else {
             return f64::INFINITY;
@@ -143,8 +154,7 @@ pub fn hinf_norm(a_hat: &DMatrix<f64>, b_hat: &DMatrix<f64>, c_hat: &DMatrix<f64
 
 /// Cholesky factor (lower) of a symmetric positive definite matrix, or a named error.
 pub fn cholesky_lower(m: &DMatrix<f64>, name: &'static str) -> Result<DMatrix<f64>, EventEstError> {
-    Ok(m
-        .clone()
+    Ok(m.clone()
         .cholesky()
         .ok_or(EventEstError::NotPositiveDefinite { name })?
         .l())

@@ -23,9 +23,7 @@
 use crate::error::EventEstError;
 use crate::linalg::min_eigenvalue;
 use clarabel::algebra::CscMatrix;
-use clarabel::solver::{
-    DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
-};
+use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
 use nalgebra::DMatrix;
 
 /// Relative eigenvalue tolerance of the post-verification: an interior-point solution meets
@@ -300,7 +298,11 @@ pub fn svec(m: &DMatrix<f64>) -> Vec<f64> {
     let mut v = vec![0.0; d * (d + 1) / 2];
     for j in 0..d {
         for i in 0..=j {
-            let s = if i == j { 1.0 } else { std::f64::consts::SQRT_2 };
+            let s = if i == j {
+                1.0
+            } else {
+                std::f64::consts::SQRT_2
+            };
             v[svec_index(i, j)] = s * m[(i, j)];
         }
     }
@@ -313,7 +315,11 @@ pub fn smat(v: &[f64]) -> DMatrix<f64> {
     let d = ((((8 * v.len() + 1) as f64).sqrt() - 1.0) / 2.0).round() as usize;
     DMatrix::from_fn(d, d, |i, j| {
         let (i, j) = if i <= j { (i, j) } else { (j, i) };
-        let s = if i == j { 1.0 } else { std::f64::consts::SQRT_2 };
+        let s = if i == j {
+            1.0
+        } else {
+            std::f64::consts::SQRT_2
+        };
         v[svec_index(i, j)] / s
     })
 }
@@ -362,12 +368,20 @@ impl Problem {
             // s = svec(G(x) − εI) = svec(G0 − εI) + Σ x_k svec(G_k) and A x + s = b.
             for j in 0..d {
                 for i in 0..=j {
-                    let s = if i == j { 1.0 } else { std::f64::consts::SQRT_2 };
+                    let s = if i == j {
+                        1.0
+                    } else {
+                        std::f64::consts::SQRT_2
+                    };
                     b.push(s * g0[(i, j)]);
                 }
             }
             for &(var, i, j, v) in &lmi.terms {
-                let s = if i == j { 1.0 } else { std::f64::consts::SQRT_2 };
+                let s = if i == j {
+                    1.0
+                } else {
+                    std::f64::consts::SQRT_2
+                };
                 rows.push(row0 + svec_index(i, j));
                 cols.push(var);
                 vals.push(-s * v);
@@ -386,12 +400,11 @@ impl Problem {
             max_iter: 300,
             ..DefaultSettings::default()
         };
-        let mut solver = DefaultSolver::new(&p, &self.objective, &a, &b, &cones, settings).map_err(
-            |e| EventEstError::Solver {
+        let mut solver = DefaultSolver::new(&p, &self.objective, &a, &b, &cones, settings)
+            .map_err(|e| EventEstError::Solver {
                 problem,
                 status: e.to_string(),
-            },
-        )?;
+            })?;
         solver.solve();
         let sol = &solver.solution;
         match sol.status {
@@ -439,7 +452,11 @@ impl Problem {
         let mut row0 = 0;
         for lmi in &self.lmis {
             let len = lmi.dim * (lmi.dim + 1) / 2;
-            let w: f64 = z[row0..row0 + len].iter().map(|v| v * v).sum::<f64>().sqrt();
+            let w: f64 = z[row0..row0 + len]
+                .iter()
+                .map(|v| v * v)
+                .sum::<f64>()
+                .sqrt();
             weights.push(w);
             row0 += len;
         }
@@ -551,7 +568,10 @@ mod tests {
         let EventEstError::Infeasible { condition, .. } = &err else {
             panic!("expected Infeasible, got {err}");
         };
-        assert!(condition.contains("X ⪰ I") && condition.contains("X ⪯ 0"), "{condition}");
+        assert!(
+            condition.contains("X ⪰ I") && condition.contains("X ⪯ 0"),
+            "{condition}"
+        );
         assert!(!condition.contains("y ⪰ 0"), "{condition}");
     }
 }

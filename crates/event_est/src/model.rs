@@ -28,7 +28,12 @@ pub struct System {
     pub v_sqrt: DMatrix<f64>,
 }
 
-fn shape(name: &'static str, m: &DMatrix<f64>, rows: usize, cols: usize) -> Result<(), EventEstError> {
+fn shape(
+    name: &'static str,
+    m: &DMatrix<f64>,
+    rows: usize,
+    cols: usize,
+) -> Result<(), EventEstError> {
     if m.nrows() != rows || m.ncols() != cols {
         return Err(EventEstError::Dimension {
             name,
@@ -105,7 +110,8 @@ impl System {
                 expected: nu,
             });
         }
-        if (&w - w.transpose()).norm() > 1e-12 * w.norm().max(1.0) || w.clone().cholesky().is_none() {
+        if (&w - w.transpose()).norm() > 1e-12 * w.norm().max(1.0) || w.clone().cholesky().is_none()
+        {
             return Err(EventEstError::NotPositiveDefinite { name: "W" });
         }
         let sys = Self {
@@ -175,9 +181,8 @@ impl System {
         let off = self.output_offsets();
         let n = self.n();
         let mut s = DMatrix::zeros(n, n);
-        for m in 0..self.agents() {
-            if subset >> m & 1 == 1 {
-                let (o, pm) = (off[m], self.outputs[m]);
+        for (m, (&o, &pm)) in off.iter().zip(&self.outputs).enumerate() {
+            if m < 64 && subset >> m & 1 == 1 {
                 s += l.columns(o, pm) * self.c.rows(o, pm);
             }
         }
@@ -226,8 +231,13 @@ pub fn platoon(m: usize) -> Result<(System, UniformNoise), EventEstError> {
     for i in 1..m {
         c[(i, dist(i - 1))] = 1.0;
     }
-    let lqr = lti::dlqr(&a, &b, &DMatrix::identity(n, n), &(DMatrix::identity(m, m) * 100.0))
-        .map_err(lti_err("platoon LQR"))?;
+    let lqr = lti::dlqr(
+        &a,
+        &b,
+        &DMatrix::identity(n, n),
+        &(DMatrix::identity(m, m) * 100.0),
+    )
+    .map_err(lti_err("platoon LQR"))?;
     let f = -lqr.k;
     let w = DMatrix::identity(m, m) * (0.1f64 * 0.1 / 3.0);
     let v_sqrt = &b * (0.01 / 3f64.sqrt());

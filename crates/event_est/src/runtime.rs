@@ -150,11 +150,8 @@ impl<'a> Network<'a> {
             });
         }
         {
-            let mut acl = nalgebra::DMatrixViewMut::from_slice_generic(
-                &mut a_cl_storage[..],
-                Dyn(n),
-                Dyn(n),
-            );
+            let mut acl =
+                nalgebra::DMatrixViewMut::from_slice_generic(&mut a_cl_storage[..], Dyn(n), Dyn(n));
             acl.copy_from(&a);
             // A + B F, column by column without temporaries.
             for j in 0..n {
@@ -366,7 +363,10 @@ impl<'a> Agent<'a> {
         check_len("own measurement y_i", y_own, rows.len())?;
         let mut r = core::mem::take(&mut self.resid);
         self.innovation(self.id, y_own, r);
-        let d = self.net.delta_inv.view((rows.start, rows.start), (rows.len(), rows.len()));
+        let d = self
+            .net
+            .delta_inv
+            .view((rows.start, rows.start), (rows.len(), rows.len()));
         self.fired = trigger_fires(d, r);
         self.resid = core::mem::take(&mut r);
         Ok(self.fired)
@@ -394,11 +394,19 @@ impl<'a> Agent<'a> {
     where
         I: IntoIterator<Item = (usize, &'m [f64])>,
     {
-        check_len("own measurement y_i", y_own, self.net.output_range(self.id).len())?;
+        check_len(
+            "own measurement y_i",
+            y_own,
+            self.net.output_range(self.id).len(),
+        )?;
         self.xhat.copy_from_slice(self.xpred);
         for (j, y_j) in received {
             self.net.check_agent(j)?;
-            check_len("received measurement y_j", y_j, self.net.output_range(j).len())?;
+            check_len(
+                "received measurement y_j",
+                y_j,
+                self.net.output_range(j).len(),
+            )?;
             if j != self.id {
                 self.add_correction(j, y_j);
             }
@@ -475,17 +483,39 @@ mod tests {
             inputs: &[0, 1],
         };
         let err = Network::new(data, &mut a_cl).unwrap_err();
-        assert!(matches!(err, EventEstError::Dimension { name: "A", .. }), "{err}");
+        assert!(
+            matches!(err, EventEstError::Dimension { name: "A", .. }),
+            "{err}"
+        );
         let mut a_cl = [0.0];
         let net = scalar_net(&[1.0], &mut a_cl);
         let mut ws = [0.0; 3];
-        let mut agent = Agent::new(&net, 0, &mut ws, InputMode::Communicated, LocalUpdate::OnlyOnEvent).unwrap();
+        let mut agent = Agent::new(
+            &net,
+            0,
+            &mut ws,
+            InputMode::Communicated,
+            LocalUpdate::OnlyOnEvent,
+        )
+        .unwrap();
         assert_eq!(agent.predict(None), Err(EventEstError::MissingInput));
-        assert!(matches!(agent.trigger(&[1.0, 2.0]), Err(EventEstError::Dimension { .. })));
+        assert!(matches!(
+            agent.trigger(&[1.0, 2.0]),
+            Err(EventEstError::Dimension { .. })
+        ));
         let mut ws = [0.0; 3];
         assert!(matches!(
-            Agent::new(&net, 3, &mut ws, InputMode::Reconstructed, LocalUpdate::OnlyOnEvent),
-            Err(EventEstError::AgentIndex { index: 3, agents: 1 })
+            Agent::new(
+                &net,
+                3,
+                &mut ws,
+                InputMode::Reconstructed,
+                LocalUpdate::OnlyOnEvent
+            ),
+            Err(EventEstError::AgentIndex {
+                index: 3,
+                agents: 1
+            })
         ));
     }
 

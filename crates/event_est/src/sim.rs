@@ -23,7 +23,10 @@ impl Design {
     pub fn scalar(l: DMatrix<f64>, delta: &[f64]) -> Self {
         Self {
             l,
-            delta: delta.iter().map(|&d| DMatrix::from_element(1, 1, d)).collect(),
+            delta: delta
+                .iter()
+                .map(|&d| DMatrix::from_element(1, 1, d))
+                .collect(),
         }
     }
 
@@ -62,7 +65,8 @@ impl Design {
                 .cholesky()
                 .filter(|_| sym)
                 .ok_or(EventEstError::NotPositiveDefinite { name: "Δ_i" })?;
-            inv.view_mut((off[i], off[i]), (pi, pi)).copy_from(&chol.inverse());
+            inv.view_mut((off[i], off[i]), (pi, pi))
+                .copy_from(&chol.inverse());
         }
         Ok(inv)
     }
@@ -201,7 +205,11 @@ pub struct Step<'s> {
 }
 
 /// Runs the networked closed loop of `sys` with `design` under `cfg`.
-pub fn simulate(sys: &System, design: &Design, cfg: &SimConfig) -> Result<SimResult, EventEstError> {
+pub fn simulate(
+    sys: &System,
+    design: &Design,
+    cfg: &SimConfig,
+) -> Result<SimResult, EventEstError> {
     simulate_with(sys, design, cfg, |_| {})
 }
 
@@ -327,10 +335,18 @@ pub fn simulate_with<F: FnMut(&Step<'_>)>(
         // 2. Plant and measurements.
         if let Some(noise) = &cfg.noise {
             for (j, a) in noise.input.iter().enumerate() {
-                nu_noise[j] = if *a > 0.0 { rng.random_range(-a..*a) } else { 0.0 };
+                nu_noise[j] = if *a > 0.0 {
+                    rng.random_range(-a..*a)
+                } else {
+                    0.0
+                };
             }
             for (j, a) in noise.output.iter().enumerate() {
-                wn[j] = if *a > 0.0 { rng.random_range(-a..*a) } else { 0.0 };
+                wn[j] = if *a > 0.0 {
+                    rng.random_range(-a..*a)
+                } else {
+                    0.0
+                };
             }
         }
         let v = &sys.b * &nu_noise;
@@ -343,9 +359,10 @@ pub fn simulate_with<F: FnMut(&Step<'_>)>(
         }
         // 4. Bus.
         for j in 0..na {
-            let broadcast_lost = cfg.drop_mode == DropMode::PerBroadcast && rng.random_bool(cfg.loss);
-            for i in 0..na {
-                lost[j][i] = fired[j]
+            let broadcast_lost =
+                cfg.drop_mode == DropMode::PerBroadcast && rng.random_bool(cfg.loss);
+            for (i, lost_ji) in lost[j].iter_mut().enumerate() {
+                *lost_ji = fired[j]
                     && i != j
                     && match cfg.drop_mode {
                         DropMode::PerLink => cfg.loss > 0.0 && rng.random_bool(cfg.loss),
@@ -408,8 +425,18 @@ pub fn simulate_with<F: FnMut(&Step<'_>)>(
         });
         if let Some(l) = log.as_mut() {
             l.x.push(x.clone());
-            l.xhat.push(agents.iter().map(|a| DVector::from_column_slice(a.estimate())).collect());
-            l.xpred.push(agents.iter().map(|a| DVector::from_column_slice(a.prediction())).collect());
+            l.xhat.push(
+                agents
+                    .iter()
+                    .map(|a| DVector::from_column_slice(a.estimate()))
+                    .collect(),
+            );
+            l.xpred.push(
+                agents
+                    .iter()
+                    .map(|a| DVector::from_column_slice(a.prediction()))
+                    .collect(),
+            );
             l.y.push(y.clone());
             l.v.push(v.clone());
             l.w.push(wn.clone());

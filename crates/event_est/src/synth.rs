@@ -7,7 +7,9 @@
 //! Step 2 on a balanced realisation, and every returned certificate is re-checked by eigenvalues.
 
 use crate::error::EventEstError;
-use crate::linalg::{self, cholesky_lower, h2_squared, hinf_norm, kalman, max_eigenvalue, spectral_radius};
+use crate::linalg::{
+    self, cholesky_lower, h2_squared, hinf_norm, kalman, max_eigenvalue, spectral_radius,
+};
 use crate::lmi::{Problem, Vars};
 use crate::model::System;
 use crate::sim::Design;
@@ -84,13 +86,23 @@ pub struct Step1 {
 }
 
 fn subset_name(s: u64, n: usize) -> String {
-    let members: Vec<String> = (0..n).filter(|m| s >> m & 1 == 1).map(|m| (m + 1).to_string()).collect();
+    let members: Vec<String> = (0..n)
+        .filter(|m| s >> m & 1 == 1)
+        .map(|m| (m + 1).to_string())
+        .collect();
     format!("{{{}}}", members.join(","))
 }
 
 /// Step 1 (5.39): minimise tr X over (P, [P_2], U, X) subject to the H2 LMIs and `stability`.
 pub fn step1(sys: &System, stability: Stability) -> Result<Step1, EventEstError> {
     let (n, p, na) = (sys.n(), sys.p(), sys.agents());
+    if na > 63 {
+        return Err(EventEstError::Parameter {
+            name: "agents",
+            value: na as f64,
+            reason: "communication patterns are bit sets of at most 63 agents",
+        });
+    }
     if matches!(stability, Stability::Thm11 | Stability::Cor12) && na > 16 {
         return Err(EventEstError::Parameter {
             name: "agents",
@@ -114,7 +126,12 @@ pub fn step1(sys: &System, stability: Stability) -> Result<Step1, EventEstError>
     // (≈ the observability Gramian of the Kalman error dynamics, large for slow modes) so that
     // the Lyapunov decrease survives the solver tolerance when re-checked with the returned L.
     let a_kf = (&identity - &kf.gain * c) * a;
-    let p_scale = linalg::dlyap(&a_kf.transpose(), &identity, "scale of P (Kalman error Gramian)")?.norm();
+    let p_scale = linalg::dlyap(
+        &a_kf.transpose(),
+        &identity,
+        "scale of P (Kalman error Gramian)",
+    )?
+    .norm();
     let stab_eps = STAB_MARGIN * p_scale;
     let mut vars = Vars::default();
     let pv = vars.sym(n);
@@ -147,7 +164,12 @@ pub fn step1(sys: &System, stability: Stability) -> Result<Step1, EventEstError>
         l.add_sym(xv, n, 1.0);
     }
     // Adds [[Pk, (P − Σ_{m∈S} w U_m C_m) A_F], [*, Pl]] with P multiplying the gains.
-    let add_pattern = |prob: &mut Problem, name: String, subset: u64, weight: f64, pk: crate::lmi::VarId, pl: crate::lmi::VarId| {
+    let add_pattern = |prob: &mut Problem,
+                       name: String,
+                       subset: u64,
+                       weight: f64,
+                       pk: crate::lmi::VarId,
+                       pl: crate::lmi::VarId| {
         let l = prob.lmi(name, 2 * n);
         l.add_sym(pk, 0, 1.0);
         l.add_sym_times(pk, &af, 0, n, 1.0);
@@ -167,7 +189,14 @@ pub fn step1(sys: &System, stability: Stability) -> Result<Step1, EventEstError>
         Stability::None => {}
         Stability::Cor12 => {
             for subset in 0..(1u64 << na) {
-                add_pattern(&mut prob, format!("Cor 12 pattern {}", subset_name(subset, na)), subset, 1.0, pv, pv);
+                add_pattern(
+                    &mut prob,
+                    format!("Cor 12 pattern {}", subset_name(subset, na)),
+                    subset,
+                    1.0,
+                    pv,
+                    pv,
+                );
                 stability_lmis += 1;
             }
         }
@@ -195,11 +224,18 @@ pub fn step1(sys: &System, stability: Stability) -> Result<Step1, EventEstError>
                 reason: "missing",
             })?;
             for subset in 0..(1u64 << na) {
-                let (pk, name) = if subset == 0 { (p2, "P_2") } else { (pv, "P_1") };
+                let (pk, name) = if subset == 0 {
+                    (p2, "P_2")
+                } else {
+                    (pv, "P_1")
+                };
                 for (pl, lname) in [(pv, "P_1"), (p2, "P_2")] {
                     add_pattern(
                         &mut prob,
-                        format!("Thm 11 pattern {} with ({name}, {lname})", subset_name(subset, na)),
+                        format!(
+                            "Thm 11 pattern {} with ({name}, {lname})",
+                            subset_name(subset, na)
+                        ),
                         subset,
                         1.0,
                         pk,
@@ -243,7 +279,9 @@ pub fn step1(sys: &System, stability: Stability) -> Result<Step1, EventEstError>
     let chol = pm
         .clone()
         .cholesky()
-        .ok_or(EventEstError::NotPositiveDefinite { name: "Step-1 certificate P" })?;
+        .ok_or(EventEstError::NotPositiveDefinite {
+            name: "Step-1 certificate P",
+        })?;
     let l = chol.solve(&um);
     let c_star = (xv.value(&sol.x).trace() / s).sqrt();
     let p2 = p2v.map(|v| v.value(&sol.x));
@@ -258,10 +296,17 @@ pub fn step1(sys: &System, stability: Stability) -> Result<Step1, EventEstError>
         });
     }
     let mut margins = Vec::new();
-    let mut check = |name: String, acl: &DMatrix<f64>, pk: &DMatrix<f64>, pl: &DMatrix<f64>| -> Result<(), EventEstError> {
+    let mut check = |name: String,
+                     acl: &DMatrix<f64>,
+                     pk: &DMatrix<f64>,
+                     pl: &DMatrix<f64>|
+     -> Result<(), EventEstError> {
         let m = max_eigenvalue(&(acl.transpose() * pk * acl - pl)) / pl.norm().max(1e-300);
         if m.is_nan() || m >= 0.0 {
-            return Err(EventEstError::Verification { condition: name, margin: m });
+            return Err(EventEstError::Verification {
+                condition: name,
+                margin: m,
+            });
         }
         margins.push((name, m));
         Ok(())
@@ -271,7 +316,12 @@ pub fn step1(sys: &System, stability: Stability) -> Result<Step1, EventEstError>
         Stability::None => {}
         Stability::Cor12 | Stability::Cor13WithH => {
             for subset in 0..(1u64 << na) {
-                check(format!("A_cl({})ᵀPA_cl − P ≺ 0", subset_name(subset, na)), &acl_of(subset, 1.0), &pm, &pm)?;
+                check(
+                    format!("A_cl({})ᵀPA_cl − P ≺ 0", subset_name(subset, na)),
+                    &acl_of(subset, 1.0),
+                    &pm,
+                    &pm,
+                )?;
             }
         }
         Stability::Cor13 => {
@@ -292,8 +342,18 @@ pub fn step1(sys: &System, stability: Stability) -> Result<Step1, EventEstError>
             for subset in 0..(1u64 << na) {
                 let acl = acl_of(subset, 1.0);
                 let pk = if subset == 0 { &p2m } else { &pm };
-                check(format!("A_cl({})ᵀP_kA_cl − P_1 ≺ 0", subset_name(subset, na)), &acl, pk, &pm)?;
-                check(format!("A_cl({})ᵀP_kA_cl − P_2 ≺ 0", subset_name(subset, na)), &acl, pk, &p2m)?;
+                check(
+                    format!("A_cl({})ᵀP_kA_cl − P_1 ≺ 0", subset_name(subset, na)),
+                    &acl,
+                    pk,
+                    &pm,
+                )?;
+                check(
+                    format!("A_cl({})ᵀP_kA_cl − P_2 ≺ 0", subset_name(subset, na)),
+                    &acl,
+                    pk,
+                    &p2m,
+                )?;
             }
         }
     }
@@ -373,7 +433,11 @@ pub struct UnitThresholds {
 /// Step 2 (5.40) with γ = 1 on the balanced realisation: maximise tr Δ subject to
 /// ‖(zI − Â)^{-1} L Δ‖_∞ < 1 (Kalman objective). `gamma_factor` scales the balancing level
 /// γ_s = gamma_factor · h² (1 is the default; results must not depend on it).
-pub fn step2_unit(sys: &System, l: &DMatrix<f64>, gamma_factor: f64) -> Result<UnitThresholds, EventEstError> {
+pub fn step2_unit(
+    sys: &System,
+    l: &DMatrix<f64>,
+    gamma_factor: f64,
+) -> Result<UnitThresholds, EventEstError> {
     check_gain(sys, l)?;
     if !(gamma_factor.is_finite() && gamma_factor > 0.0) {
         return Err(EventEstError::Parameter {
@@ -395,14 +459,13 @@ pub fn step2_unit(sys: &System, l: &DMatrix<f64>, gamma_factor: f64) -> Result<U
     // (a) balance: G_c = Â G_c Âᵀ + L Lᵀ, T = chol(G_c).
     let gc = linalg::dlyap(&a_hat, &(l * l.transpose()), "Step-2 balancing Gramian")?;
     let t = cholesky_lower(&gc, "balancing Gramian G_c (is every state reached by L?)")?;
-    let t_inv = t
-        .clone()
-        .try_inverse()
-        .ok_or(EventEstError::Singular { name: "balancing factor T" })?;
+    let t_inv = t.clone().try_inverse().ok_or(EventEstError::Singular {
+        name: "balancing factor T",
+    })?;
     let a_t = &t_inv * &a_hat * &t;
     let l_t = &t_inv * l;
     let c_t = t.clone(); // Ĉ T with Ĉ = I
-    // (b) H∞ level of the channel from the event noise to the error.
+                         // (b) H∞ level of the channel from the event noise to the error.
     let h = hinf_norm(&a_hat, l, &identity);
     let gamma_s = gamma_factor * h * h;
     let off = sys.output_offsets();
@@ -422,7 +485,13 @@ pub fn step2_unit(sys: &System, l: &DMatrix<f64>, gamma_factor: f64) -> Result<U
         lm.add_sym(qv, 0, 1.0);
         lm.add_times_sym(&a_t, qv, 0, n, 1.0);
         for (i, d) in deltas.iter().enumerate() {
-            lm.add_times_sym(&l_t.columns(off[i], sys.outputs[i]).into_owned(), *d, 0, 2 * n + off[i], 1.0);
+            lm.add_times_sym(
+                &l_t.columns(off[i], sys.outputs[i]).into_owned(),
+                *d,
+                0,
+                2 * n + off[i],
+                1.0,
+            );
         }
         lm.add_sym(qv, n, 1.0);
         lm.add_sym_times(qv, &c_t.transpose(), n, 2 * n + p, 1.0);
@@ -444,7 +513,10 @@ pub fn step2_unit(sys: &System, l: &DMatrix<f64>, gamma_factor: f64) -> Result<U
         let smax = sv.iter().copied().fold(0.0, f64::max);
         if sv.iter().any(|&v| v <= 1e-10 * smax.max(1e-300)) {
             let cap = 1e3 * gamma_factor.sqrt();
-            let lm = prob.lmi(format!("Δ_{} ⪯ Δ_max I (L_{} rank deficient)", i + 1, i + 1), pi);
+            let lm = prob.lmi(
+                format!("Δ_{} ⪯ Δ_max I (L_{} rank deficient)", i + 1, i + 1),
+                pi,
+            );
             lm.add_sym(*d, 0, -1.0);
             lm.add_const(0, 0, &(DMatrix::identity(pi, pi) * cap));
         }
@@ -481,7 +553,9 @@ pub fn g1_norm(sys: &System, design: &Design) -> Result<f64, EventEstError> {
     let off = sys.output_offsets();
     let mut delta = DMatrix::zeros(p, p);
     for (i, d) in design.delta.iter().enumerate() {
-        delta.view_mut((off[i], off[i]), (sys.outputs[i], sys.outputs[i])).copy_from(d);
+        delta
+            .view_mut((off[i], off[i]), (sys.outputs[i], sys.outputs[i]))
+            .copy_from(d);
     }
     let identity = DMatrix::<f64>::identity(n, n);
     let a_hat = (&identity - &design.l * &sys.c) * &sys.a;
@@ -497,7 +571,12 @@ pub fn budget_gamma(sys: &System, c_star: f64, j_max: f64) -> Result<f64, EventE
 }
 
 /// Thresholds for J_max from the unit-γ solution: Δ = sqrt(γ) Δ̃.
-pub fn thresholds(sys: &System, unit: &UnitThresholds, c_star: f64, j_max: f64) -> Result<Vec<DMatrix<f64>>, EventEstError> {
+pub fn thresholds(
+    sys: &System,
+    unit: &UnitThresholds,
+    c_star: f64,
+    j_max: f64,
+) -> Result<Vec<DMatrix<f64>>, EventEstError> {
     let g = budget_gamma(sys, c_star, j_max)?;
     Ok(unit.delta.iter().map(|d| d * g.sqrt()).collect())
 }
@@ -540,7 +619,11 @@ pub struct Synthesis {
 }
 
 /// Step 1, Step 2 and analysis for one J_max.
-pub fn synthesize(sys: &System, stability: Stability, j_max: f64) -> Result<Synthesis, EventEstError> {
+pub fn synthesize(
+    sys: &System,
+    stability: Stability,
+    j_max: f64,
+) -> Result<Synthesis, EventEstError> {
     let step1 = step1(sys, stability)?;
     complete(sys, step1, j_max)
 }

@@ -15,9 +15,15 @@ fn run(mode: InputMode, steps: usize) -> SimLog {
     cfg.loss = 0.0;
     cfg.input_mode = mode;
     cfg.x0 = DVector::from_vec(vec![0.0, 2.0]);
-    cfg.xhat0 = vec![DVector::from_vec(vec![0.0, 1.0]), DVector::from_vec(vec![0.0, 2.0])];
+    cfg.xhat0 = vec![
+        DVector::from_vec(vec![0.0, 1.0]),
+        DVector::from_vec(vec![0.0, 2.0]),
+    ];
     cfg.record = true;
-    simulate(&sys, &Design::scalar(l, &[1.0, 1.0]), &cfg).unwrap().log.unwrap()
+    simulate(&sys, &Design::scalar(l, &[1.0, 1.0]), &cfg)
+        .unwrap()
+        .log
+        .unwrap()
 }
 
 fn close(a: &DVector<f64>, b: &[f64]) -> bool {
@@ -31,7 +37,10 @@ fn communicated_inputs_diverge_without_any_transmission() {
     assert!(close(&log.u[0], &[-2.0, 0.0]));
     for k in 1..=20 {
         let two_k = 2f64.powi(k as i32);
-        assert!(log.fired[k].iter().all(|f| !f), "k = {k}: someone transmitted");
+        assert!(
+            log.fired[k].iter().all(|f| !f),
+            "k = {k}: someone transmitted"
+        );
         assert!(close(&log.x[k], &[0.0, two_k]), "x({k}) = {}", log.x[k]);
         assert!(close(&log.xhat[k][1], &[0.0, two_k]));
         assert!(close(&log.xhat[k][0], &[0.0, 0.0]));
@@ -44,7 +53,11 @@ fn communicated_inputs_diverge_without_any_transmission() {
 #[test]
 fn reconstructed_inputs_reach_zero_from_k_2() {
     let log = run(InputMode::Reconstructed, 20);
-    assert_eq!(log.fired[1], vec![false, true], "only agent 2 fires at k = 1");
+    assert_eq!(
+        log.fired[1],
+        vec![false, true],
+        "only agent 2 fires at k = 1"
+    );
     assert!(close(&log.xhat[1][0], &[0.0, 2.0]) && close(&log.xhat[1][1], &[0.0, 2.0]));
     assert!(close(&log.u[0], &[-2.0, 0.0]));
     assert!(close(&log.u[1], &[-4.0, 0.0]), "u(1) = {}", log.u[1]);

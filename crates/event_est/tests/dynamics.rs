@@ -21,22 +21,45 @@ fn random_network(seed: u64) -> Option<(System, Design)> {
     let b = random(&mut rng, n, 3, 1.0);
     let c = random(&mut rng, 3, n, 1.0);
     let f = random(&mut rng, 3, n, 0.2);
-    let sys = System::new(a, b, c, f, outputs, inputs, DMatrix::identity(3, 3), DMatrix::identity(n, 3)).ok()?;
+    let sys = System::new(
+        a,
+        b,
+        c,
+        f,
+        outputs,
+        inputs,
+        DMatrix::identity(3, 3),
+        DMatrix::identity(n, 3),
+    )
+    .ok()?;
     let l = random(&mut rng, n, 3, 0.5);
     let m = random(&mut rng, 2, 2, 0.05);
     let delta1 = &m * m.transpose() + DMatrix::identity(2, 2) * rng.random_range(0.01..0.1);
     let delta2 = DMatrix::from_element(1, 1, rng.random_range(0.01..0.1));
-    Some((sys, Design { l, delta: vec![delta1, delta2, DMatrix::zeros(0, 0)] }))
+    Some((
+        sys,
+        Design {
+            l,
+            delta: vec![delta1, delta2, DMatrix::zeros(0, 0)],
+        },
+    ))
 }
 
 fn check_identities(seed: u64) -> bool {
-    let Some((sys, design)) = random_network(seed) else { return false };
+    let Some((sys, design)) = random_network(seed) else {
+        return false;
+    };
     let (n, na) = (sys.n(), sys.agents());
-    let noise = UniformNoise { output: vec![0.05; 3], input: vec![0.1; 3] };
+    let noise = UniformNoise {
+        output: vec![0.05; 3],
+        input: vec![0.1; 3],
+    };
     let mut cfg = SimConfig::new(&sys, 60, Some(noise), seed);
     cfg.loss = 0.3;
     cfg.x0 = DVector::from_element(n, 0.5);
-    cfg.xhat0 = (0..na).map(|i| DVector::from_element(n, 0.1 * i as f64)).collect();
+    cfg.xhat0 = (0..na)
+        .map(|i| DVector::from_element(n, 0.1 * i as f64))
+        .collect();
     cfg.record = true;
     let log = simulate(&sys, &design, &cfg).unwrap().log.unwrap();
     let af = sys.a_cl();
@@ -72,23 +95,37 @@ fn check_identities(seed: u64) -> bool {
         for i in 0..na {
             x_pred -= bf(i) * e(i, k - 1);
         }
-        assert!((&x_pred - &log.x[k]).norm() <= tol(&log.x[k]), "(5.11) at k = {k}");
+        assert!(
+            (&x_pred - &log.x[k]).norm() <= tol(&log.x[k]),
+            "(5.11) at k = {k}"
+        );
         for i in 0..na {
             // (5.12)
-            let mut rhs = &i_lc * &sys.a * e(i, k - 1) + &i_lc * &log.v[k] + &xi - d(i) - &design.l * &log.w[k];
+            let mut rhs = &i_lc * &sys.a * e(i, k - 1) + &i_lc * &log.v[k] + &xi
+                - d(i)
+                - &design.l * &log.w[k];
             for j in 0..na {
                 rhs += &i_lc * bf(j) * eps(j, i, k - 1);
             }
             for &j in &silent {
                 rhs += lj(j) * cj(j) * &af * eps(j, i, k - 1);
             }
-            assert!((&rhs - e(i, k)).norm() <= tol(&e(i, k)), "(5.12) at k = {k}, agent {i}");
+            assert!(
+                (&rhs - e(i, k)).norm() <= tol(&e(i, k)),
+                "(5.12) at k = {k}, agent {i}"
+            );
             // (5.14)
-            let fired_set: u64 = (0..na).filter(|&m| log.fired[k][m]).map(|m| 1u64 << m).sum();
+            let fired_set: u64 = (0..na)
+                .filter(|&m| log.fired[k][m])
+                .map(|m| 1u64 << m)
+                .sum();
             let acl = (DMatrix::identity(n, n) - sys.lc_subset(&design.l, fired_set)) * &af;
             for j in 0..na {
                 let rhs = &acl * eps(j, i, k - 1) + d(j) - d(i);
-                assert!((&rhs - eps(j, i, k)).norm() <= tol(&eps(j, i, k)), "(5.14) at k = {k}, ({j}, {i})");
+                assert!(
+                    (&rhs - eps(j, i, k)).norm() <= tol(&eps(j, i, k)),
+                    "(5.14) at k = {k}, ({j}, {i})"
+                );
             }
         }
     }
@@ -110,8 +147,18 @@ fn identities_on_a_network_that_transmits_and_drops() {
     // A seed whose run has transmissions and lost packets, so every term of (5.12) is exercised.
     let mut exercised = false;
     for seed in 0..50 {
-        let Some((sys, design)) = random_network(seed) else { continue };
-        let mut cfg = SimConfig::new(&sys, 60, Some(UniformNoise { output: vec![0.05; 3], input: vec![0.1; 3] }), seed);
+        let Some((sys, design)) = random_network(seed) else {
+            continue;
+        };
+        let mut cfg = SimConfig::new(
+            &sys,
+            60,
+            Some(UniformNoise {
+                output: vec![0.05; 3],
+                input: vec![0.1; 3],
+            }),
+            seed,
+        );
         cfg.loss = 0.3;
         cfg.record = true;
         cfg.x0 = DVector::from_element(sys.n(), 0.5);
@@ -123,5 +170,8 @@ fn identities_on_a_network_that_transmits_and_drops() {
             break;
         }
     }
-    assert!(exercised, "no random network both dropped packets and stayed silent");
+    assert!(
+        exercised,
+        "no random network both dropped packets and stayed silent"
+    );
 }

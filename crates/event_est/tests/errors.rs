@@ -13,21 +13,63 @@ fn eye(n: usize) -> DMatrix<f64> {
 
 #[test]
 fn wrong_dimensions_are_named() {
-    let err = System::new(eye(2), DMatrix::zeros(3, 1), eye(2), DMatrix::zeros(1, 2), vec![1, 1], vec![1, 0], eye(2), eye(2))
-        .unwrap_err();
-    assert!(matches!(err, EventEstError::Dimension { name: "B", .. }), "{err}");
-    let err = System::new(eye(2) * 0.5, DMatrix::zeros(2, 1), eye(2), DMatrix::zeros(1, 2), vec![1, 2], vec![1, 0], eye(2), eye(2))
-        .unwrap_err();
+    let err = System::new(
+        eye(2),
+        DMatrix::zeros(3, 1),
+        eye(2),
+        DMatrix::zeros(1, 2),
+        vec![1, 1],
+        vec![1, 0],
+        eye(2),
+        eye(2),
+    )
+    .unwrap_err();
+    assert!(
+        matches!(err, EventEstError::Dimension { name: "B", .. }),
+        "{err}"
+    );
+    let err = System::new(
+        eye(2) * 0.5,
+        DMatrix::zeros(2, 1),
+        eye(2),
+        DMatrix::zeros(1, 2),
+        vec![1, 2],
+        vec![1, 0],
+        eye(2),
+        eye(2),
+    )
+    .unwrap_err();
     assert!(matches!(err, EventEstError::BlockSizes { .. }), "{err}");
 }
 
 #[test]
 fn unstable_feedback_and_bad_covariance_are_named() {
-    let err = System::new(eye(2) * 1.5, DMatrix::zeros(2, 1), eye(2), DMatrix::zeros(1, 2), vec![1, 1], vec![1, 0], eye(2), eye(2))
-        .unwrap_err();
-    assert!(matches!(err, EventEstError::UnstableFeedback { rho } if (rho - 1.5).abs() < 1e-12), "{err}");
-    let err = System::new(eye(2) * 0.5, DMatrix::zeros(2, 1), eye(2), DMatrix::zeros(1, 2), vec![1, 1], vec![1, 0], -eye(2), eye(2))
-        .unwrap_err();
+    let err = System::new(
+        eye(2) * 1.5,
+        DMatrix::zeros(2, 1),
+        eye(2),
+        DMatrix::zeros(1, 2),
+        vec![1, 1],
+        vec![1, 0],
+        eye(2),
+        eye(2),
+    )
+    .unwrap_err();
+    assert!(
+        matches!(err, EventEstError::UnstableFeedback { rho } if (rho - 1.5).abs() < 1e-12),
+        "{err}"
+    );
+    let err = System::new(
+        eye(2) * 0.5,
+        DMatrix::zeros(2, 1),
+        eye(2),
+        DMatrix::zeros(1, 2),
+        vec![1, 1],
+        vec![1, 0],
+        -eye(2),
+        eye(2),
+    )
+    .unwrap_err();
     assert_eq!(err, EventEstError::NotPositiveDefinite { name: "W" });
 }
 
@@ -52,7 +94,10 @@ fn bad_designs_are_rejected_by_the_simulator_and_step2() {
     let err = simulate(&sys, &Design::scalar(l.clone(), &[0.1, -0.1, 0.1]), &cfg).unwrap_err();
     assert_eq!(err, EventEstError::NotPositiveDefinite { name: "Δ_i" });
     let err = simulate(&sys, &Design::scalar(DMatrix::zeros(4, 3), &[0.1; 3]), &cfg).unwrap_err();
-    assert!(matches!(err, EventEstError::Dimension { name: "L", .. }), "{err}");
+    assert!(
+        matches!(err, EventEstError::Dimension { name: "L", .. }),
+        "{err}"
+    );
     // L = 0 leaves the integrators of the platoon unobserved: (I − LC)A is not Schur.
     let err = step2_unit(&sys, &l, 1.0).unwrap_err();
     assert!(matches!(err, EventEstError::Verification { .. }), "{err}");

@@ -1,0 +1,30 @@
+//! Scalability of the Cor 13 design in the number of vehicles (acceptance test 25): M = 3..6
+//! complete with verified certificates, and the full-communication bound c* grows with M.
+//! Larger platoons run in the `platoon_scaling` example (times in the README).
+#![allow(clippy::unwrap_used)]
+
+use event_est::model::platoon;
+use event_est::synth::{step1, step2_unit, Stability};
+
+#[test]
+fn cor13_design_scales_to_six_vehicles() {
+    // c* of the spec's CVXPY + Clarabel reproduction.
+    let reference = [(3, 0.010244), (4, 0.01535), (5, 0.02213), (6, 0.02914)];
+    let mut last = 0.0;
+    for (m, c_ref) in reference {
+        let (sys, _) = platoon(m).unwrap();
+        let s1 = step1(&sys, Stability::Cor13).unwrap();
+        assert_eq!(s1.stability_lmis, m + 1);
+        assert!(s1.stability_margins.iter().all(|(_, v)| *v < 0.0));
+        assert!(
+            (s1.c_star - c_ref).abs() / c_ref < 5e-3,
+            "M = {m}: c* = {}",
+            s1.c_star
+        );
+        assert!(s1.true_h2 <= s1.c_star * (1.0 + 1e-4));
+        assert!(s1.c_star > last);
+        last = s1.c_star;
+        let unit = step2_unit(&sys, &s1.l, 1.0).unwrap();
+        assert!(unit.delta.iter().all(|d| d[(0, 0)] > 0.0));
+    }
+}
