@@ -10,14 +10,16 @@ use crate::scenarios::{self, Recording, Scenario};
 
 pub mod info;
 pub mod tilt;
+pub mod workbench;
 
 /// Stabilizing unstable systems: simulate, log, inspect.
 #[derive(Debug, Parser)]
 #[command(name = "stabilis", version, about)]
 pub struct Cli {
-    /// Print machine-readable JSON on stdout instead of the human summary.
-    #[arg(long, global = true)]
-    pub json: bool,
+    /// Print machine-readable JSON on stdout instead of the human summary; with a FILE
+    /// (`--json out.json`), write it there and print the summary.
+    #[arg(long, global = true, value_name = "FILE", num_args = 0..=1, default_missing_value = "-")]
+    pub json: Option<std::path::PathBuf>,
     /// What to do.
     #[command(subcommand)]
     pub command: Command,
@@ -34,6 +36,13 @@ pub enum Command {
     /// Estimate tilt, angular velocity and angular acceleration from accelerometers only
     /// (`/imu/accel` and the `imu` metadata record).
     Tilt(tilt::Args),
+    /// Find the physical effects a model misses: compare with measured FRFs, add the most
+    /// significant candidate effect, refit, repeat until the rest is noise.
+    Discover(workbench::DiscoverArgs),
+    /// Fit a model (optionally `--with` effects) to measurements and show where it fails.
+    Compare(workbench::FitArgs),
+    /// Fit a model with the effects given by `--with EFFECT[,EFFECT]`.
+    Fit(workbench::FitArgs),
 }
 
 /// The systems `stabilis sim` can run.
@@ -118,6 +127,8 @@ impl Command {
             Self::Sim(system) => sim_output(&system.run()?),
             Self::Info(args) => args.run(),
             Self::Tilt(args) => args.run(),
+            Self::Discover(args) => args.run(),
+            Self::Compare(args) | Self::Fit(args) => args.run(),
         }
     }
 }
@@ -177,16 +188,32 @@ where
         }
     };
     match cli.command.run() {
-        Ok(output) => {
-            if cli.json {
-                println!("{}", output.json);
-            } else {
-                println!("{}", output.human);
+        Ok(output) => match cli.json.as_deref() {
+            Some(p) if p != std::path::Path::new("-") => {
+                let text = format!("{:#}\n", output.json);
+                match std::fs::write(p, text) {
+                    Ok(()) => {
+                        println!("{}", output.human);
+                        0
+                    }
+                    Err(e) => {
+                        let error = SimError::io(p, e);
+                        eprintln!("error: {error}");
+                        error.exit_code()
+                    }
+                }
             }
-            0
-        }
+            Some(_) => {
+                println!("{}", output.json);
+                0
+            }
+            None => {
+                println!("{}", output.human);
+                0
+            }
+        },
         Err(error) => {
-            if cli.json {
+            if cli.json.is_some() {
                 println!("{}", serde_json::json!({ "error": error.to_string() }));
             }
             eprintln!("error: {error}");

@@ -7,13 +7,63 @@ use super::frf::{CMatrix, FrfEstimate};
 use super::spectra::C64;
 use crate::error::{Result, SimError};
 
+/// Whitening of one line: `z = L^-1 vec(E)` with `Cov = L L^H`.
+#[derive(Debug, Clone)]
+enum Whitener {
+    /// A general covariance.
+    Full(CMatrix),
+    /// `Cov = M ⊗ S`: `L = L_M ⊗ L_S`, so `z = vec(L_S^-1 E L_M^-T)` (same result, a fraction
+    /// of the work).
+    Kronecker { m_inv_t: CMatrix, s_inv: CMatrix },
+}
+
+impl Whitener {
+    fn apply(&self, e: &CMatrix) -> CMatrix {
+        match self {
+            Self::Full(linv) => {
+                let z = linv * DVector::from_iterator(e.len(), e.iter().cloned());
+                CMatrix::from_iterator(e.nrows(), e.ncols(), z.iter().cloned())
+            }
+            Self::Kronecker { m_inv_t, s_inv } => s_inv * e * m_inv_t,
+        }
+    }
+}
+
+/// Lower Cholesky factor's inverse of a Hermitian matrix with a relative ridge of 1e-12 (keeps
+/// a channel without noise, such as a constant output, from breaking the factorisation).
+fn chol_inv(cov: &CMatrix, what: &str) -> Result<CMatrix> {
+    let n = cov.nrows();
+    let max_diag = (0..n).map(|i| cov[(i, i)].re).fold(0.0, f64::max);
+    if !(max_diag > 0.0) {
+        return Err(SimError::invalid(
+            what,
+            "zero",
+            "the periods are identical (noise-free data); a variance-weighted cost needs noise",
+        ));
+    }
+    let mut c = cov.clone();
+    for i in 0..n {
+        c[(i, i)] += C64::from(1e-12 * max_diag);
+    }
+    let chol = c.cholesky().ok_or_else(|| {
+        SimError::invalid(
+            what,
+            "not positive definite",
+            "too few periods or experiments to estimate the noise of every channel",
+        )
+    })?;
+    chol.l()
+        .solve_lower_triangular(&CMatrix::identity(n, n))
+        .ok_or_else(|| SimError::invalid(what, "singular", "cannot whiten"))
+}
+
 /// Whitening operators per line, built once from the FRF covariance.
 #[derive(Debug, Clone)]
 pub struct WeightedCost {
     /// Line frequencies in Hz.
     pub freqs_hz: Vec<f64>,
     targets: Vec<CMatrix>,
-    whiten: Vec<CMatrix>,
+    whiten: Vec<Whitener>,
     /// Standard deviation of each FRF entry per line (outputs x inputs), for bands and
     /// standardised errors.
     pub std: Vec<DMatrix<f64>>,
@@ -29,35 +79,15 @@ impl WeightedCost {
         let mut whiten = Vec::with_capacity(frf.lines.len());
         let mut std = Vec::with_capacity(frf.lines.len());
         for line in &frf.lines {
-            let n = line.cov.nrows();
-            let max_diag = (0..n).map(|i| line.cov[(i, i)].re).fold(0.0, f64::max);
-            if !(max_diag > 0.0) {
-                return Err(SimError::invalid(
-                    format!("FRF noise covariance at {:.3} Hz", line.freq_hz),
-                    "zero",
-                    "the periods are identical (noise-free data); a variance-weighted cost needs noise",
-                ));
-            }
-            // A tiny ridge keeps channels without noise (a constant output) from breaking the
-            // factorisation without changing any other weight noticeably.
-            let mut cov = line.cov.clone();
-            for i in 0..n {
-                cov[(i, i)] += C64::from(1e-12 * max_diag);
-            }
-            let chol = cov.cholesky().ok_or_else(|| {
-                SimError::invalid(
-                    format!("FRF noise covariance at {:.3} Hz", line.freq_hz),
-                    "not positive definite",
-                    "too few periods or experiments to estimate the noise of every channel",
-                )
-            })?;
-            let l = chol.l();
-            let linv = l
-                .solve_lower_triangular(&CMatrix::identity(n, n))
-                .ok_or_else(|| {
-                    SimError::invalid("FRF noise covariance", "singular", "cannot whiten")
-                })?;
-            whiten.push(linv);
+            let what = format!("FRF noise covariance at {:.3} Hz", line.freq_hz);
+            let w = match &line.kronecker {
+                Some((m, s)) => Whitener::Kronecker {
+                    m_inv_t: chol_inv(m, &what)?.transpose(),
+                    s_inv: chol_inv(s, &what)?,
+                },
+                None => Whitener::Full(chol_inv(&line.cov, &what)?),
+            };
+            whiten.push(w);
             std.push(DMatrix::from_fn(ny, nu, |i, j| {
                 line.cov[(j * ny + i, j * ny + i)].re.max(0.0).sqrt()
             }));
@@ -82,9 +112,8 @@ impl WeightedCost {
         &self.targets
     }
 
-    fn whitened(&self, k: usize, g: &CMatrix) -> DVector<C64> {
-        let e = DVector::from_iterator(self.ny * self.nu, (g - &self.targets[k]).iter().cloned());
-        &self.whiten[k] * e
+    fn whitened(&self, k: usize, g: &CMatrix) -> CMatrix {
+        self.whiten[k].apply(&(g - &self.targets[k]))
     }
 
     /// Cost of one line.
@@ -122,7 +151,7 @@ impl WeightedCost {
         let mut j = DMatrix::zeros(self.n_residuals(), p);
         for (k, dk) in d.iter().enumerate() {
             for (i, dg) in dk.iter().enumerate() {
-                let z = &self.whiten[k] * DVector::from_iterator(m, dg.iter().cloned());
+                let z = self.whiten[k].apply(dg);
                 for (r, v) in z.iter().enumerate() {
                     j[(2 * m * k + r, i)] = v.re;
                     j[(2 * m * k + m + r, i)] = v.im;

@@ -24,11 +24,14 @@ pub struct CandidateScore {
     pub f_statistic: f64,
     /// Its p-value.
     pub p_value: f64,
+    /// p-value of the same test without the line that gained most.
+    pub p_value_without_best_line: f64,
     /// Change of AIC = V/s + 2p (s: noise scale of one squared residual).
     pub delta_aic: f64,
     /// Change of BIC = V/s + p ln n.
     pub delta_bic: f64,
-    /// Passes the F test at the Bonferroni-corrected level and lowers BIC.
+    /// Passes the F test at the Bonferroni-corrected level, with and without its best line,
+    /// and lowers BIC.
     pub significant: bool,
 }
 
@@ -126,6 +129,27 @@ pub struct Discovery {
     pub level: f64,
 }
 
+/// Values tried for a new parameter: 17 points over its bounds (logarithmic for a positive
+/// range spanning decades), plus zero and the documented value when inside.
+fn scan_grid(p: &super::model::Parameter) -> Vec<f64> {
+    let n = 17;
+    let mut v: Vec<f64> = if p.lower > 0.0 && p.upper / p.lower > 100.0 {
+        let (a, b) = (p.lower.ln(), p.upper.ln());
+        (0..n)
+            .map(|i| (a + (b - a) * i as f64 / (n - 1) as f64).exp())
+            .collect()
+    } else {
+        (0..n)
+            .map(|i| p.lower + (p.upper - p.lower) * i as f64 / (n - 1) as f64)
+            .collect()
+    };
+    v.push(p.value);
+    if p.lower <= 0.0 && p.upper >= 0.0 {
+        v.push(0.0);
+    }
+    v
+}
+
 impl Workbench {
     /// Fits `model` from `start` and builds its step record.
     pub(crate) fn step(
@@ -199,7 +223,38 @@ impl Workbench {
     ) -> Result<(Model, FitResult, CandidateScore)> {
         let with = model.with_effect(effect)?;
         let start = self.carry_over(model, &current.theta, &with)?;
-        let r = fit(&with, &self.cost, Some(&start), &self.fit_options())?;
+        // Two starts: the current estimate with the new parameters at their documented values,
+        // and all parameters at their documented values with each new parameter chosen by a
+        // coarse scan over its bounds. The current estimate of a misspecified model is
+        // distorted to mimic the missing effect, and resonant effects (gyroscopic coupling)
+        // have local minima; the second start escapes both.
+        let params = with.parameters()?;
+        let old: Vec<String> = model.parameters()?.into_iter().map(|p| p.name).collect();
+        let mut scanned: Vec<f64> = params.iter().map(|p| p.value).collect();
+        let new: Vec<usize> = (0..params.len())
+            .filter(|&i| !old.contains(&params[i].name))
+            .collect();
+        for &i in &new {
+            scanned[i] = 0.0f64.clamp(params[i].lower, params[i].upper);
+        }
+        let hold = self.fit_options().hold;
+        for &i in &new {
+            let mut best = (f64::INFINITY, scanned[i]);
+            for v in scan_grid(&params[i]) {
+                let mut t = scanned.clone();
+                t[i] = v;
+                if let Ok(g) = with.frf(&t, &self.cost.freqs_hz, hold) {
+                    let c = self.cost.cost(&g);
+                    if c < best.0 {
+                        best = (c, v);
+                    }
+                }
+            }
+            scanned[i] = best.1;
+        }
+        let a = fit(&with, &self.cost, Some(&start), &self.fit_options())?;
+        let b = fit(&with, &self.cost, Some(&scanned), &self.fit_options())?;
+        let r = if b.cost < a.cost { b } else { a };
         let n = self.cost.n_residuals() as f64;
         let p0 = current.params.iter().filter(|p| !p.held).count();
         let p1 = r.free;
@@ -212,9 +267,37 @@ impl Workbench {
         } else {
             (0.0, 1.0)
         };
+        // The evidence must not rest on one frequency line: a physical effect of a
+        // continuous-time model acts over a band, while a single line can be off for reasons
+        // no candidate describes (leakage of slow disturbances into the lowest line, a
+        // corrupted record). Repeat the test without the line that gained most.
+        let per_line = |g: &[super::frf::CMatrix]| -> Vec<f64> {
+            (0..g.len())
+                .map(|k| self.cost.line_cost(k, &g[k]))
+                .collect()
+        };
+        let (before, after) = (per_line(&current.model_frf), per_line(&r.model_frf));
+        let (kmax, gain_max) = before
+            .iter()
+            .zip(&after)
+            .map(|(b, a)| b - a)
+            .enumerate()
+            .fold(
+                (0, f64::NEG_INFINITY),
+                |acc, (k, d)| if d > acc.1 { (k, d) } else { acc },
+            );
+        let n_line = n / before.len() as f64;
+        let robust_p = if q > 0 && before.len() > 1 {
+            let v1 = r.cost - after[kmax];
+            let f = ((dv - gain_max) / q as f64) / (v1 / (n - n_line - p1 as f64));
+            f_sf(f, q as f64, n - n_line - p1 as f64)
+        } else {
+            1.0
+        };
         let delta_aic = -dv / s + 2.0 * q as f64;
         let delta_bic = -dv / s + q as f64 * n.ln();
-        let significant = q > 0 && p_value < LEVEL / n_candidates.max(1) as f64 && delta_bic < 0.0;
+        let alpha = LEVEL / n_candidates.max(1) as f64;
+        let significant = q > 0 && p_value < alpha && robust_p < alpha && delta_bic < 0.0;
         let score = CandidateScore {
             effect: effect.to_string(),
             cost: r.cost,
@@ -222,11 +305,40 @@ impl Workbench {
             added_parameters: q,
             f_statistic,
             p_value,
+            p_value_without_best_line: robust_p,
             delta_aic,
             delta_bic,
             significant,
         };
         Ok((with, r, score))
+    }
+
+    /// A one-step record of a fitted model (for `compare` and `fit`): no candidate tried, the
+    /// verdict on the remaining cost.
+    pub fn record(&self, step: Step) -> Discovery {
+        let verdict = self.verdict(&step);
+        Discovery {
+            steps: vec![step],
+            found: Vec::new(),
+            unexplained: matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. }),
+            verdict,
+            level: LEVEL,
+        }
+    }
+
+    fn verdict(&self, step: &Step) -> Verdict {
+        let p_value = self.noise_p_value(step);
+        if p_value >= LEVEL {
+            Verdict::ExplainedToNoiseLevel { p_value }
+        } else {
+            let d = &step.diagnosis;
+            Verdict::UnexplainedStructuredMisfit {
+                p_value,
+                outputs: d.flagged_outputs(),
+                band_hz: d.band_hz,
+                worst_entries: d.worst_entries.clone(),
+            }
+        }
     }
 
     /// Runs the discovery loop from the current model.
@@ -268,18 +380,7 @@ impl Workbench {
                 None => break,
             }
         }
-        let p_value = self.noise_p_value(&current);
-        let verdict = if p_value >= LEVEL {
-            Verdict::ExplainedToNoiseLevel { p_value }
-        } else {
-            let d = &current.diagnosis;
-            Verdict::UnexplainedStructuredMisfit {
-                p_value,
-                outputs: d.flagged_outputs(),
-                band_hz: d.band_hz,
-                worst_entries: d.worst_entries.clone(),
-            }
-        };
+        let verdict = self.verdict(&current);
         steps.push(current);
         Ok(Discovery {
             steps,

@@ -17,7 +17,11 @@ pub struct FitOptions {
     pub max_iterations: usize,
     /// Stop when a step lowers the cost by less than this fraction.
     pub rel_tolerance: f64,
-    /// Singular-value ratio below which the scaled Jacobian is rank deficient.
+    /// Or by less than this (the cost is in units of noise variance, so 1e-3 is far below
+    /// anything a test could resolve).
+    pub abs_tolerance: f64,
+    /// Smallest singular value of the column-normalised Jacobian below which a parameter
+    /// combination counts as invisible to the data.
     pub rank_tolerance: f64,
     /// Sample period of the held inputs (`None`: no zero-order-hold factor).
     pub hold: Option<f64>,
@@ -27,8 +31,9 @@ impl Default for FitOptions {
     fn default() -> Self {
         Self {
             max_iterations: 200,
-            rel_tolerance: 1e-10,
-            rank_tolerance: 1e-7,
+            rel_tolerance: 1e-9,
+            abs_tolerance: 1e-3,
+            rank_tolerance: 1e-6,
             hold: None,
         }
     }
@@ -158,26 +163,37 @@ fn scaled_free_jacobian(
     })
 }
 
-/// Column with the largest weight in the smallest right singular vector when the scaled
-/// Jacobian is numerically rank deficient.
+/// A parameter the data cannot separate from the others, if any: the columns of the
+/// Jacobian are normalised to unit length (so that only their directions count, not the
+/// parameters' units or a dominant effect elsewhere) and a singular value below `tol` marks a
+/// combination the cost does not see; the parameter weighing most in it is returned. A column
+/// of zeros (a parameter without any influence) is returned first.
 fn weakest(j: &DMatrix<f64>, tol: f64) -> Option<usize> {
     if j.ncols() == 0 {
         return None;
     }
-    let svd = j.clone().svd(false, true);
+    let norms: Vec<f64> = j.column_iter().map(|c| c.norm()).collect();
+    let max_norm = norms.iter().cloned().fold(0.0, f64::max);
+    if let Some(i) = norms.iter().position(|&n| !(n > 1e-14 * max_norm)) {
+        return Some(i);
+    }
+    let mut jn = j.clone();
+    for (mut c, n) in jn.column_iter_mut().zip(&norms) {
+        c /= *n;
+    }
+    let svd = jn.svd(false, true);
     let v_t = svd.v_t?;
     let s = &svd.singular_values;
-    let max = s.max();
     let (imin, smin) =
         s.iter().enumerate().fold(
             (0, f64::INFINITY),
             |acc, (i, v)| if *v < acc.1 { (i, *v) } else { acc },
         );
-    if max > 0.0 && smin > tol * max {
+    if smin > tol {
         return None;
     }
-    let row = v_t.row(imin);
-    row.iter()
+    v_t.row(imin)
+        .iter()
         .enumerate()
         .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
         .map(|(i, _)| i)
@@ -204,18 +220,36 @@ fn levenberg_marquardt(
     for it in 0..opts.max_iterations {
         let jtj = j.transpose() * &j;
         let grad = j.transpose() * &r;
-        let dmax = jtj.diagonal().max();
+        // Active set: a parameter on a bound whose descent direction leaves the box stays put.
+        let moving: Vec<usize> = (0..free.len())
+            .filter(|&k| {
+                let (t, p) = (theta[free[k]], &params[free[k]]);
+                !((t <= p.lower && grad[k] > 0.0) || (t >= p.upper && grad[k] < 0.0))
+            })
+            .collect();
+        if moving.is_empty() {
+            return Ok(it);
+        }
+        let jtj_m = DMatrix::from_fn(moving.len(), moving.len(), |a, b| {
+            jtj[(moving[a], moving[b])]
+        });
+        let grad_m = DVector::from_fn(moving.len(), |a, _| grad[moving[a]]);
+        let dmax = jtj_m.diagonal().max();
         let mut accepted = None;
         for _ in 0..30 {
-            let mut a = jtj.clone();
+            let mut a = jtj_m.clone();
             for i in 0..a.nrows() {
-                a[(i, i)] += lambda * jtj[(i, i)].max(1e-12 * dmax.max(1e-300));
+                a[(i, i)] += lambda * jtj_m[(i, i)].max(1e-12 * dmax.max(1e-300));
             }
             let Some(chol) = a.cholesky() else {
                 lambda *= 10.0;
                 continue;
             };
-            let step: DVector<f64> = -chol.solve(&grad);
+            let step_m: DVector<f64> = -chol.solve(&grad_m);
+            let mut step = DVector::zeros(free.len());
+            for (a, &k) in moving.iter().enumerate() {
+                step[k] = step_m[a];
+            }
             let mut trial = theta.to_vec();
             for (k, &i) in free.iter().enumerate() {
                 trial[i] += step[k] * scale[k];
@@ -235,7 +269,7 @@ fn levenberg_marquardt(
         };
         let decrease = v - vt;
         theta.copy_from_slice(&trial);
-        if decrease <= opts.rel_tolerance * vt {
+        if decrease <= opts.rel_tolerance * vt || decrease <= opts.abs_tolerance {
             return Ok(it + 1);
         }
         let (g, d) = model.frf_with_jacobian(theta, &cost.freqs_hz, opts.hold)?;

@@ -72,6 +72,8 @@ pub struct FrfLine {
     pub y_mean: CMatrix,
     /// Coherence per output (non-periodic estimates only).
     pub coherence: Option<Vec<f64>>,
+    /// When the covariance is `M ⊗ S` (noise pooled over experiments): `(M, S)`.
+    pub kronecker: Option<(CMatrix, CMatrix)>,
 }
 
 /// A non-parametric FRF over the excited lines.
@@ -237,40 +239,35 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
         let y = mean(&|s| &s.y[bi], ny);
         let weights = if use_iv {
             let r = mean(&|s| s.r.as_ref().map_or(&s.u[bi], |r| &r[bi]), nu);
-            let a = &u * r.adjoint();
-            r.adjoint() * invert(&a, "U R^H", freq_hz)?
+            r.adjoint() * invert(&(&u * r.adjoint()), "U R^H", freq_hz)?
         } else {
-            let a = &u * u.adjoint();
-            u.adjoint() * invert(&a, "U U^H", freq_hz)?
+            u.adjoint() * invert(&(&u * u.adjoint()), "U U^H", freq_hz)?
         };
         let g = &y * &weights;
-        // Pooled per-period covariance of y - G u.
-        let mut s = CMatrix::zeros(ny, ny);
-        for sp in &spectra {
-            let res = &sp.y[bi] - &g * &sp.u[bi];
-            let p = res.ncols();
-            let m = CMatrix::from_fn(ny, 1, |c, _| res.row(c).iter().sum::<C64>() / p as f64);
-            for q in 0..p {
-                let d = res.column(q) - &m;
-                s += &d * d.adjoint();
-            }
-        }
-        s /= C64::from(noise_dof as f64);
-        let mut cov = CMatrix::zeros(ny * nu, ny * nu);
+        // Pooled per-period covariance of y - G u, with the correlation between neighbouring
+        // periods (leakage of slow noise makes it positive at the lowest lines).
+        let residuals: Vec<CMatrix> = spectra
+            .iter()
+            .map(|sp| &sp.y[bi] - &g * &sp.u[bi])
+            .collect();
+        let s = period_covariance(&residuals, noise_dof);
+        // Pooled noise: Cov(vec Ĝ) = Σ_e (w_e w_e^H / P_e) ⊗ S = M ⊗ S.
+        let mut m = CMatrix::zeros(nu, nu);
         for (e, &p) in periods.iter().enumerate() {
             let w = weights.row(e).transpose();
-            let outer = &w * w.adjoint();
-            cov += outer.kronecker(&s) / C64::from(p as f64);
+            m += &w * w.adjoint() / C64::from(p as f64);
         }
+        let cov = m.kronecker(&s);
         lines.push(FrfLine {
             freq_hz,
             g,
             cov,
             weights,
-            period_noise: s,
+            period_noise: s.clone(),
             u_mean: u,
             y_mean: y,
             coherence: None,
+            kronecker: Some((m, s)),
         });
     }
     Ok(FrfEstimate {
@@ -286,6 +283,29 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
         periods,
         noise_dof,
     })
+}
+
+/// Pooled covariance per period of residual sequences (channels x periods, one matrix per
+/// experiment): the deviations from each experiment's mean, summed and divided by `dof`.
+pub fn period_covariance(residuals: &[CMatrix], dof: usize) -> CMatrix {
+    let ny = residuals.first().map_or(0, |r| r.nrows());
+    let mut s = CMatrix::zeros(ny, ny);
+    for res in residuals {
+        let d = deviations(res);
+        s += &d * d.adjoint();
+    }
+    s / C64::from(dof as f64)
+}
+
+/// Each column minus the row means.
+fn deviations(x: &CMatrix) -> CMatrix {
+    let p = x.ncols();
+    let mut d = x.clone();
+    for mut row in d.row_iter_mut() {
+        let m = row.iter().sum::<C64>() / p as f64;
+        row.iter_mut().for_each(|v| *v -= m);
+    }
+    d
 }
 
 /// Inverse of a square stacking matrix, with an error naming the line when it is singular.

@@ -13,9 +13,12 @@ pub mod dataset;
 pub mod diagnose;
 pub mod discover;
 pub mod fit;
+pub mod flying_platform;
 pub mod frf;
+pub mod load;
 pub mod model;
 pub mod noise;
+pub mod report;
 pub mod spectra;
 pub mod stats;
 

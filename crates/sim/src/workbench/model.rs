@@ -264,6 +264,10 @@ pub trait ModelStructure: Send + Sync + std::fmt::Debug {
     fn effects(&self) -> Vec<String>;
     /// One-line description of an effect.
     fn describe(&self, effect: &str) -> String;
+    /// Quantities held at documented values by construction, `(name, value, why)`.
+    fn fixed(&self) -> Vec<(String, f64, String)> {
+        Vec::new()
+    }
     /// Parameters with `enabled` effects on, base parameters first.
     fn parameters(&self, enabled: &[String]) -> Result<Vec<Parameter>>;
     /// State-space model for `theta` (order of [`ModelStructure::parameters`]).

@@ -5,8 +5,8 @@
 //! that depends on the number of periods and experiments and on the stacking weights. The cost
 //! is invariant to the true noise covariance (whitening by the estimate cancels it), so the
 //! reference distribution can be drawn exactly for the estimator at hand: per draw and line,
-//! period noise with unit covariance, the FRF error `Σ_e n̄_e w_e^T` and the pooled covariance
-//! estimate of the same draw, and the statistic `tr(E^H Ŝ^-1 E M^-T)` with
+//! period noise with unit covariance, the FRF error `Σ_e n̄_e w_e^T` and the
+//! covariance estimate of the same draw, and the statistic `tr(E^H Ŝ^-1 E M^-T)` with
 //! `Cov(vec Ĝ) = M ⊗ S`.
 use nalgebra::DMatrix;
 use rand::rngs::StdRng;
@@ -14,7 +14,7 @@ use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
 use serde::Serialize;
 
-use super::frf::{CMatrix, FrfEstimate};
+use super::frf::{period_covariance, CMatrix, FrfEstimate};
 use super::spectra::C64;
 use crate::error::{Result, SimError};
 
@@ -82,18 +82,15 @@ impl NoiseReference {
                 .transpose();
             for d in 0..draws {
                 let mut err = CMatrix::zeros(ny, nu);
-                let mut s = CMatrix::zeros(ny, ny);
+                let mut residuals = Vec::with_capacity(frf.periods.len());
                 for (e, &p) in frf.periods.iter().enumerate() {
-                    // The period mean and the deviations from it are independent; the mean has
-                    // covariance I/P, the deviations contribute a Wishart(P-1) term.
-                    let mean = CMatrix::from_fn(ny, 1, |_, _| normal(&mut rng) / (p as f64).sqrt());
+                    let z = CMatrix::from_fn(ny, p, |_, _| normal(&mut rng));
+                    let mean =
+                        CMatrix::from_fn(ny, 1, |c, _| z.row(c).iter().sum::<C64>() / p as f64);
                     err += &mean * w.row(e);
-                    for _ in 0..p - 1 {
-                        let z = CMatrix::from_fn(ny, 1, |_, _| normal(&mut rng));
-                        s += &z * z.adjoint();
-                    }
+                    residuals.push(z);
                 }
-                s /= C64::from(dof as f64);
+                let s = period_covariance(&residuals, dof);
                 let s_inv = s.clone().try_inverse().ok_or_else(|| {
                     SimError::invalid("noise reference", "singular draw", "too few periods")
                 })?;

@@ -1,0 +1,134 @@
+//! `stabilis discover | compare | fit`: the model workbench on measured or embedded data.
+//!
+//! Without `--data` the embedded flying-platform identification dataset is generated
+//! (deterministically, with hidden effects) and used.
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use super::Output;
+use crate::error::Result;
+use crate::progress::Progress;
+use crate::workbench::flying_platform::{embedded_dataset, FlyingPlatform};
+use crate::workbench::report::{json, table, write_report};
+use crate::workbench::{load, Discovery, EstimatorChoice, ModelStructure, Workbench};
+
+/// Systems the workbench has a model structure for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[value(rename_all = "snake_case")]
+pub enum System {
+    /// Ducted-fan flying platform (hover-linear model, effects of the flying_platform crate).
+    FlyingPlatform,
+}
+
+/// Non-parametric estimator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum EstimatorArg {
+    /// Instrumental variable when the excitation topic is logged, least squares otherwise.
+    Auto,
+    /// Least squares Y U^+ (biased in closed loop).
+    Ls,
+    /// Instrumental variable (Y R^H)(U R^H)^-1.
+    Iv,
+}
+
+/// Options shared by the workbench verbs.
+#[derive(Debug, Clone, PartialEq, clap::Args)]
+pub struct Common {
+    /// The system.
+    #[arg(long, value_enum, default_value = "flying_platform")]
+    pub system: System,
+    /// MCAP or CSV files, or directories of them (default: the embedded dataset).
+    #[arg(long, num_args = 1..)]
+    pub data: Vec<PathBuf>,
+    /// Non-parametric estimator.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub estimator: EstimatorArg,
+    /// Write an HTML report with plots into this directory.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+}
+
+/// Options of `stabilis discover`.
+#[derive(Debug, Clone, PartialEq, clap::Args)]
+pub struct DiscoverArgs {
+    /// Data, system and outputs.
+    #[command(flatten)]
+    pub common: Common,
+}
+
+/// Options of `stabilis compare` and `stabilis fit`.
+#[derive(Debug, Clone, PartialEq, clap::Args)]
+pub struct FitArgs {
+    /// Data, system and outputs.
+    #[command(flatten)]
+    pub common: Common,
+    /// Effects to enable, comma-separated (e.g. momentum_drag,fan_gyroscopic).
+    #[arg(long = "with", value_delimiter = ',')]
+    pub with: Vec<String>,
+}
+
+impl Common {
+    fn workbench(&self) -> Result<Workbench> {
+        let structure: Arc<dyn ModelStructure> = match self.system {
+            System::FlyingPlatform => Arc::new(FlyingPlatform::default()),
+        };
+        let data = if self.data.is_empty() {
+            embedded_dataset()?
+        } else {
+            load::load(
+                structure.system(),
+                &structure.inputs(),
+                &structure.outputs(),
+                &self.data,
+            )?
+        };
+        let choice = match self.estimator {
+            EstimatorArg::Auto => EstimatorChoice::Auto,
+            EstimatorArg::Ls => EstimatorChoice::LeastSquares,
+            EstimatorArg::Iv => EstimatorChoice::InstrumentalVariable,
+        };
+        Workbench::new(structure, data, choice)
+    }
+
+    fn finish(&self, wb: &Workbench, d: &Discovery) -> Result<Output> {
+        let mut human = table(wb, d);
+        if let Some(dir) = &self.report {
+            write_report(dir, wb, d)?;
+            human.push_str(&format!("wrote {}\n", dir.join("index.html").display()));
+        }
+        Ok(Output {
+            human,
+            json: json(wb, d),
+        })
+    }
+}
+
+impl DiscoverArgs {
+    /// Finds the missing effects step by step.
+    pub fn run(&self) -> Result<Output> {
+        let wb = self.common.workbench()?;
+        let candidates = wb.model().candidates().len() as u64;
+        // One unit per candidate fit of the at most `candidates` steps.
+        let mut progress = Progress::new(candidates * (candidates + 1) / 2 + 1, "discovering");
+        let mut done = 0;
+        let d = wb.discover_with(&mut |_: &str| {
+            done += 1;
+            progress.set(done);
+        })?;
+        progress.finish();
+        self.common.finish(&wb, &d)
+    }
+}
+
+impl FitArgs {
+    /// Fits the model with the given effects and reports it (a one-step discovery record).
+    pub fn run(&self) -> Result<Output> {
+        let mut wb = self.common.workbench()?;
+        for e in &self.with {
+            wb.add(e.trim())?;
+        }
+        let step = wb.compare()?;
+        let d = wb.record(step);
+        self.common.finish(&wb, &d)
+    }
+}

@@ -1,0 +1,176 @@
+//! Measurements from logs: MCAP files (or directories of them) with the DESIGN.md topics
+//! `/<system>/input`, `/<system>/output` and, when logged, `/<system>/excitation`, plus the
+//! `experiment` metadata record; or CSV files with a `t` column and the channel names
+//! (excitation columns prefixed `r_`).
+use std::path::{Path, PathBuf};
+
+use nalgebra::DMatrix;
+
+use super::dataset::{Dataset, Experiment, Periodic};
+use crate::error::{Result, SimError};
+use crate::log::{read_csv, read_mcap, Experiment as Meta, Table};
+
+/// Expands directories into their `.mcap` and `.csv` files (sorted), keeps files as given.
+pub fn expand(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for p in paths {
+        if p.is_dir() {
+            let mut files: Vec<PathBuf> = std::fs::read_dir(p)
+                .map_err(|e| SimError::io(p, e))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|f| {
+                    f.extension().is_some_and(|x| {
+                        x.eq_ignore_ascii_case("mcap") || x.eq_ignore_ascii_case("csv")
+                    })
+                })
+                .collect();
+            files.sort();
+            if files.is_empty() {
+                return Err(SimError::invalid(
+                    "data",
+                    p.display(),
+                    "the directory holds no .mcap or .csv file",
+                ));
+            }
+            out.extend(files);
+        } else if p.exists() {
+            out.push(p.clone());
+        } else {
+            return Err(SimError::FileNotFound { path: p.clone() });
+        }
+    }
+    if out.is_empty() {
+        return Err(SimError::invalid(
+            "data",
+            "no path",
+            "give at least one file or directory",
+        ));
+    }
+    Ok(out)
+}
+
+/// Selects `names` from `table` as columns of a matrix, naming a missing channel.
+fn columns(table: &Table, names: &[String], prefix: &str) -> Result<DMatrix<f64>> {
+    let cols: Vec<&[f64]> = names
+        .iter()
+        .map(|n| table.column(&format!("{prefix}{n}")))
+        .collect::<Result<_>>()?;
+    Ok(DMatrix::from_fn(table.t.len(), names.len(), |i, j| {
+        cols[j][i]
+    }))
+}
+
+fn sample_rate(t: &[f64], what: &Path) -> Result<f64> {
+    if t.len() < 2 {
+        return Err(SimError::invalid(
+            format!("samples of {}", what.display()),
+            t.len(),
+            "need at least two samples",
+        ));
+    }
+    let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+    if !(dt > 0.0) {
+        return Err(SimError::invalid(
+            format!("time column of {}", what.display()),
+            dt,
+            "must increase",
+        ));
+    }
+    Ok(1.0 / dt)
+}
+
+/// Loads experiments of `system` with the given channel names from `paths`.
+pub fn load(
+    system: &str,
+    inputs: &[String],
+    outputs: &[String],
+    paths: &[PathBuf],
+) -> Result<Dataset> {
+    let files = expand(paths)?;
+    let mut experiments = Vec::with_capacity(files.len());
+    let mut rate: Option<f64> = None;
+    for file in &files {
+        let name = file.display().to_string();
+        let is_csv = file
+            .extension()
+            .is_some_and(|x| x.eq_ignore_ascii_case("csv"));
+        let (exp, fs) = if is_csv {
+            let table = read_csv(file)?;
+            let fs = sample_rate(&table.t, file)?;
+            let r = if table.fields.iter().any(|f| f.starts_with("r_")) {
+                Some(columns(&table, inputs, "r_")?)
+            } else {
+                None
+            };
+            let e = Experiment {
+                name,
+                u: columns(&table, inputs, "")?,
+                y: columns(&table, outputs, "")?,
+                r,
+                periodic: None,
+            };
+            (e, fs)
+        } else {
+            let log = read_mcap(file)?;
+            let input = log.topic(&format!("/{system}/input"))?;
+            let output = log.topic(&format!("/{system}/output"))?;
+            if input.len() != output.len() {
+                return Err(SimError::LengthMismatch {
+                    what: format!(
+                        "messages of /{system}/output in {name} (one output per input sample)"
+                    ),
+                    expected: input.len(),
+                    found: output.len(),
+                });
+            }
+            let r = match log.topics.get(&format!("/{system}/excitation")) {
+                Some(t) if t.len() == input.len() => Some(columns(t, inputs, "")?),
+                Some(t) => {
+                    return Err(SimError::LengthMismatch {
+                        what: format!("messages of /{system}/excitation in {name}"),
+                        expected: input.len(),
+                        found: t.len(),
+                    })
+                }
+                None => None,
+            };
+            let meta = log.experiment().map(Meta::from_metadata).transpose()?;
+            let fs = match &meta {
+                Some(m) => m.sample_rate_hz,
+                None => sample_rate(&input.t, file)?,
+            };
+            let periodic = meta.and_then(|m| m.periodic).map(|p| Periodic {
+                period: p.period_samples,
+                periods: p.periods,
+                transient: p.transient_samples,
+            });
+            let e = Experiment {
+                name,
+                u: columns(input, inputs, "")?,
+                y: columns(output, outputs, "")?,
+                r,
+                periodic,
+            };
+            (e, fs)
+        };
+        match rate {
+            Some(r0) if (r0 - fs).abs() > 1e-6 * r0 => {
+                return Err(SimError::invalid(
+                    format!("sample rate of {}", exp.name),
+                    fs,
+                    format!("all experiments must share one sample rate; the first has {r0} Hz"),
+                ))
+            }
+            _ => rate = Some(fs),
+        }
+        experiments.push(exp);
+    }
+    let data = Dataset {
+        sample_rate_hz: rate.unwrap_or(0.0),
+        inputs: inputs.to_vec(),
+        outputs: outputs.to_vec(),
+        experiments,
+    };
+    data.validate()?;
+    Ok(data)
+}

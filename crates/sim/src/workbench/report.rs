@@ -1,0 +1,515 @@
+//! Outputs of a discovery: the terminal table, the JSON document and the offline HTML report
+//! with inline SVG plots (no scripts, no external files).
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use serde_json::{json, Value};
+
+use super::discover::{Discovery, Step};
+use super::frf::CMatrix;
+use super::Workbench;
+use crate::error::{Result, SimError};
+
+/// The terminal summary: one row per step with cost, reduction and fit % per output.
+pub fn table(wb: &Workbench, d: &Discovery) -> String {
+    let mut s = String::new();
+    let outputs = &wb.frf().outputs;
+    let _ = writeln!(
+        s,
+        "FRF: {} lines {:.2}-{:.2} Hz, {} experiments, estimator: {}",
+        wb.frf().lines.len(),
+        wb.frf().lines.first().map_or(0.0, |l| l.freq_hz),
+        wb.frf().lines.last().map_or(0.0, |l| l.freq_hz),
+        wb.data().experiments.len(),
+        wb.frf().estimator.describe()
+    );
+    let _ = writeln!(
+        s,
+        "noise level: expected cost {:.0} for the true model ({} real residuals)",
+        wb.noise().mean(),
+        wb.noise().n_residuals
+    );
+    let _ = write!(
+        s,
+        "{:<5} {:<16} {:>12} {:>9} {:>8}",
+        "step", "effect added", "cost", "reduct.%", "cost/noise"
+    );
+    for o in outputs {
+        let _ = write!(s, " {:>7}", format!("fit%{o}"));
+    }
+    s.push('\n');
+    for (i, st) in d.steps.iter().enumerate() {
+        let _ = write!(
+            s,
+            "{:<5} {:<16} {:>12.1} {:>9.2} {:>8.2}",
+            i,
+            st.added.as_deref().unwrap_or("(start)"),
+            st.cost,
+            st.reduction_percent,
+            st.normalized_cost
+        );
+        for (_, f) in &st.diagnosis.fit_percent {
+            let _ = write!(s, " {f:>7.1}");
+        }
+        s.push('\n');
+    }
+    let last = d.steps.last();
+    if let Some(st) = last {
+        for c in &st.candidates {
+            let _ = writeln!(
+                s,
+                "  not added: {:<15} reduction {:>6.2}%  +{} params  p = {:.2e}  dBIC {:+.1}",
+                c.effect, c.reduction_percent, c.added_parameters, c.p_value, c.delta_bic
+            );
+        }
+        let held: Vec<&str> = st
+            .params
+            .iter()
+            .filter(|p| p.held)
+            .map(|p| p.name.as_str())
+            .collect();
+        if !held.is_empty() {
+            let _ = writeln!(
+                s,
+                "held at documented values (not separable by the data): {}",
+                held.join(", ")
+            );
+        }
+        let poor: Vec<&str> = st
+            .params
+            .iter()
+            .filter(|p| p.poorly_determined)
+            .map(|p| p.name.as_str())
+            .collect();
+        if !poor.is_empty() {
+            let _ = writeln!(s, "poorly determined (std > |value|): {}", poor.join(", "));
+        }
+    }
+    for (name, value, why) in wb.model().structure().fixed() {
+        let _ = writeln!(s, "fixed {name} = {value} ({why})");
+    }
+    let _ = writeln!(s, "found: [{}]", d.found.join(", "));
+    let _ = writeln!(s, "verdict: {}", d.verdict.sentence());
+    s
+}
+
+/// The JSON document: `steps` (added, cost, params, ...), `found`, `unexplained`, and more.
+pub fn json(wb: &Workbench, d: &Discovery) -> Value {
+    let steps: Vec<Value> = d
+        .steps
+        .iter()
+        .map(|s| {
+            let params: serde_json::Map<String, Value> = s.params.iter().map(|p| (p.name.clone(), json!(p.value))).collect();
+            let std: serde_json::Map<String, Value> = s.params.iter().map(|p| (p.name.clone(), json!(p.std))).collect();
+            json!({
+                "added": s.added,
+                "effects": s.effects,
+                "cost": s.cost,
+                "reduction_percent": s.reduction_percent,
+                "normalized_cost": s.normalized_cost,
+                "params": params,
+                "std": std,
+                "held": s.params.iter().filter(|p| p.held).map(|p| p.name.clone()).collect::<Vec<_>>(),
+                "poorly_determined": s.params.iter().filter(|p| p.poorly_determined).map(|p| p.name.clone()).collect::<Vec<_>>(),
+                "fit_percent": s.diagnosis.fit_percent.iter().map(|(n, f)| (n.clone(), json!(f))).collect::<serde_json::Map<_, _>>(),
+                "candidates": s.candidates,
+                "diagnosis": s.diagnosis,
+            })
+        })
+        .collect();
+    let fixed: Vec<Value> = wb
+        .model()
+        .structure()
+        .fixed()
+        .into_iter()
+        .map(|(n, v, why)| json!({"name": n, "value": v, "why": why}))
+        .collect();
+    json!({
+        "system": wb.model().structure().system(),
+        "estimator": wb.frf().estimator,
+        "frequencies_hz": wb.frf().freqs_hz(),
+        "noise_expected_cost": wb.noise().mean(),
+        "residuals": wb.noise().n_residuals,
+        "steps": steps,
+        "found": d.found,
+        "unexplained": d.unexplained,
+        "verdict": d.verdict,
+        "verdict_text": d.verdict.sentence(),
+        "level": d.level,
+        "fixed": fixed,
+    })
+}
+
+/// Writes `value` to `path` through a temporary file renamed at the end.
+pub fn write_json(path: &Path, value: &Value) -> Result<()> {
+    let text = serde_json::to_string_pretty(value)
+        .map_err(|e| SimError::invalid("json", "serialisation", e.to_string()))?;
+    let tmp = sibling(path, "tmp");
+    std::fs::write(&tmp, text).map_err(|e| SimError::io(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| SimError::io(path, e))
+}
+
+fn sibling(path: &Path, tag: &str) -> PathBuf {
+    let name = path
+        .file_name()
+        .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
+    path.with_file_name(format!(".{name}.{tag}-{}", std::process::id()))
+}
+
+/// Writes the HTML report into `dir`: built in a temporary sibling directory and renamed into
+/// place only when complete, so a failure never leaves a half report.
+pub fn write_report(dir: &Path, wb: &Workbench, d: &Discovery) -> Result<()> {
+    let html = html(wb, d);
+    if let Some(parent) = dir.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(|e| SimError::io(parent, e))?;
+    }
+    let tmp = sibling(dir, "tmp");
+    std::fs::create_dir_all(&tmp).map_err(|e| SimError::io(&tmp, e))?;
+    let index = tmp.join("index.html");
+    std::fs::write(&index, html).map_err(|e| SimError::io(&index, e))?;
+    write_json(&tmp.join("discover.json"), &json(wb, d))?;
+    if dir.exists() {
+        let old = sibling(dir, "old");
+        std::fs::rename(dir, &old).map_err(|e| SimError::io(dir, e))?;
+        std::fs::rename(&tmp, dir).map_err(|e| SimError::io(dir, e))?;
+        std::fs::remove_dir_all(&old).map_err(|e| SimError::io(&old, e))
+    } else {
+        std::fs::rename(&tmp, dir).map_err(|e| SimError::io(dir, e))
+    }
+}
+
+const COLORS: [&str; 6] = [
+    "#d62728", "#ff7f0e", "#2ca02c", "#1f77b4", "#9467bd", "#8c564b",
+];
+
+/// A plotted series.
+struct Series<'a> {
+    name: String,
+    color: &'a str,
+    points: Vec<(f64, f64)>,
+    markers: bool,
+    band: Option<Vec<(f64, f64, f64)>>,
+}
+
+/// An SVG chart with a logarithmic x axis (frequency) and a linear y axis.
+fn chart(title: &str, y_label: &str, series: &[Series<'_>]) -> String {
+    let (w, h, l, r, t, b) = (520.0, 300.0, 60.0, 150.0, 28.0, 40.0);
+    let xs = series.iter().flat_map(|s| s.points.iter().map(|p| p.0));
+    let (xmin, xmax) = xs.fold((f64::INFINITY, 0.0f64), |(a, b), x| (a.min(x), b.max(x)));
+    let ys = series.iter().flat_map(|s| {
+        s.points.iter().map(|p| p.1).chain(
+            s.band
+                .iter()
+                .flat_map(|b| b.iter().flat_map(|q| [q.1, q.2])),
+        )
+    });
+    let (mut ymin, mut ymax) = ys
+        .filter(|y| y.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| {
+            (a.min(y), b.max(y))
+        });
+    if !(ymin.is_finite() && ymax.is_finite()) || !(xmin > 0.0) {
+        return format!("<p>{title}: nothing to plot</p>");
+    }
+    if ymax - ymin < 1e-9 {
+        ymin -= 1.0;
+        ymax += 1.0;
+    }
+    let pad = 0.05 * (ymax - ymin);
+    let (ymin, ymax) = (ymin - pad, ymax + pad);
+    let (lx0, lx1) = (xmin.log10() - 0.05, xmax.log10() + 0.05);
+    let px = |x: f64| l + (x.log10() - lx0) / (lx1 - lx0) * (w - l - r);
+    let py = |y: f64| t + (ymax - y.clamp(ymin, ymax)) / (ymax - ymin) * (h - t - b);
+    let mut s = format!(
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" font-family="sans-serif" font-size="11">"#
+    );
+    let _ = write!(
+        s,
+        r##"<rect x="{l}" y="{t}" width="{}" height="{}" fill="none" stroke="#999"/>"##,
+        w - l - r,
+        h - t - b
+    );
+    let _ = write!(
+        s,
+        r#"<text x="{l}" y="16" font-size="13">{}</text>"#,
+        escape(title)
+    );
+    for i in 0..=4 {
+        let y = ymin + (ymax - ymin) * i as f64 / 4.0;
+        let _ = write!(
+            s,
+            r#"<text x="{}" y="{:.1}" text-anchor="end">{}</text>"#,
+            l - 4.0,
+            py(y) + 4.0,
+            fmt_num(y)
+        );
+    }
+    for x in [0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0] {
+        if x >= xmin * 0.8 && x <= xmax * 1.25 {
+            let _ = write!(
+                s,
+                r#"<text x="{:.1}" y="{}" text-anchor="middle">{x}</text>"#,
+                px(x),
+                h - b + 14.0
+            );
+        }
+    }
+    let _ = write!(
+        s,
+        r#"<text x="{}" y="{}" text-anchor="middle">frequency (Hz)</text>"#,
+        l + (w - l - r) / 2.0,
+        h - 6.0
+    );
+    let _ = write!(
+        s,
+        r#"<text x="12" y="{}" transform="rotate(-90 12 {})" text-anchor="middle">{}</text>"#,
+        h / 2.0,
+        h / 2.0,
+        escape(y_label)
+    );
+    for (i, se) in series.iter().enumerate() {
+        if let Some(band) = &se.band {
+            let mut poly: Vec<String> = band
+                .iter()
+                .map(|(x, lo, _)| format!("{:.1},{:.1}", px(*x), py(*lo)))
+                .collect();
+            poly.extend(
+                band.iter()
+                    .rev()
+                    .map(|(x, _, hi)| format!("{:.1},{:.1}", px(*x), py(*hi))),
+            );
+            let _ = write!(
+                s,
+                r#"<polygon points="{}" fill="{}" fill-opacity="0.2" stroke="none"/>"#,
+                poly.join(" "),
+                se.color
+            );
+        }
+        if se.markers {
+            for (x, y) in &se.points {
+                let _ = write!(
+                    s,
+                    r#"<circle cx="{:.1}" cy="{:.1}" r="2.5" fill="{}"/>"#,
+                    px(*x),
+                    py(*y),
+                    se.color
+                );
+            }
+        } else {
+            let pts: Vec<String> = se
+                .points
+                .iter()
+                .map(|(x, y)| format!("{:.1},{:.1}", px(*x), py(*y)))
+                .collect();
+            let _ = write!(
+                s,
+                r#"<polyline points="{}" fill="none" stroke="{}" stroke-width="1.5"/>"#,
+                pts.join(" "),
+                se.color
+            );
+        }
+        let ly = t + 12.0 + 15.0 * i as f64;
+        let _ = write!(
+            s,
+            r#"<rect x="{}" y="{}" width="10" height="3" fill="{}"/><text x="{}" y="{}">{}</text>"#,
+            w - r + 8.0,
+            ly - 4.0,
+            se.color,
+            w - r + 22.0,
+            ly,
+            escape(&se.name)
+        );
+    }
+    s.push_str("</svg>");
+    s
+}
+
+fn fmt_num(v: f64) -> String {
+    if v.abs() >= 1e4 || (v != 0.0 && v.abs() < 1e-2) {
+        format!("{v:.1e}")
+    } else {
+        format!("{v:.1}")
+    }
+}
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+/// FRF entries to plot: the three with the largest misfit of the starting model, plus the
+/// largest of the final one if different.
+fn channels(d: &Discovery, wb: &Workbench) -> Vec<(usize, usize)> {
+    let pick = |st: &Step| -> Vec<(usize, usize)> {
+        st.diagnosis
+            .worst_entries
+            .iter()
+            .filter_map(|(o, i, _)| {
+                Some((
+                    wb.frf().outputs.iter().position(|x| x == o)?,
+                    wb.frf().inputs.iter().position(|x| x == i)?,
+                ))
+            })
+            .collect()
+    };
+    let mut out = d.steps.first().map(pick).unwrap_or_default();
+    if let Some(last) = d.steps.last() {
+        for c in pick(last).into_iter().take(1) {
+            if !out.contains(&c) {
+                out.push(c);
+            }
+        }
+    }
+    out
+}
+
+fn html(wb: &Workbench, d: &Discovery) -> String {
+    let frf = wb.frf();
+    let f = frf.freqs_hz();
+    let mut body = String::new();
+    let _ = write!(
+        body,
+        "<h1>stabilis workbench: {}</h1><p>Estimator: {}. {} excited lines, {} experiments. Expected cost of the true model from noise alone: {:.0}.</p>",
+        escape(wb.model().structure().system()),
+        frf.estimator.describe(),
+        f.len(),
+        wb.data().experiments.len(),
+        wb.noise().mean()
+    );
+    let _ = write!(body, "<h2>Summary</h2><pre>{}</pre>", escape(&table(wb, d)));
+    // Error per step.
+    let costs: Vec<(f64, f64)> = d
+        .steps
+        .iter()
+        .enumerate()
+        .map(|(i, s)| (i as f64, s.cost.max(1e-300).log10()))
+        .collect();
+    body.push_str("<h2>Error per step</h2><svg xmlns=\"http://www.w3.org/2000/svg\" width=\"520\" height=\"220\" font-family=\"sans-serif\" font-size=\"11\">");
+    let max = costs.iter().map(|c| c.1).fold(1.0f64, f64::max).ceil();
+    let noise = wb.noise().mean().log10();
+    for (i, (_, c)) in costs.iter().enumerate() {
+        let bh = 170.0 * c.max(0.0) / max;
+        let x = 60.0 + 90.0 * i as f64;
+        let label = d.steps[i].added.as_deref().unwrap_or("start");
+        let _ = write!(
+            body,
+            r##"<rect x="{x}" y="{:.1}" width="60" height="{bh:.1}" fill="#1f77b4"/><text x="{}" y="212" text-anchor="middle">{}</text><text x="{}" y="{:.1}" text-anchor="middle">{:.0}</text>"##,
+            190.0 - bh,
+            x + 30.0,
+            escape(label),
+            x + 30.0,
+            186.0 - bh,
+            10f64.powf(*c)
+        );
+    }
+    let ny = 190.0 - 170.0 * noise / max;
+    let _ = write!(
+        body,
+        r##"<line x1="50" x2="510" y1="{ny:.1}" y2="{ny:.1}" stroke="#d62728" stroke-dasharray="4"/><text x="510" y="{:.1}" text-anchor="end" fill="#d62728">noise level</text></svg><p>Bar height: log10 of the weighted cost.</p>"##,
+        ny - 4.0
+    );
+    // Residuals per line and step.
+    let series: Vec<Series<'_>> = d
+        .steps
+        .iter()
+        .enumerate()
+        .map(|(i, s)| Series {
+            name: s.added.clone().unwrap_or_else(|| "start".into()),
+            color: COLORS[i % COLORS.len()],
+            points: s
+                .diagnosis
+                .lines
+                .iter()
+                .zip(&f)
+                .map(|(g, x)| (*x, (g.misfit / g.expected).max(1e-3).log10()))
+                .collect(),
+            markers: false,
+            band: None,
+        })
+        .collect();
+    let _ = write!(body, "<h2>Residuals</h2><p>Weighted misfit per line divided by what noise alone gives (log10; 0 = noise level).</p>{}", chart("misfit / noise per line", "log10 ratio", &series));
+    // FRF per channel and step.
+    body.push_str("<h2>Frequency response, measured and model</h2><p>Dots: measured FRF; shaded: one standard deviation; lines: model after each step.</p>");
+    for (o, i) in channels(d, wb) {
+        let name = format!("{} -> {}", frf.inputs[i], frf.outputs[o]);
+        let entry = |g: &CMatrix| g[(o, i)];
+        let meas: Vec<_> = frf.lines.iter().map(|l| entry(&l.g)).collect();
+        let std: Vec<f64> = wb.cost().std.iter().map(|s| s[(o, i)]).collect();
+        let db = |z: nalgebra::Complex<f64>| 20.0 * z.norm().max(1e-12).log10();
+        let mut mag = vec![Series {
+            name: "measured".into(),
+            color: "#000000",
+            points: meas.iter().zip(&f).map(|(z, x)| (*x, db(*z))).collect(),
+            markers: true,
+            band: Some(
+                meas.iter()
+                    .zip(&f)
+                    .zip(&std)
+                    .map(|((z, x), s)| {
+                        (
+                            *x,
+                            20.0 * (z.norm() - s).max(z.norm() * 0.01).log10(),
+                            20.0 * (z.norm() + s).log10(),
+                        )
+                    })
+                    .collect(),
+            ),
+        }];
+        let mut phase = vec![Series {
+            name: "measured".into(),
+            color: "#000000",
+            points: meas
+                .iter()
+                .zip(&f)
+                .map(|(z, x)| (*x, z.arg().to_degrees()))
+                .collect(),
+            markers: true,
+            band: Some(
+                meas.iter()
+                    .zip(&f)
+                    .zip(&std)
+                    .map(|((z, x), s)| {
+                        let dphi = (s / z.norm().max(1e-12)).min(1.0).asin().to_degrees();
+                        (*x, z.arg().to_degrees() - dphi, z.arg().to_degrees() + dphi)
+                    })
+                    .collect(),
+            ),
+        }];
+        for (k, st) in d.steps.iter().enumerate() {
+            let label = st.added.clone().unwrap_or_else(|| "start".into());
+            let color = COLORS[k % COLORS.len()];
+            mag.push(Series {
+                name: label.clone(),
+                color,
+                points: st
+                    .model_frf
+                    .iter()
+                    .zip(&f)
+                    .map(|(g, x)| (*x, db(entry(g))))
+                    .collect(),
+                markers: false,
+                band: None,
+            });
+            phase.push(Series {
+                name: label,
+                color,
+                points: st
+                    .model_frf
+                    .iter()
+                    .zip(&f)
+                    .map(|(g, x)| (*x, entry(g).arg().to_degrees()))
+                    .collect(),
+                markers: false,
+                band: None,
+            });
+        }
+        let _ = write!(
+            body,
+            "<div>{}{}</div>",
+            chart(&format!("{name}: magnitude"), "dB", &mag),
+            chart(&format!("{name}: phase"), "degrees", &phase)
+        );
+    }
+    format!("<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>stabilis workbench</title><style>body{{font-family:sans-serif;max-width:1100px;margin:auto}} svg{{margin:4px}} pre{{background:#f4f4f4;padding:8px;overflow-x:auto}}</style></head><body>{body}</body></html>")
+}
