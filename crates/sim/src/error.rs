@@ -149,11 +149,18 @@ impl SimError {
         }
     }
 
-    /// The process exit code for this error: 2 for bad input (the user can fix it), 1 when the
-    /// machine failed us (a disk that cannot be written).
+    /// The process exit code for this error: 2 for bad input (the user can fix it: a missing
+    /// directory, a file without permission), 1 when the machine failed us (a full disk).
     pub fn exit_code(&self) -> i32 {
         match self {
-            Self::Io { .. } => 1,
+            Self::Io { source, .. }
+                if !matches!(
+                    source.kind(),
+                    std::io::ErrorKind::NotFound | std::io::ErrorKind::PermissionDenied
+                ) =>
+            {
+                1
+            }
             _ => 2,
         }
     }

@@ -172,6 +172,20 @@ fn bad_input_exits_with_code_2_and_a_named_error() {
         text(&run.stderr)
     );
 
+    let unwritable = temp("no-such-dir").join("run.mcap");
+    let run = stabilis(&[
+        "sim",
+        "wheel-pendulum",
+        "--out",
+        unwritable.to_str().unwrap(),
+    ]);
+    assert_eq!(run.status.code(), Some(2));
+    assert!(
+        text(&run.stderr).starts_with(&format!("error: cannot access {}: ", unwritable.display())),
+        "{}",
+        text(&run.stderr)
+    );
+
     let run = stabilis(&["sim", "unicycle"]);
     assert_eq!(run.status.code(), Some(2));
     assert!(text(&run.stderr).contains("unrecognized subcommand 'unicycle'"));

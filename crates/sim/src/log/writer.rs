@@ -66,7 +66,11 @@ impl LogWriter {
     /// Like [`LogWriter::create`], closing a chunk every `flush_every` messages (at least 1).
     pub fn with_flush_every(path: impl AsRef<Path>, flush_every: usize) -> Result<Self> {
         let path = path.as_ref().to_path_buf();
-        let file = File::create(&path).map_err(|e| SimError::io(&path, e))?;
+        // Not `SimError::io`: a missing directory is not a missing input file.
+        let file = File::create(&path).map_err(|source| SimError::Io {
+            path: path.clone(),
+            source,
+        })?;
         let inner = mcap::WriteOptions::new()
             .profile("")
             .library(concat!("stabilis ", env!("CARGO_PKG_VERSION")))
