@@ -9,8 +9,8 @@ use crate::error::Result;
 use crate::log::{Experiment, LogWriter, Table, TopicId, EXPERIMENT};
 use crate::progress::Progress;
 
-pub mod flying_platform;
 pub mod cubli;
+pub mod flying_platform;
 pub mod platoon;
 pub mod wheel_pendulum;
 
