@@ -6,6 +6,7 @@ use pyo3::prelude::*;
 mod cubli;
 mod errors;
 mod event_est;
+mod flying_platform;
 mod geometry;
 mod log;
 mod sim;
@@ -15,6 +16,7 @@ mod tilt;
 fn _stabilis(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
     event_est::register(m)?;
+    flying_platform::register(m)?;
     cubli::register(m)?;
     geometry::register(m)?;
     log::register(m)?;
