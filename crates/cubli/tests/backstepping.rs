@@ -493,3 +493,51 @@ fn integral_extension_removes_torque_bias() {
     }
     let _ = upright(&p, Vector3::zeros());
 }
+
+/// Spec test 22, last part: the integral extension does not remove the wheel spin caused by a
+/// wrong centre of mass (true m shifted by (4, −3, 0) g m).
+#[test]
+fn integral_extension_keeps_centre_of_mass_error() {
+    let model = Params::reference();
+    let truth = model
+        .with_mismatch(1.0, model.m() + Vector3::new(0.004, -0.003, 0.0))
+        .unwrap();
+    let up = nalgebra::UnitQuaternion::rotation_between(&truth.m_hat(), &Vector3::z()).unwrap();
+    let x0 = FullState::from_velocities(&truth, up, &Vector3::zeros(), &Vector3::zeros());
+    let cfg = RunConfig {
+        duration: 60.0,
+        ..RunConfig::default()
+    };
+    let speed = |nu: f64| {
+        let mut c =
+            IntegralBackstepping::new(Backstepping::new(model, Gains::paper()), nu).unwrap();
+        let run = simulate(
+            &Plant::ideal(truth),
+            &x0,
+            &mut c,
+            &cfg,
+            &mut cubli::simulate::quiet,
+        )
+        .unwrap();
+        run.omega_w.last().unwrap().norm()
+    };
+    let (s0, s1, s5) = (speed(0.0), speed(1.0), speed(5.0));
+    println!("centre-of-mass error: steady wheel speed {s0:.1} (nu 0), {s1:.1} (nu 1), {s5:.1} (nu 5) rad/s");
+    assert!((s0 - 240.0).abs() < 15.0);
+    assert!((s1 - 195.0).abs() < 15.0 && (s5 - 195.0).abs() < 15.0);
+}
+
+proptest! {
+    /// Spec test 36: rotating the attitude about the vertical leaves the torque unchanged, and the
+    /// closed loop's inclination history too.
+    #[test]
+    fn yaw_rotation_invariance(att in attitude(), yaw in -3.1..3.1f64, ph in vec3(0.1), pw in vec3(0.1)) {
+        let p = Params::reference();
+        let c = Backstepping::new(p, Gains::paper());
+        let rot = nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw);
+        let a = FullState { attitude: att, p_h: ph, p_w: pw };
+        let b = FullState { attitude: rot * att, ..a };
+        let (ta, tb) = (c.control(&a.reduced(&p)).unwrap(), c.control(&b.reduced(&p)).unwrap());
+        prop_assert!((ta - tb).amax() <= 1e-12 * (1.0 + ta.amax()));
+    }
+}

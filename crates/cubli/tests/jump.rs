@@ -308,3 +308,42 @@ fn learning_from_twenty_percent_error_succeeds() {
         }
     }
 }
+
+/// Spec test 35: bounded noise on the measured errors keeps the iterates within O(D ‖J⁻¹‖) of θ*
+/// for 50 iterations, without divergence.
+#[test]
+fn learning_is_robust_to_bounded_noise() {
+    use rand::{Rng, SeedableRng};
+    let p = Params::reference();
+    let model = JumpModel::new(p, &g0()).unwrap();
+    let learner = Learner::new(&model, 0.8).unwrap();
+    let bar = model.nominal_wheel_speeds();
+    let (plant, brake) = mismatched();
+    let cfg = JumpConfig {
+        brake,
+        ..JumpConfig::default()
+    };
+    let none = JumpControllers {
+        guide: None,
+        balance: None,
+    };
+    let star = Vector3::new(570.55, -606.27, 0.0);
+    let jinv = model.jacobian(&bar).try_inverse().unwrap();
+    let d = Vector3::new(2e-4, 2e-4, 2e-3);
+    let bound = (jinv * Vector3::new(d[0], d[1], d[2])).norm() + jinv.norm() * d.norm();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(35);
+    let mut theta = bar;
+    let mut worst_late: f64 = 0.0;
+    for i in 0..50 {
+        let e = jump_trial(&plant, face_attitude(), &theta, none, &cfg)
+            .unwrap()
+            .error;
+        let noise = Vector3::from_fn(|k, _| rng.random_range(-d[k]..d[k]));
+        theta = learner.update(&theta, &(e + noise));
+        if i >= 15 {
+            worst_late = worst_late.max((theta - star).norm());
+        }
+    }
+    println!("noisy learning: max |theta - theta*| after convergence {worst_late:.2} rad/s (bound {bound:.1})");
+    assert!(worst_late < 4.0 * bound, "{worst_late} vs {bound}");
+}
