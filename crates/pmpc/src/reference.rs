@@ -9,47 +9,7 @@ use clarabel::solver::SupportedConeT;
 use nalgebra::{DMatrix, DVector};
 use rigid_body::laguerre::Laguerre;
 
-fn eval(basis: &Laguerre, w: &[f64], t: f64, tau: &mut [f64]) -> f64 {
-    basis.tau(t, tau);
-    tau.iter().zip(w).map(|(a, b)| a * b).sum()
-}
-
-/// Local extrema of g(t) = τ(t)ᵀw on [0, ∞), including t = 0: a dense scan in νt ∈ [0, 150]
-/// (step 0.01; beyond it every function of the span is negligible for s ≤ 20) with Newton
-/// polishing of each sampled extremum. Returns (t, g(t)) pairs.
-pub fn extrema(basis: &Laguerre, w: &[f64]) -> Vec<(f64, f64)> {
-    let s = basis.dim();
-    let mut tau = vec![0.0; s];
-    let (mut d1, mut d2) = (vec![0.0; s], vec![0.0; s]);
-    basis.mt_apply(w, &mut d1);
-    basis.mt_apply(&d1, &mut d2);
-    let h = 0.01 / basis.nu();
-    let n = (150.0 / basis.nu() / h) as usize;
-    let vals: Vec<f64> = (0..=n)
-        .map(|i| eval(basis, w, i as f64 * h, &mut tau))
-        .collect();
-    let mut out = vec![(0.0, vals[0])];
-    for i in 1..n {
-        let (a, b, c) = (vals[i - 1], vals[i], vals[i + 1]);
-        if (b >= a && b >= c) || (b <= a && b <= c) {
-            let mut t = i as f64 * h;
-            for _ in 0..30 {
-                let g1 = eval(basis, &d1, t, &mut tau);
-                let g2 = eval(basis, &d2, t, &mut tau);
-                if g2 == 0.0 {
-                    break;
-                }
-                let tn = (t - g1 / g2).clamp((i - 1) as f64 * h, (i + 1) as f64 * h);
-                if (tn - t).abs() < 1e-15 {
-                    break;
-                }
-                t = tn;
-            }
-            out.push((t, eval(basis, w, t, &mut tau)));
-        }
-    }
-    out
-}
+pub use rigid_body::laguerre::extrema;
 
 /// Largest excess of g = τ(t)ᵀw over [lower, upper] on [0, ∞) (≤ 0 if satisfied).
 pub fn max_violation(basis: &Laguerre, w: &[f64], lower: f64, upper: f64) -> f64 {
@@ -102,8 +62,8 @@ pub fn solve_clarabel(problem: &Problem, x0: &[f64], tol: f64) -> Result<Referen
     let basis = *problem.basis();
     let mut instants: Vec<(usize, f64)> = Vec::new();
     for k in 0..problem.rows().len() {
-        for i in 0..=80 {
-            instants.push((k, i as f64 * 0.25 / basis.nu()));
+        for i in 0..=40 {
+            instants.push((k, i as f64 * 0.5 / basis.nu()));
         }
     }
     let mut tau = vec![0.0; s];

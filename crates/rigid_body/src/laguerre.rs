@@ -310,5 +310,50 @@ impl Laguerre {
     }
 }
 
+/// Local extrema of g(t) = τ(t)ᵀw on [0, ∞), including t = 0, as (t, g(t)) pairs: a dense
+/// scan in νt ∈ [0, 120] (step 0.01; beyond it every function of the span is below
+/// 1e-20·|w| for s ≤ 20) with Newton polishing of every sampled extremum, the first sample
+/// included. An exact reference for tests and analysis, far slower than the solver's check.
+#[cfg(feature = "std")]
+pub fn extrema(basis: &Laguerre, w: &[f64]) -> std::vec::Vec<(f64, f64)> {
+    use std::vec;
+    let s = basis.dim();
+    let mut tau = vec![0.0; s];
+    let eval = |v: &[f64], t: f64, tau: &mut [f64]| -> f64 {
+        basis.tau(t, tau);
+        tau.iter().zip(v).map(|(a, b)| a * b).sum()
+    };
+    let (mut d1, mut d2) = (vec![0.0; s], vec![0.0; s]);
+    basis.mt_apply(w, &mut d1);
+    basis.mt_apply(&d1, &mut d2);
+    let h = 0.01 / basis.nu();
+    let n = (120.0 / basis.nu() / h) as usize;
+    let vals: std::vec::Vec<f64> = (0..=n).map(|i| eval(w, i as f64 * h, &mut tau)).collect();
+    let mut out = vec![(0.0, vals[0])];
+    for i in 0..n {
+        let (b, c) = (vals[i], vals[i + 1]);
+        let a = if i == 0 { b } else { vals[i - 1] };
+        if (b >= a && b >= c) || (b <= a && b <= c) {
+            let lo = i.saturating_sub(1) as f64 * h;
+            let hi = (i + 1) as f64 * h;
+            let mut t = i as f64 * h;
+            for _ in 0..30 {
+                let g1 = eval(&d1, t, &mut tau);
+                let g2 = eval(&d2, t, &mut tau);
+                if g2 == 0.0 {
+                    break;
+                }
+                let tn = (t - g1 / g2).clamp(lo, hi);
+                if (tn - t).abs() < 1e-15 {
+                    break;
+                }
+                t = tn;
+            }
+            out.push((t, eval(w, t, &mut tau)));
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests;

@@ -35,44 +35,11 @@ fn g_at(b: &Laguerre, w: &[f64], t: f64) -> f64 {
     tau.iter().zip(w).map(|(p, q)| p * q).sum()
 }
 
-/// Exact oracle: (max g − upper, lower − min g) over [0, ∞), by a dense scan in x = νt on
-/// [0, 150] (beyond it every function of the span is below 1e-40 for s ≤ 20) and Newton
-/// polishing of every sampled local extremum.
+/// Exact oracle: (max g − upper, lower − min g) over [0, ∞) from `laguerre::extrema`.
 fn oracle(b: &Laguerre, w: &[f64], row: Row) -> (f64, f64) {
-    let s = b.dim();
-    let (mut d1, mut d2) = (vec![0.0; s], vec![0.0; s]);
-    b.mt_apply(w, &mut d1);
-    b.mt_apply(&d1, &mut d2);
-    let h = 0.01 / b.nu();
-    let n = (150.0 / b.nu() / h) as usize;
-    let vals: Vec<f64> = (0..=n).map(|i| g_at(b, w, i as f64 * h)).collect();
-    let (mut gmax, mut gmin) = (vals[0], vals[0]);
-    for i in 0..=n {
-        let interior = i > 0 && i < n;
-        let is_ext = interior
-            && ((vals[i] >= vals[i - 1] && vals[i] >= vals[i + 1])
-                || (vals[i] <= vals[i - 1] && vals[i] <= vals[i + 1]));
-        gmax = gmax.max(vals[i]);
-        gmin = gmin.min(vals[i]);
-        if is_ext {
-            let mut t = i as f64 * h;
-            for _ in 0..30 {
-                let g1 = g_at(b, &d1, t);
-                let g2 = g_at(b, &d2, t);
-                if g2 == 0.0 {
-                    break;
-                }
-                let tn = (t - g1 / g2).clamp((i - 1) as f64 * h, (i + 1) as f64 * h);
-                if (tn - t).abs() < 1e-15 {
-                    break;
-                }
-                t = tn;
-            }
-            let v = g_at(b, w, t);
-            gmax = gmax.max(v);
-            gmin = gmin.min(v);
-        }
-    }
+    let ext = crate::laguerre::extrema(b, w);
+    let gmax = ext.iter().map(|e| e.1).fold(f64::NEG_INFINITY, f64::max);
+    let gmin = ext.iter().map(|e| e.1).fold(f64::INFINITY, f64::min);
     (gmax - row.upper, row.lower - gmin)
 }
 
