@@ -212,6 +212,43 @@ pub struct MomentumDrag {
     pub l_alpha4: f64,
 }
 
+impl MomentumDrag {
+    /// The "point model" (spec §12.2): each unit's drag `-C_alpha (v + w x r_P)` acts at one
+    /// point `P` at `height` above the CoG (m) and horizontal `radius` (m), which fixes
+    /// `l_alpha1 = l_alpha2 = height`, `l_alpha3 = height² + (c_alpha2/c_alpha1) radius²/2` and
+    /// `l_alpha4 = (c_alpha1/c_alpha2) radius²`.
+    pub fn point_model(c_alpha1: f64, c_alpha2: f64, height: f64, radius: f64) -> Result<Self> {
+        for (name, v) in [("c_alpha1", c_alpha1), ("c_alpha2", c_alpha2)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(Error::Invalid {
+                    name,
+                    reason: format!("point model needs > 0, got {v}"),
+                });
+            }
+        }
+        Ok(Self {
+            c_alpha1,
+            c_alpha2,
+            l_alpha1: height,
+            l_alpha2: height,
+            l_alpha3: height * height + c_alpha2 / c_alpha1 * radius * radius / 2.0,
+            l_alpha4: c_alpha1 / c_alpha2 * radius * radius,
+        })
+    }
+
+    /// The parameters in flat-vector order (`c_alpha1 .. l_alpha4`).
+    pub fn to_vector(&self) -> [f64; 6] {
+        [
+            self.c_alpha1,
+            self.c_alpha2,
+            self.l_alpha1,
+            self.l_alpha2,
+            self.l_alpha3,
+            self.l_alpha4,
+        ]
+    }
+}
+
 /// The set of enabled effects with their parameter values.
 ///
 /// ```
