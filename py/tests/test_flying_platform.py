@@ -139,3 +139,12 @@ def test_run_experiments_into_arrays_matches_design():
     d = fp.experiment_design(seed=4, periods=1)
     np.testing.assert_allclose(runs[5]["excitation"], d["excitation"][5])
     assert runs[5]["metadata"]["excited"] == "F1z,F2z,F3z"
+
+
+def test_generic_sim_run_front_end():
+    log = stabilis.sim.run("flying-platform", 5.0, seed=2, scenario="step", step=(0.5, 0.0, 0.0))
+    t, out = log["/flying_platform/output"]
+    assert len(t) == 250 and set(out) >= {"vx", "wx", "roll"}
+    assert log.metadata["experiment"]["scenario"] == "step"
+    _, pos = log["/flying_platform/position"]
+    assert abs(pos["x"][-1] - 0.5) < 0.05
