@@ -118,7 +118,12 @@ fn simulate(truth: &Truth, noise: f64, seed: u64) -> Dataset {
     let mut rng = StdRng::seed_from_u64(seed);
     let lines: Vec<usize> = (1..=15).collect();
     let phases: Vec<Vec<f64>> = (0..2)
-        .map(|_| lines.iter().map(|_| rng.random::<f64>() * 6.283).collect())
+        .map(|_| {
+            lines
+                .iter()
+                .map(|_| rng.random::<f64>() * std::f64::consts::TAU)
+                .collect()
+        })
         .collect();
     let total = TRANSIENT + N * P;
     let experiments = (0..4)
@@ -130,7 +135,7 @@ fn simulate(truth: &Truth, noise: f64, seed: u64) -> Dataset {
                 r[(k, input)] = lines
                     .iter()
                     .zip(&phases[set])
-                    .map(|(&l, ph)| AMPLITUDE * (6.283185307179586 * l as f64 * t + ph).cos())
+                    .map(|(&l, ph)| AMPLITUDE * (std::f64::consts::TAU * l as f64 * t + ph).cos())
                     .sum::<f64>();
             }
             let n = ss.a.nrows();

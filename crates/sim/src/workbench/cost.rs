@@ -34,7 +34,7 @@ impl Whitener {
 fn chol_inv(cov: &CMatrix, what: &str) -> Result<CMatrix> {
     let n = cov.nrows();
     let max_diag = (0..n).map(|i| cov[(i, i)].re).fold(0.0, f64::max);
-    if !(max_diag > 0.0) {
+    if max_diag.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return Err(SimError::invalid(
             what,
             "zero",

@@ -174,7 +174,10 @@ fn weakest(j: &DMatrix<f64>, tol: f64) -> Option<usize> {
     }
     let norms: Vec<f64> = j.column_iter().map(|c| c.norm()).collect();
     let max_norm = norms.iter().cloned().fold(0.0, f64::max);
-    if let Some(i) = norms.iter().position(|&n| !(n > 1e-14 * max_norm)) {
+    if let Some(i) = norms
+        .iter()
+        .position(|&n| n.partial_cmp(&(1e-14 * max_norm)) != Some(std::cmp::Ordering::Greater))
+    {
         return Some(i);
     }
     let mut jn = j.clone();

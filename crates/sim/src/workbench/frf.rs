@@ -287,7 +287,7 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
 
 /// Pooled covariance per period of residual sequences (channels x periods, one matrix per
 /// experiment): the deviations from each experiment's mean, summed and divided by `dof`.
-pub fn period_covariance(residuals: &[CMatrix], dof: usize) -> CMatrix {
+fn period_covariance(residuals: &[CMatrix], dof: usize) -> CMatrix {
     let ny = residuals.first().map_or(0, |r| r.nrows());
     let mut s = CMatrix::zeros(ny, ny);
     for res in residuals {
@@ -313,7 +313,7 @@ pub(crate) fn invert(a: &CMatrix, what: &str, freq_hz: f64) -> Result<CMatrix> {
     let sv = a.singular_values();
     let max = sv.max();
     let min = sv.min();
-    if !(max > 0.0) || min < 1e-12 * max {
+    if max.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) || min < 1e-12 * max {
         return Err(SimError::invalid(
             format!("{what} at {freq_hz:.3} Hz"),
             format!("condition number {:.3e}", max / min.max(f64::MIN_POSITIVE)),

@@ -69,7 +69,7 @@ fn sample_rate(t: &[f64], what: &Path) -> Result<f64> {
         ));
     }
     let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
-    if !(dt > 0.0) {
+    if dt.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return Err(SimError::invalid(
             format!("time column of {}", what.display()),
             dt,

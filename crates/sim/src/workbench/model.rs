@@ -60,7 +60,7 @@ impl Parameter {
 /// Checks names are unique and values lie inside their bounds.
 pub fn check_parameters(params: &[Parameter]) -> Result<()> {
     for (i, p) in params.iter().enumerate() {
-        if !(p.lower <= p.value && p.value <= p.upper) || !p.value.is_finite() {
+        if !(p.lower <= p.value && p.value <= p.upper && p.value.is_finite()) {
             return Err(SimError::invalid(
                 &p.name,
                 p.value,

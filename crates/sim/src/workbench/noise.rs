@@ -5,16 +5,17 @@
 //! that depends on the number of periods and experiments and on the stacking weights. The cost
 //! is invariant to the true noise covariance (whitening by the estimate cancels it), so the
 //! reference distribution can be drawn exactly for the estimator at hand: per draw and line,
-//! period noise with unit covariance, the FRF error `Σ_e n̄_e w_e^T` and the
-//! covariance estimate of the same draw, and the statistic `tr(E^H Ŝ^-1 E M^-T)` with
+//! period means with covariance `I/P_e`, the FRF error `Σ_e n̄_e w_e^T`, and the pooled
+//! covariance estimate (independent of the means for Gaussian noise, complex Wishart with
+//! `Σ_e (P_e - 1)` degrees of freedom, drawn by the Bartlett decomposition), and the statistic `tr(E^H Ŝ^-1 E M^-T)` with
 //! `Cov(vec Ĝ) = M ⊗ S`.
 use nalgebra::DMatrix;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
-use rand_distr::StandardNormal;
+use rand_distr::{ChiSquared, Distribution, StandardNormal};
 use serde::Serialize;
 
-use super::frf::{period_covariance, CMatrix, FrfEstimate};
+use super::frf::{CMatrix, FrfEstimate};
 use super::spectra::C64;
 use crate::error::{Result, SimError};
 
@@ -39,6 +40,45 @@ pub struct NoiseReference {
     pub n_residuals: usize,
 }
 
+/// Complex Wishart `CW_p(n, I)` by the Bartlett decomposition: `W = T T^H` with `T` lower
+/// triangular, `|T_ii|^2 ~ chi2(2(n - i)) / 2` (i from 0) and `T_ij ~ CN(0, 1)` below the
+/// diagonal; p(p+1)/2 draws instead of n p.
+#[derive(Debug)]
+struct ComplexWishart {
+    diag: Vec<ChiSquared<f64>>,
+}
+
+impl ComplexWishart {
+    fn new(p: usize, n: usize) -> Result<Self> {
+        if n < p {
+            return Err(SimError::invalid(
+                "noise degrees of freedom",
+                n,
+                format!("need at least {p} (periods - 1 summed over experiments) to estimate a {p}x{p} noise covariance"),
+            ));
+        }
+        let diag = (0..p)
+            .map(|i| {
+                ChiSquared::new(2.0 * (n - i) as f64)
+                    .map_err(|e| SimError::invalid("chi-square", n - i, e.to_string()))
+            })
+            .collect::<Result<_>>()?;
+        Ok(Self { diag })
+    }
+
+    fn sample(&self, rng: &mut StdRng, normal: &dyn Fn(&mut StdRng) -> C64) -> CMatrix {
+        let p = self.diag.len();
+        let mut t = CMatrix::zeros(p, p);
+        for i in 0..p {
+            t[(i, i)] = C64::from((0.5 * self.diag[i].sample(rng)).sqrt());
+            for j in 0..i {
+                t[(i, j)] = normal(rng);
+            }
+        }
+        &t * t.adjoint()
+    }
+}
+
 impl NoiseReference {
     /// Draws the reference for a periodic estimate (`draws` Monte-Carlo samples, seeded).
     pub fn periodic(frf: &FrfEstimate, draws: usize, seed: u64) -> Result<Self> {
@@ -57,11 +97,12 @@ impl NoiseReference {
         let mut entry_mean = DMatrix::zeros(ny, nu);
         let dof = frf.noise_dof;
         let scale = std::f64::consts::FRAC_1_SQRT_2;
-        let normal = move |rng: &mut StdRng| {
+        let normal = |rng: &mut StdRng| {
             let re: f64 = rng.sample(StandardNormal);
             let im: f64 = rng.sample(StandardNormal);
             C64::new(re * scale, im * scale)
         };
+        let wishart = ComplexWishart::new(ny, dof)?;
         for (k, line) in frf.lines.iter().enumerate() {
             let w = &line.weights;
             let mut m = CMatrix::zeros(nu, nu);
@@ -82,15 +123,11 @@ impl NoiseReference {
                 .transpose();
             for d in 0..draws {
                 let mut err = CMatrix::zeros(ny, nu);
-                let mut residuals = Vec::with_capacity(frf.periods.len());
                 for (e, &p) in frf.periods.iter().enumerate() {
-                    let z = CMatrix::from_fn(ny, p, |_, _| normal(&mut rng));
-                    let mean =
-                        CMatrix::from_fn(ny, 1, |c, _| z.row(c).iter().sum::<C64>() / p as f64);
+                    let mean = CMatrix::from_fn(ny, 1, |_, _| normal(&mut rng) / (p as f64).sqrt());
                     err += &mean * w.row(e);
-                    residuals.push(z);
                 }
-                let s = period_covariance(&residuals, dof);
+                let s = wishart.sample(&mut rng, &normal) / C64::from(dof as f64);
                 let s_inv = s.clone().try_inverse().ok_or_else(|| {
                     SimError::invalid("noise reference", "singular draw", "too few periods")
                 })?;
@@ -152,5 +189,53 @@ impl NoiseReference {
     pub fn fitted_level(&self, p: usize) -> (f64, f64) {
         let shift = p as f64 * self.per_residual();
         (self.mean() - shift, self.quantile(0.99) - shift)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Moments of the complex Wishart against closed forms: `E[W] = n I` and
+    /// `E[W^-1] = I / (n - p)`.
+    #[test]
+    fn wishart_draws_have_the_closed_form_moments() {
+        let (p, n) = (3, 12);
+        let w = ComplexWishart::new(p, n).unwrap();
+        let mut rng = StdRng::seed_from_u64(7);
+        let normal = |rng: &mut StdRng| {
+            let s = std::f64::consts::FRAC_1_SQRT_2;
+            C64::new(
+                rng.sample::<f64, _>(StandardNormal) * s,
+                rng.sample::<f64, _>(StandardNormal) * s,
+            )
+        };
+        let draws = 20_000;
+        let (mut mean, mut inv) = (CMatrix::zeros(p, p), CMatrix::zeros(p, p));
+        for _ in 0..draws {
+            let s = w.sample(&mut rng, &normal);
+            inv += s.clone().try_inverse().unwrap();
+            mean += s;
+        }
+        mean /= C64::from(draws as f64);
+        inv /= C64::from(draws as f64);
+        for i in 0..p {
+            for j in 0..p {
+                let (m, v) = (mean[(i, j)], inv[(i, j)]);
+                let (em, ev) = if i == j {
+                    (n as f64, 1.0 / (n - p) as f64)
+                } else {
+                    (0.0, 0.0)
+                };
+                assert!((m - C64::from(em)).norm() < 0.1, "E[W]({i},{j}) = {m}");
+                assert!((v - C64::from(ev)).norm() < 0.01, "E[W^-1]({i},{j}) = {v}");
+            }
+        }
+    }
+
+    #[test]
+    fn too_few_degrees_of_freedom_is_named() {
+        let msg = ComplexWishart::new(6, 4).unwrap_err().to_string();
+        assert!(msg.contains("noise degrees of freedom"), "{msg}");
     }
 }

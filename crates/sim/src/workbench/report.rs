@@ -208,7 +208,7 @@ fn chart(title: &str, y_label: &str, series: &[Series<'_>]) -> String {
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| {
             (a.min(y), b.max(y))
         });
-    if !(ymin.is_finite() && ymax.is_finite()) || !(xmin > 0.0) {
+    if !(ymin.is_finite() && ymax.is_finite() && xmin.is_finite() && xmin > 0.0) {
         return format!("<p>{title}: nothing to plot</p>");
     }
     if ymax - ymin < 1e-9 {
