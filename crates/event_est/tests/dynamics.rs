@@ -175,3 +175,40 @@ fn identities_on_a_network_that_transmits_and_drops() {
         "no random network both dropped packets and stayed silent"
     );
 }
+
+#[test]
+fn resets_align_every_estimate_to_the_mean() {
+    let (sys, design) = (0..50).find_map(random_network).unwrap();
+    let mut cfg = SimConfig::new(
+        &sys,
+        40,
+        Some(UniformNoise {
+            output: vec![0.05; 3],
+            input: vec![0.1; 3],
+        }),
+        2,
+    );
+    cfg.loss = 0.5;
+    cfg.reset_period = Some(7);
+    cfg.record = true;
+    cfg.xhat0 = (0..3)
+        .map(|i| DVector::from_element(sys.n(), i as f64))
+        .collect();
+    let log = simulate(&sys, &design, &cfg).unwrap().log.unwrap();
+    let spread = |k: usize| {
+        (1..3)
+            .map(|i| (&log.xhat[k][i] - &log.xhat[k][0]).norm())
+            .fold(0.0, f64::max)
+    };
+    for k in 1..=40 {
+        if k % 7 == 0 {
+            assert!(spread(k) < 1e-12, "k = {k}: agents differ after a reset");
+        }
+    }
+    assert!(
+        spread(1) > 0.1,
+        "initial estimates differ, so the check above is not vacuous"
+    );
+    cfg.reset_period = Some(0);
+    assert!(simulate(&sys, &design, &cfg).is_err());
+}
