@@ -38,4 +38,6 @@ pub use placement::{
     d_criterion, d_criterion_bound, optimal_placement, optimality_residuals, platonic_layout,
 };
 pub use rigid_body::s2::G0;
-pub use tuning::{a_s, a_s_eigenvalues, default_tuning, manual_tuning, Tuning, TuningRule};
+pub use tuning::{
+    a_s, a_s_eigenvalues, default_tuning, manual_tuning, numerical_tuning, Tuning, TuningRule,
+};
