@@ -115,7 +115,8 @@ impl PyEstimator {
         Array2::from_shape_fn((p.len(), 3), |(i, k)| p[i][k]).into_pyarray(py)
     }
 
-    /// Step sizes and convergence certificate: `{q, r, eigenvalues, spectral_radius, certified}`.
+    /// Step sizes and convergence certificate:
+    /// `{q, r, eigenvalues, spectral_radius, certified, rule}`.
     #[getter]
     fn tuning<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let t = self.inner.options().tuning;
@@ -125,6 +126,13 @@ impl PyEstimator {
         d.set_item("eigenvalues", PyArray1::from_slice(py, &t.eigenvalues))?;
         d.set_item("spectral_radius", t.spectral_radius())?;
         d.set_item("certified", t.certified())?;
+        let rule = match t.rule {
+            ::tilt::TuningRule::ClosedForm => "closed_form",
+            ::tilt::TuningRule::Numerical => "numerical",
+            ::tilt::TuningRule::GradientStep => "gradient_step",
+            ::tilt::TuningRule::Manual => "manual",
+        };
+        d.set_item("rule", rule)?;
         Ok(d)
     }
 

@@ -84,6 +84,8 @@ def test_tuning_of_the_paper_layout():
     assert t["q"] == pytest.approx(0.25)
     assert t["r"] == pytest.approx(0.97498, abs=1e-4)
     assert t["eigenvalues"][1] == pytest.approx(0.94790, abs=1e-4) and t["certified"]
+    assert t["rule"] == "closed_form"
+    assert Estimator(P, q=0.2, r=1.0).tuning["rule"] == "manual"
 
 
 def test_fisher_and_cramer_rao_bound():
