@@ -11,6 +11,7 @@ mod geometry;
 mod log;
 mod sim;
 mod tilt;
+mod workbench;
 
 #[pymodule]
 fn _stabilis(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -22,5 +23,6 @@ fn _stabilis(m: &Bound<'_, PyModule>) -> PyResult<()> {
     log::register(m)?;
     sim::register(m)?;
     tilt::register(m)?;
+    workbench::register(m)?;
     Ok(())
 }

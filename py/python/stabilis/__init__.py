@@ -5,3 +5,5 @@ from . import geometry, log, sim
 from . import cubli
 from . import tilt
 from .log import Log, read_csv, read_mcap
+from . import workbench
+from .workbench import Workbench
