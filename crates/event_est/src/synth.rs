@@ -652,3 +652,119 @@ pub fn complete(sys: &System, step1: Step1, j_max: f64) -> Result<Synthesis, Eve
         bound,
     })
 }
+
+/// Periodic estimator resets of App. E for a certificate (P_1, P_2) that may only satisfy the
+/// relaxed inequalities A_clᵀ P_k A_cl − P_l ≺ λ̄ I.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ResetSchedule {
+    /// λ̄: the largest eigenvalue of A_cl(S)ᵀ P_k A_cl(S) − P_l over all patterns and pairs.
+    pub lambda_bar: f64,
+    /// σ_lo = min(λ_min(P_1), λ_min(P_2)).
+    pub sigma_lo: f64,
+    /// The free constant α > 0 that maximises the reset period.
+    pub alpha: f64,
+    /// Growth factor a = 1 + (λ̄ + α)/σ_lo of V̂(k) = a V̂(k−1) + β.
+    pub a: f64,
+    /// β = (γ̄²/α + δ̄) D².
+    pub beta: f64,
+    /// First k with V̂(k) ≥ V_max (resets every k_reset steps keep σ_lo|ε|² ≤ V_max);
+    /// `None` if V̂ never reaches V_max (no resets needed).
+    pub k_reset: Option<usize>,
+}
+
+/// Reset period for gains `l`, certificate (P_1, P_2), disturbance bound D ≥ |d_ji| and level
+/// V_max, with α chosen on a logarithmic grid to maximise k_reset.
+pub fn reset_schedule(
+    sys: &System,
+    l: &DMatrix<f64>,
+    p1: &DMatrix<f64>,
+    p2: &DMatrix<f64>,
+    d_bound: f64,
+    v_max: f64,
+) -> Result<ResetSchedule, EventEstError> {
+    check_gain(sys, l)?;
+    let (n, na) = (sys.n(), sys.agents());
+    if na > 16 {
+        return Err(EventEstError::Parameter {
+            name: "agents",
+            value: na as f64,
+            reason: "the reset schedule enumerates 2^N patterns; at most 16 agents",
+        });
+    }
+    for (name, p) in [("P_1", p1), ("P_2", p2)] {
+        if p.nrows() != n || p.ncols() != n {
+            return Err(EventEstError::Dimension {
+                name,
+                expected_rows: n,
+                expected_cols: n,
+                found_rows: p.nrows(),
+                found_cols: p.ncols(),
+            });
+        }
+    }
+    for (name, v) in [("D", d_bound), ("V_max", v_max)] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(EventEstError::Parameter {
+                name,
+                value: v,
+                reason: "must be positive",
+            });
+        }
+    }
+    let sigma_lo = linalg::min_eigenvalue(p1).min(linalg::min_eigenvalue(p2));
+    if sigma_lo <= 0.0 {
+        return Err(EventEstError::NotPositiveDefinite { name: "P_1 or P_2" });
+    }
+    let af = sys.a_cl();
+    let identity = DMatrix::<f64>::identity(n, n);
+    let (mut lambda_bar, mut gamma_bar) = (f64::NEG_INFINITY, 0.0f64);
+    for subset in 0..(1u64 << na) {
+        let acl = (&identity - sys.lc_subset(l, subset)) * &af;
+        let pk = if subset == 0 { p2 } else { p1 };
+        for pl in [p1, p2] {
+            lambda_bar = lambda_bar.max(max_eigenvalue(&(acl.transpose() * pk * &acl - pl)));
+        }
+        for pm in [p1, p2] {
+            gamma_bar = gamma_bar.max((pm * &acl).singular_values().max());
+        }
+    }
+    let delta_bar = p1.singular_values().max().max(p2.singular_values().max());
+    let schedule = |alpha: f64| {
+        let a = 1.0 + (lambda_bar + alpha) / sigma_lo;
+        let beta = (gamma_bar * gamma_bar / alpha + delta_bar) * d_bound * d_bound;
+        let k_reset = if a < 1.0 && beta / (1.0 - a) < v_max {
+            None
+        } else if (a - 1.0).abs() < 1e-15 {
+            Some((v_max / beta).ceil().max(1.0) as usize)
+        } else {
+            // β(a^k − 1)/(a − 1) ≥ V_max  ⇔  k ≥ ln(1 + V_max (a − 1)/β) / ln a.
+            let k = (1.0 + v_max * (a - 1.0) / beta).ln() / a.ln();
+            Some(k.ceil().max(1.0) as usize)
+        };
+        ResetSchedule {
+            lambda_bar,
+            sigma_lo,
+            alpha,
+            a,
+            beta,
+            k_reset,
+        }
+    };
+    let mut best = schedule(sigma_lo * 1e-6);
+    for i in 0..=120 {
+        let alpha = sigma_lo * 10f64.powf(-6.0 + 8.0 * i as f64 / 120.0);
+        if lambda_bar + alpha <= -sigma_lo {
+            continue; // a must stay non-negative
+        }
+        let s = schedule(alpha);
+        let better = match (s.k_reset, best.k_reset) {
+            (None, Some(_)) => true,
+            (Some(k), Some(b)) => k > b,
+            _ => false,
+        };
+        if better {
+            best = s;
+        }
+    }
+    Ok(best)
+}

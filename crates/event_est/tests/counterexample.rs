@@ -84,3 +84,28 @@ fn cor12_certificate_with_identity() {
         assert!((m - want).abs() < 1e-12, "S = {subset:b}: {m}");
     }
 }
+
+#[test]
+fn reset_period_matches_the_recursion_and_vanishes_for_a_certified_design() {
+    use event_est::synth::reset_schedule;
+    let (sys, l) = counterexample().unwrap();
+    // P = I certifies Cor 12 (λ̄ = −0.64): with small disturbances V̂ stays below V_max.
+    let eye = DMatrix::<f64>::identity(2, 2);
+    let certified = reset_schedule(&sys, &l, &eye, &eye, 1e-3, 1.0).unwrap();
+    assert!((certified.lambda_bar + 0.64).abs() < 1e-12);
+    assert_eq!(certified.k_reset, None);
+    // Three times the gain over-corrects x_1 (A_cl({1}) = diag(−1.2, 0)): λ̄ = 0.44 > 0 with
+    // P = I, so V̂ grows and resets are periodic.
+    let triple = &l * 3.0;
+    let relaxed = reset_schedule(&sys, &triple, &eye, &eye, 0.1, 4.0).unwrap();
+    assert!((relaxed.lambda_bar - 0.44).abs() < 1e-12 && relaxed.a > 1.0);
+    let k_reset = relaxed.k_reset.unwrap();
+    // The closed form equals the first k at which V̂(k) = a V̂(k−1) + β reaches V_max.
+    let (mut v, mut k) = (0.0, 0);
+    while v < 4.0 {
+        v = relaxed.a * v + relaxed.beta;
+        k += 1;
+    }
+    assert_eq!(k, k_reset);
+    assert!(reset_schedule(&sys, &triple, &eye, &(-&eye), 0.1, 4.0).is_err());
+}
