@@ -20,12 +20,15 @@ done
 step "benchmarks compile"
 cargo bench --workspace --no-run
 step "Python wheel"
-rm -rf target/wheels
+rm -rf target/wheels target/pytest-site
 .venv/bin/maturin build --release -q -m py/Cargo.toml -o target/wheels
-.venv/bin/python -m pip install -q --force-reinstall --no-deps target/wheels/stabilis-*.whl
+# Installed into its own directory, put first on the path, so that the tests see this wheel even
+# if .venv holds an editable (maturin develop) install.
+.venv/bin/python -m pip install -q --no-deps --target target/pytest-site target/wheels/stabilis-*.whl
 step "pytest"
 # From py/, where `stabilis` is not importable from source: the tests use the installed wheel and
 # the release binary (the interop tests run `stabilis info`).
 cargo build --release -q -p sim --bin stabilis
 export STABILIS_BIN="$PWD/target/release/stabilis"
-(cd py && ../.venv/bin/python -m pytest -q tests)
+site="$PWD/target/pytest-site"
+(cd py && PYTHONPATH="$site" ../.venv/bin/python -m pytest -q tests)

@@ -1,5 +1,6 @@
 """stabilis.read_mcap / read_csv: numpy arrays out, named exceptions for bad files."""
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -9,7 +10,8 @@ import stabilis
 
 def test_installed_package_is_tested():
     # The tests must exercise the built wheel, not the source tree.
-    assert "site-packages" in stabilis.__file__
+    source = Path(__file__).resolve().parents[1] / "python" / "stabilis"
+    assert Path(stabilis.__file__).resolve().parent != source
 
 
 def test_read_mcap_gives_columns_and_metadata(tmp_path):
