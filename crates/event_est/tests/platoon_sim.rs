@@ -6,7 +6,7 @@
 use event_est::baseline::periodic_power;
 use event_est::model::{platoon, System, UniformNoise};
 use event_est::runtime::LocalUpdate;
-use event_est::sim::{simulate, Design, SimConfig, SimResult};
+use event_est::sim::{simulate, Design, DropMode, SimConfig, SimResult};
 use event_est::synth::{step1, step2_unit, thresholds, Stability, Step1, UnitThresholds};
 use nalgebra::DVector;
 
@@ -192,4 +192,16 @@ fn thirty_percent_loss_and_continuous_local_update() {
     );
     assert!(thirty.max_state < 10.0 && thirty.error_power < 1.5 * ten.error_power);
     assert!(always.max_state < 10.0 && always.error_power <= 1.2 * ten.error_power);
+}
+
+#[test]
+fn whole_broadcasts_lost_behave_like_lost_links() {
+    let s = setup();
+    let per_link = run(&s, &[0.107, 0.092, 0.106], 0.1, LocalUpdate::OnlyOnEvent, 9);
+    let mut cfg = SimConfig::new(&s.sys, STEPS, Some(s.noise.clone()), 9);
+    cfg.drop_mode = DropMode::PerBroadcast;
+    let design = Design::scalar(s.s1.l.clone(), &[0.107, 0.092, 0.106]);
+    let per_broadcast = simulate(&s.sys, &design, &cfg).unwrap();
+    assert!(per_broadcast.max_state < 10.0);
+    assert!(per_broadcast.error_power < 1.5 * per_link.error_power);
 }
