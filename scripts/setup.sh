@@ -19,6 +19,12 @@ if ((${#need_apt[@]})); then
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need_apt[@]}" >/dev/null
 fi
 
+# fmt and clippy are rustup components that a minimal Rust install may lack.
+if command -v rustup >/dev/null 2>&1 && ! (cargo fmt --version && cargo clippy --version) >/dev/null 2>&1; then
+    echo "setup: adding rustfmt and clippy"
+    rustup component add rustfmt clippy
+fi
+
 if [ ! -x .venv/bin/python ]; then
     echo "setup: creating .venv"
     python3 -m venv .venv
