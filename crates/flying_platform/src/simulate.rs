@@ -100,7 +100,8 @@ impl Noise {
 /// Everything a closed-loop run needs besides the scenario.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimConfig {
-    /// Truth model: effects on the plant; `input_delay` is the in-loop actuator delay.
+    /// Truth model: effects on the plant; `input_delay` is the in-loop actuator delay (rounded
+    /// to the internal step).
     pub truth: Model,
     /// Linear or nonlinear truth dynamics.
     pub dynamics: Dynamics,
@@ -205,11 +206,18 @@ struct Observed {
     rates: Vector3<f64>,
 }
 
+/// The truth being integrated. The linear truth is stepped exactly (zero-order hold) over
+/// each stretch of constant input; at most two stretch lengths occur per sample (the
+/// in-loop delay splits a sample once), so their transition matrices are cached.
 enum Plant {
     Linear {
         x: DVector<f64>,
-        phi: DMatrix<f64>,
-        gamma: DMatrix<f64>,
+        next: DVector<f64>,
+        w: DVector<f64>,
+        a: DMatrix<f64>,
+        b: DMatrix<f64>,
+        h: f64,
+        steps: Vec<(usize, DMatrix<f64>, DMatrix<f64>)>,
         n: usize,
         trim: SVector<f64, N_INPUTS>,
     },
@@ -217,6 +225,7 @@ enum Plant {
         plant: Box<NonlinearPlant>,
         x: NonlinearState,
         wind: Vector3<f64>,
+        h: f64,
     },
 }
 
@@ -236,12 +245,14 @@ impl Plant {
                     b[(i, N_INPUTS + i)] = 1.0;
                     b[(6 + i, N_INPUTS + 3 + i)] = 1.0;
                 }
-                let (phi, gamma) = rigid_body::lti::c2d_zoh(&a, &b, h)
-                    .map_err(|e| Error::Numerical(format!("discretising the truth: {e}")))?;
                 Ok(Plant::Linear {
                     x: DVector::zeros(n + 3),
-                    phi,
-                    gamma,
+                    next: DVector::zeros(n + 3),
+                    w: DVector::zeros(N_INPUTS + 6),
+                    a,
+                    b,
+                    h,
+                    steps: Vec::with_capacity(2),
                     n,
                     trim: config.truth.params.hover_input(),
                 })
@@ -253,35 +264,64 @@ impl Plant {
                     plant: Box::new(plant),
                     x,
                     wind: config.wind,
+                    h,
                 })
             }
         }
     }
 
-    fn step(&mut self, u: &SVector<f64, N_INPUTS>, acc: &Vector3<f64>, ang: &Vector3<f64>, h: f64) {
+    /// Advances `substeps` internal steps with the input held.
+    fn advance(
+        &mut self,
+        substeps: usize,
+        u: &SVector<f64, N_INPUTS>,
+        acc: &Vector3<f64>,
+        ang: &Vector3<f64>,
+    ) -> Result<()> {
         match self {
             Plant::Linear {
                 x,
-                phi,
-                gamma,
+                next,
+                w,
+                a,
+                b,
+                h,
+                steps,
                 trim,
                 ..
             } => {
-                let mut w = DVector::<f64>::zeros(N_INPUTS + 6);
+                let cached = steps.iter().position(|(len, _, _)| *len == substeps);
+                let i = match cached {
+                    Some(i) => i,
+                    None => {
+                        let (phi, gamma) = rigid_body::lti::c2d_zoh(a, b, *h * substeps as f64)
+                            .map_err(|e| {
+                                Error::Numerical(format!("discretising the truth: {e}"))
+                            })?;
+                        steps.push((substeps, phi, gamma));
+                        steps.len() - 1
+                    }
+                };
+                let (_, phi, gamma) = &steps[i];
                 w.rows_mut(0, N_INPUTS).copy_from(&(u - *trim));
                 w.rows_mut(N_INPUTS, 3).copy_from(acc);
                 w.rows_mut(N_INPUTS + 3, 3).copy_from(ang);
-                *x = &*phi * &*x + &*gamma * w;
+                next.gemv(1.0, phi, x, 0.0);
+                next.gemv(1.0, gamma, w, 1.0);
+                core::mem::swap(x, next);
             }
-            Plant::Nonlinear { plant, x, wind } => {
+            Plant::Nonlinear { plant, x, wind, h } => {
                 let d = Disturbance {
                     wind: *wind,
                     acceleration: *acc,
                     angular_acceleration: *ang,
                 };
-                *x = plant.rk4_step(x, u, &d, h);
+                for _ in 0..substeps {
+                    *x = plant.rk4_step(x, u, &d, *h);
+                }
             }
         }
+        Ok(())
     }
 
     fn observe(&self) -> Observed {
@@ -421,14 +461,21 @@ pub fn simulate(config: &SimConfig, scenario: &Scenario) -> Result<SimLog> {
                 noise.thrust_std * rng.sample::<f64, _>(StandardNormal)
             }
         });
-        for s in 0..config.substeps {
-            let g = k * config.substeps + s;
-            let applied = if g >= delay_steps {
-                commands[(g - delay_steps) / config.substeps]
-            } else {
-                trim
-            };
-            plant.step(&(applied + thrust_noise), &acc, &ang, h);
+        // The command applied at internal step g was issued at step g - delay_steps; it
+        // changes at most once inside this sample, at offset `split`.
+        let split = delay_steps % config.substeps;
+        let mut start = 0;
+        for end in [split, config.substeps] {
+            if end > start {
+                let g = k * config.substeps + start;
+                let applied = if g >= delay_steps {
+                    commands[(g - delay_steps) / config.substeps]
+                } else {
+                    trim
+                };
+                plant.advance(end - start, &(applied + thrust_noise), &acc, &ang)?;
+                start = end;
+            }
         }
         let after = plant.observe();
         let bad = [
