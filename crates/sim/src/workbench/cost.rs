@@ -180,3 +180,41 @@ impl WeightedCost {
             .collect()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn hermitian_pd(n: usize, seed: &[f64]) -> CMatrix {
+        let a = CMatrix::from_fn(n, n, |i, j| {
+            C64::new(
+                seed[(i * n + j) % seed.len()],
+                seed[(i + 3 * j + 1) % seed.len()],
+            )
+        });
+        &a * a.adjoint() + CMatrix::identity(n, n) * C64::from(0.5)
+    }
+
+    proptest! {
+        /// Whitening with `L_M^-1 ⊗ L_S^-1` gives the same cost as the Cholesky factor of the
+        /// full covariance `M ⊗ S`.
+        #[test]
+        fn kronecker_whitening_equals_full_whitening(
+            seed in proptest::collection::vec(-1.0f64..1.0, 12),
+            e in proptest::collection::vec(-1.0f64..1.0, 12),
+        ) {
+            let (m, s) = (hermitian_pd(3, &seed), hermitian_pd(2, &seed[3..]));
+            let err = CMatrix::from_fn(2, 3, |i, j| C64::new(e[2 * (i * 3 + j)], e[2 * (i * 3 + j) + 1]));
+            let kron = Whitener::Kronecker { m_inv_t: chol_inv(&m, "m").unwrap().transpose(), s_inv: chol_inv(&s, "s").unwrap() };
+            let full = Whitener::Full(chol_inv(&m.kronecker(&s), "full").unwrap());
+            let (a, b) = (kron.apply(&err), full.apply(&err));
+            let direct = {
+                let v = DVector::from_iterator(6, err.iter().cloned());
+                (v.adjoint() * m.kronecker(&s).try_inverse().unwrap() * &v)[(0, 0)].re
+            };
+            prop_assert!((a.norm_squared() - b.norm_squared()).abs() <= 1e-6 * (1.0 + direct));
+            prop_assert!((a.norm_squared() - direct).abs() <= 1e-6 * (1.0 + direct));
+        }
+    }
+}
