@@ -61,7 +61,11 @@ impl Scenario for Args {
         let (sys, noise) = platoon(self.vehicles).map_err(domain("platoon model"))?;
         let m = self.vehicles;
         if !(self.common.duration.is_finite() && self.common.duration > TS) {
-            return Err(SimError::invalid("duration", self.common.duration, "must exceed one sample (0.02 s)"));
+            return Err(SimError::invalid(
+                "duration",
+                self.common.duration,
+                "must exceed one sample (0.02 s)",
+            ));
         }
         let stability = match &self.condition {
             Some(name) => Stability::parse(name).map_err(domain("--condition"))?,
@@ -76,7 +80,11 @@ impl Scenario for Args {
         let synthesis_s = started.elapsed().as_secs_f64();
         let design = match &self.thresholds {
             Some(t) if t.len() != m => {
-                return Err(SimError::invalid("thresholds", format!("{t:?}"), format!("need one per vehicle ({m})")))
+                return Err(SimError::invalid(
+                    "thresholds",
+                    format!("{t:?}"),
+                    format!("need one per vehicle ({m})"),
+                ))
             }
             Some(t) => Design::scalar(synthesis.design.l.clone(), t),
             None => synthesis.design.clone(),
@@ -86,7 +94,11 @@ impl Scenario for Args {
         let steps = (self.common.duration / TS).round() as usize;
         let mut cfg = SimConfig::new(&sys, steps, Some(noise), self.common.seed);
         cfg.loss = self.loss;
-        cfg.local_update = if self.local_update { LocalUpdate::Always } else { LocalUpdate::OnlyOnEvent };
+        cfg.local_update = if self.local_update {
+            LocalUpdate::Always
+        } else {
+            LocalUpdate::OnlyOnEvent
+        };
         cfg.x0 = DVector::zeros(sys.n());
         cfg.x0[0] = self.leader_speed;
 
@@ -160,5 +172,58 @@ impl Scenario for Args {
 }
 
 fn join(v: &[f64]) -> String {
-    v.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(",")
+    v.iter()
+        .map(|x| x.to_string())
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cli::SimSystem;
+    use crate::scenarios::run;
+
+    #[test]
+    fn short_run_logs_every_topic_and_reports_the_design() {
+        let dir = std::env::temp_dir().join(format!("stabilis-platoon-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let out = dir.join("run.mcap");
+        let out_arg = out.to_string_lossy().to_string();
+        let args = [
+            "--vehicles",
+            "3",
+            "--loss",
+            "0.1",
+            "--duration",
+            "20",
+            "--out",
+            &out_arg,
+        ];
+        let system = SimSystem::parse_args("platoon", args).unwrap();
+        let rec = run(system.scenario(), &mut Progress::hidden()).unwrap();
+        for topic in ["state", "input", "error", "transmit"] {
+            assert_eq!(
+                rec.topics[&format!("{TOPIC}/{topic}")].t.len(),
+                1000,
+                "{topic}"
+            );
+        }
+        let c_star = rec.summary["c_star"].as_f64().unwrap();
+        assert!((c_star - 0.010205).abs() / 0.010205 < 0.01);
+        let log = crate::log::read_mcap(&out).unwrap();
+        assert!(log.topic("/platoon/transmit").is_ok());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn bad_options_are_named() {
+        let bad = SimSystem::parse_args("platoon", ["--vehicles", "3", "--thresholds", "0.1,0.1"])
+            .unwrap();
+        let err = run(bad.scenario(), &mut Progress::hidden()).unwrap_err();
+        assert!(err.to_string().contains("thresholds"), "{err}");
+        let one = SimSystem::parse_args("platoon", ["--vehicles", "1"]).unwrap();
+        let err = run(one.scenario(), &mut Progress::hidden()).unwrap_err();
+        assert!(err.to_string().contains("vehicles"), "{err}");
+    }
 }
