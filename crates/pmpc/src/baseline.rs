@@ -1,8 +1,9 @@
 //! Standard discrete-time MPC, the comparison baseline of spec/pmpc.md §8.5: ZOH model,
 //! horizon N, stage cost ½(xᵀQx + uᵀRu), DARE terminal cost, no terminal set, constraints at
 //! the samples (inputs k = 0..N−1, pure state rows k = 1..N). Condensed (states eliminated,
-//! N·m variables) and solved by Clarabel or, with feature `osqp`, by OSQP. Solver failures
-//! fall back to the shifted previous input sequence and are counted.
+//! N·m variables) and solved by Clarabel. Solver failures fall back to the shifted previous
+//! input sequence and are counted. OSQP is not offered: `osqp-sys` clones its LDL sources
+//! from GitHub at build time, which an offline build cannot do.
 
 use crate::constraints::Constraints;
 use crate::error::{Error, Result};
@@ -16,15 +17,10 @@ use rigid_body::lti;
 pub enum Backend {
     /// Clarabel interior point (data updated in place between steps).
     Clarabel,
-    /// OSQP ADMM, warm-started from the previous solution.
-    #[cfg(feature = "osqp")]
-    Osqp,
 }
 
 enum Engine {
     Clarabel(Box<DefaultSolver<f64>>),
-    #[cfg(feature = "osqp")]
-    Osqp(Box<osqp::Problem>),
 }
 
 /// Result of one baseline step.
@@ -175,48 +171,24 @@ impl DiscreteMpc {
         let limits = DVector::from_vec(lims);
         let q0 = vec![0.0; m * nn];
         let b0 = limits.as_slice().to_vec();
-        let engine =
-            match backend {
-                Backend::Clarabel => {
-                    let cones = [SupportedConeT::NonnegativeConeT(nr)];
-                    let solver = DefaultSolver::new(
-                        &qp::csc(&hc, true),
-                        &q0,
-                        &qp::csc(&g, false),
-                        &b0,
-                        &cones,
-                        qp::settings(1e-6),
-                    )
-                    .map_err(|e| Error::Solver {
-                        solver: "Clarabel",
-                        status: format!("{e:?}"),
-                    })?;
-                    Engine::Clarabel(Box::new(solver))
-                }
-                #[cfg(feature = "osqp")]
-                Backend::Osqp => {
-                    let settings = osqp::Settings::default()
-                        .verbose(false)
-                        .eps_abs(1e-6)
-                        .eps_rel(1e-6)
-                        .polish(true);
-                    let lower = vec![f64::NEG_INFINITY; nr];
-                    let hrows: Vec<Vec<f64>> = (0..m * nn)
-                        .map(|i| hc.row(i).iter().copied().collect())
-                        .collect();
-                    let grows: Vec<Vec<f64>> = (0..nr)
-                        .map(|i| g.row(i).iter().copied().collect())
-                        .collect();
-                    let pcsc = osqp::CscMatrix::from(&hrows).into_upper_tri();
-                    let gcsc = osqp::CscMatrix::from(&grows);
-                    let prob = osqp::Problem::new(pcsc, &q0, gcsc, &lower, &b0, &settings)
-                        .map_err(|e| Error::Solver {
-                            solver: "OSQP",
-                            status: format!("{e:?}"),
-                        })?;
-                    Engine::Osqp(Box::new(prob))
-                }
-            };
+        let engine = match backend {
+            Backend::Clarabel => {
+                let cones = [SupportedConeT::NonnegativeConeT(nr)];
+                let solver = DefaultSolver::new(
+                    &qp::csc(&hc, true),
+                    &q0,
+                    &qp::csc(&g, false),
+                    &b0,
+                    &cones,
+                    qp::settings(1e-6),
+                )
+                .map_err(|e| Error::Solver {
+                    solver: "Clarabel",
+                    status: format!("{e:?}"),
+                })?;
+                Engine::Clarabel(Box::new(solver))
+            }
+        };
         Ok(Self {
             ad,
             bd,
@@ -287,20 +259,6 @@ impl DiscreteMpc {
                 match solver.solution.status {
                     SolverStatus::Solved | SolverStatus::AlmostSolved => {
                         Some(solver.solution.x.clone())
-                    }
-                    _ => None,
-                }
-            }
-            #[cfg(feature = "osqp")]
-            Engine::Osqp(prob) => {
-                prob.update_lin_cost(q.as_slice());
-                prob.update_upper_bound(b.as_slice());
-                if let Some(prev) = &self.previous {
-                    prob.warm_start_x(prev);
-                }
-                match prob.solve() {
-                    osqp::Status::Solved(sol) | osqp::Status::SolvedInaccurate(sol) => {
-                        Some(sol.x().to_vec())
                     }
                     _ => None,
                 }
