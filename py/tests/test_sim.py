@@ -65,3 +65,26 @@ def test_bad_options_are_named():
 def test_wrong_lengths_are_value_errors():
     with pytest.raises(ValueError, match="length mismatch for noise standard deviations: expected 3, found 2"):
         stabilis.sim.run("wheel-pendulum", 1.0, noise=(0.1, 0.1))
+
+
+def test_lqr_gain_matches_scipy_dare():
+    """The gain of the run equals the discrete LQR of the ZOH linearisation solved by SciPy."""
+    from scipy.linalg import solve_discrete_are
+    from scipy.signal import cont2discrete
+
+    theta_0 = 3.34e-3 + 0.204 * 0.085**2
+    theta_w, mass_length, c_b, c_w, g = 0.57e-3, 0.419 * 0.075 + 0.204 * 0.085, 1.02e-3, 0.05e-3, 9.81
+    a = np.array([
+        [0.0, 1.0, 0.0],
+        [mass_length * g / theta_0, -c_b / theta_0, c_w / theta_0],
+        [-mass_length * g / theta_0, c_b / theta_0, -c_w / theta_w - c_w / theta_0],
+    ])
+    b = np.array([[0.0], [-1.0 / theta_0], [1.0 / theta_w + 1.0 / theta_0]])
+    ad, bd, *_ = cont2discrete((a, b, np.eye(3), np.zeros((3, 1))), 1.0 / RATE)
+    q = np.diag([1.0 / np.radians(1.0) ** 2, 1.0 / 0.5**2, 1.0 / 20.0**2])
+    r = np.array([[1.0 / 0.05**2]])
+    p = solve_discrete_are(ad, bd, q, r)
+    k = np.linalg.solve(r + bd.T @ p @ bd, bd.T @ p @ ad).ravel()
+    run = stabilis.sim.run("wheel-pendulum", 0.1)
+    np.testing.assert_allclose(run.summary["gain"], k, rtol=1e-8)
+    assert max(abs(np.linalg.eigvals(ad - bd @ k[None, :]))) < 1.0
