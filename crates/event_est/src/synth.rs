@@ -498,7 +498,8 @@ pub fn step2_unit(
         lm.add_const(2 * n, 2 * n, &DMatrix::identity(p, p));
         lm.add_const(2 * n + p, 2 * n + p, &(DMatrix::identity(nz, nz) * gamma_s));
     }
-    let delta_min = 1e-9 * gamma_factor.sqrt();
+    // Balanced thresholds Δ_s are of order sqrt(γ_s); bounds are set relative to it.
+    let delta_min = 1e-9 * gamma_s.sqrt();
     for (i, d) in deltas.iter().enumerate() {
         let pi = sys.outputs[i];
         if pi == 0 {
@@ -512,7 +513,7 @@ pub fn step2_unit(
         let sv = li.singular_values();
         let smax = sv.iter().copied().fold(0.0, f64::max);
         if sv.iter().any(|&v| v <= 1e-10 * smax.max(1e-300)) {
-            let cap = 1e3 * gamma_factor.sqrt();
+            let cap = 1e3 * gamma_s.sqrt();
             let lm = prob.lmi(
                 format!("Δ_{} ⪯ Δ_max I (L_{} rank deficient)", i + 1, i + 1),
                 pi,
@@ -521,7 +522,7 @@ pub fn step2_unit(
             lm.add_const(0, 0, &(DMatrix::identity(pi, pi) * cap));
         }
     }
-    let sol = prob.solve("Step 2 (thresholds)", EPS * gamma_factor.sqrt())?;
+    let sol = prob.solve("Step 2 (thresholds)", EPS * gamma_s.sqrt())?;
     let scale = 1.0 / gamma_s.sqrt();
     let delta: Vec<DMatrix<f64>> = deltas.iter().map(|d| d.value(&sol.x) * scale).collect();
     // Post-verification: ‖(zI−Â)^{-1} L Δ̃‖_∞ ≤ 1 (1 + 1e−3) and Δ̃_i ≻ 0.
