@@ -458,9 +458,12 @@ mod tests {
         assert!(output.human.contains("reduction"));
     }
 
+    /// An edit of the `imu` metadata record.
+    type Edit = fn(&mut BTreeMap<String, String>);
+
     #[test]
     fn bad_metadata_is_named() {
-        let cases: [(&str, fn(&mut BTreeMap<String, String>)); 4] = [
+        let cases: [(&str, Edit); 4] = [
             ("p3", |r| {
                 r.remove("p3");
             }),
