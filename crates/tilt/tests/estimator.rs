@@ -620,3 +620,18 @@ fn calibrated_biases_are_removed() {
         }
     );
 }
+
+#[test]
+fn layout_checks_do_not_depend_on_the_length_unit() {
+    for scale in [1e-4, 1e-2, 1.0, 1e3] {
+        let three: Vec<_> = three_positions().iter().map(|p| p * scale).collect();
+        let plane = Layout::new(&three).unwrap().affine_plane().unwrap();
+        assert!((plane.offset / scale - 0.05 / 3f64.sqrt()).abs() < 1e-12);
+        let sim: Vec<_> = simulation_positions().iter().map(|p| p * scale).collect();
+        assert!(Layout::new(&sim).unwrap().affine_plane().is_none());
+        let tuning = default_tuning(&Layout::new(&sim).unwrap());
+        // r scales with 1/length^2, the eigenvalues of A_s not at all.
+        assert!((tuning.r * scale * scale - 0.97498).abs() < 1e-4);
+        assert!((tuning.eigenvalues[1] - 0.94790).abs() < 1e-4);
+    }
+}
