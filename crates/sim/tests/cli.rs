@@ -186,6 +186,22 @@ fn bad_input_exits_with_code_2_and_a_named_error() {
         text(&run.stderr)
     );
 
+    // `--json` with a log right after it would take the log as its output file.
+    let before = std::fs::read(&out).unwrap();
+    let run = stabilis(&[
+        "info",
+        "--json",
+        out.to_str().unwrap(),
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(run.status.code(), Some(2));
+    assert!(
+        text(&run.stderr).contains("invalid --json FILE"),
+        "{}",
+        text(&run.stderr)
+    );
+    assert_eq!(std::fs::read(&out).unwrap(), before);
+
     let run = stabilis(&["sim", "unicycle"]);
     assert_eq!(run.status.code(), Some(2));
     assert!(text(&run.stderr).contains("unrecognized subcommand 'unicycle'"));

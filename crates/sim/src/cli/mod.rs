@@ -172,6 +172,12 @@ fn sim_output(recording: &Recording) -> Result<Output> {
     Ok(Output { human, json })
 }
 
+fn is_log(path: &std::path::Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("mcap") || e.eq_ignore_ascii_case("csv"))
+}
+
 /// Parses the command line, runs it, prints the result and returns the exit code: 0 on success,
 /// 2 on bad input (clap's usage errors too), 1 when the machine failed.
 pub fn main_with_args<I, S>(args: I) -> i32
@@ -187,6 +193,17 @@ where
             return e.exit_code();
         }
     };
+    if let Some(path) = cli.json.as_deref().filter(|p| is_log(p)) {
+        // `--json` takes an optional file; `stabilis info --json a.mcap b.mcap` must not
+        // overwrite the log a.mcap with JSON.
+        let error = SimError::invalid(
+            "--json FILE",
+            path.display(),
+            "is a log (.mcap or .csv); write --json after the input files or give a .json path",
+        );
+        eprintln!("error: {error}");
+        return error.exit_code();
+    }
     match cli.command.run() {
         Ok(output) => match cli.json.as_deref() {
             Some(p) if p != std::path::Path::new("-") => {
