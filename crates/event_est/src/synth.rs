@@ -629,11 +629,35 @@ pub fn synthesize(
     complete(sys, step1, j_max)
 }
 
+/// What Step 2 subtracts from J_max to get its budget.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BudgetBase {
+    /// The Step-1 bound c* (the thesis).
+    Step1Bound,
+    /// The exact full-communication H2 cost of L (≤ c*; larger thresholds, same guarantee,
+    /// because the P of Thm 16 need not equal the Step-1 P).
+    ExactH2,
+}
+
 /// Step 2 and analysis on a given Step-1 result (e.g. to pick J_max as a multiple of c*).
 pub fn complete(sys: &System, step1: Step1, j_max: f64) -> Result<Synthesis, EventEstError> {
-    budget_gamma(sys, step1.c_star, j_max)?;
+    complete_with(sys, step1, j_max, BudgetBase::Step1Bound)
+}
+
+/// [`complete`] with a choice of budget.
+pub fn complete_with(
+    sys: &System,
+    step1: Step1,
+    j_max: f64,
+    base: BudgetBase,
+) -> Result<Synthesis, EventEstError> {
+    let spent = match base {
+        BudgetBase::Step1Bound => step1.c_star,
+        BudgetBase::ExactH2 => step1.true_h2,
+    };
+    budget_gamma(sys, spent, j_max)?;
     let unit = step2_unit(sys, &step1.l, 1.0)?;
-    let delta = thresholds(sys, &unit, step1.c_star, j_max)?;
+    let delta = thresholds(sys, &unit, spent, j_max)?;
     let design = Design {
         l: step1.l.clone(),
         delta,

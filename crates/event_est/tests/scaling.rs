@@ -4,7 +4,7 @@
 #![allow(clippy::unwrap_used)]
 
 use event_est::model::platoon;
-use event_est::synth::{step1, step2_unit, Stability};
+use event_est::synth::{complete_with, step1, step2_unit, BudgetBase, Stability};
 
 #[test]
 fn cor13_design_scales_to_six_vehicles() {
@@ -27,4 +27,23 @@ fn cor13_design_scales_to_six_vehicles() {
         let unit = step2_unit(&sys, &s1.l, 1.0).unwrap();
         assert!(unit.delta.iter().all(|d| d[(0, 0)] > 0.0));
     }
+}
+
+#[test]
+fn exact_h2_budget_gives_larger_thresholds_with_the_same_guarantee() {
+    // For M = 4, Cor 13's bound c* = 0.01535 is loose (true H2 of L: 0.01368).
+    let (sys, _) = platoon(4).unwrap();
+    let s1 = step1(&sys, Stability::Cor13).unwrap();
+    assert!(s1.true_h2 < 0.95 * s1.c_star);
+    let j_max = 0.05;
+    let thesis = complete_with(&sys, s1.clone(), j_max, BudgetBase::Step1Bound).unwrap();
+    let exact = complete_with(&sys, s1, j_max, BudgetBase::ExactH2).unwrap();
+    for (a, b) in thesis.design.delta.iter().zip(&exact.design.delta) {
+        assert!(b[(0, 0)] > a[(0, 0)]);
+    }
+    assert!(
+        exact.bound.bound <= j_max * (1.0 + 1e-3),
+        "{}",
+        exact.bound.bound
+    );
 }
