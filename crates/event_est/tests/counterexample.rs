@@ -109,3 +109,68 @@ fn reset_period_matches_the_recursion_and_vanishes_for_a_certified_design() {
     assert_eq!(k, k_reset);
     assert!(reset_schedule(&sys, &triple, &eye, &(-&eye), 0.1, 4.0).is_err());
 }
+
+/// ISS bound (5.22) of Thm 11 with the constants of the proof (σ_hi in the contractive case):
+/// for random communication patterns and random bounded d, |ε(k)| never exceeds
+/// a^{k/2} sqrt(σ_hi/σ_lo)|ε(0)| + sqrt(b/σ_lo) Σ_l a^{l/2} |d(k−l)| (acceptance test 24).
+fn iss_bound_holds(seed: u64, p1: &DMatrix<f64>, p2: &DMatrix<f64>) {
+    use rand::{rngs::StdRng, Rng, SeedableRng};
+    let (sys, l) = counterexample().unwrap();
+    let af = sys.a_cl();
+    let acl = |s: u64| (DMatrix::identity(2, 2) - sys.lc_subset(&l, s)) * &af;
+    let mut lambda_bar = f64::NEG_INFINITY;
+    let mut b = 0.0f64;
+    for s in 0..4u64 {
+        let pk = if s == 0 { p2 } else { p1 };
+        for pl in [p1, p2] {
+            lambda_bar = lambda_bar.max(max_eigenvalue(&(acl(s).transpose() * pk * acl(s) - pl)));
+        }
+    }
+    assert!(lambda_bar < 0.0);
+    let alpha = -lambda_bar / 2.0;
+    for s in 0..4u64 {
+        for pm in [p1, p2] {
+            let g = (pm * acl(s)).norm();
+            b = b.max(g * g / alpha + pm.norm());
+        }
+    }
+    let ev = |p: &DMatrix<f64>| p.symmetric_eigenvalues();
+    let sigma_lo = ev(p1).min().min(ev(p2).min());
+    let sigma_hi = ev(p1).max().max(ev(p2).max());
+    let a = 1.0 + (lambda_bar + alpha) / sigma_hi;
+    let mut rng = StdRng::seed_from_u64(seed);
+    let mut eps = DVector::from_vec(vec![
+        rng.random_range(-1.0..1.0),
+        rng.random_range(-1.0..1.0),
+    ]);
+    let eps0 = eps.norm();
+    let mut d_norms = Vec::new();
+    for k in 1..=200 {
+        let pattern = rng.random_range(0..4u64);
+        let d = DVector::from_vec(vec![
+            rng.random_range(-0.1..0.1),
+            rng.random_range(-0.1..0.1),
+        ]);
+        d_norms.push(d.norm());
+        eps = acl(pattern) * eps + d;
+        let forced: f64 = (0..k)
+            .map(|l| a.powf(l as f64 / 2.0) * d_norms[k - 1 - l])
+            .sum();
+        let bound = a.powf(k as f64 / 2.0) * (sigma_hi / sigma_lo).sqrt() * eps0
+            + (b / sigma_lo).sqrt() * forced;
+        assert!(
+            eps.norm() <= bound * (1.0 + 1e-12),
+            "k = {k}: {} > {bound}",
+            eps.norm()
+        );
+    }
+}
+
+proptest::proptest! {
+    #[test]
+    fn iss_bound_of_theorem_11(seed in 0u64..1_000_000, scale in 1.0f64..3.0) {
+        // P_1 = I and P_2 = diag(1, scale) both certify the counterexample's patterns.
+        let p2 = DMatrix::from_diagonal(&DVector::from_vec(vec![1.0, scale]));
+        iss_bound_holds(seed, &DMatrix::identity(2, 2), &p2);
+    }
+}
