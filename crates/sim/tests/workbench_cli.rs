@@ -9,7 +9,10 @@ use sim::log::LogWriter;
 use sim::workbench::flying_platform::embedded_dataset;
 
 fn stabilis(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_stabilis")).args(args).output().unwrap()
+    Command::new(env!("CARGO_BIN_EXE_stabilis"))
+        .args(args)
+        .output()
+        .unwrap()
 }
 
 fn temp(name: &str) -> PathBuf {
@@ -24,10 +27,16 @@ fn write_logs(dir: &Path, drop: Option<&str>) {
     let data = embedded_dataset().unwrap();
     for (k, e) in data.experiments.iter().enumerate() {
         let mut w = LogWriter::create(dir.join(format!("exp{:02}.mcap", k + 1))).unwrap();
-        let outputs: Vec<&String> = data.outputs.iter().filter(|o| Some(o.as_str()) != drop).collect();
+        let outputs: Vec<&String> = data
+            .outputs
+            .iter()
+            .filter(|o| Some(o.as_str()) != drop)
+            .collect();
         let ti = w.add_topic("/flying_platform/input", &data.inputs).unwrap();
         let to = w.add_topic("/flying_platform/output", &outputs).unwrap();
-        let tr = w.add_topic("/flying_platform/excitation", &data.inputs).unwrap();
+        let tr = w
+            .add_topic("/flying_platform/excitation", &data.inputs)
+            .unwrap();
         let p = e.periodic.unwrap();
         let excited: Vec<&str> = data
             .inputs
@@ -39,7 +48,10 @@ fn write_logs(dir: &Path, drop: Option<&str>) {
         w.write_metadata(
             "experiment",
             BTreeMap::from([
-                ("sample_rate_hz".to_string(), data.sample_rate_hz.to_string()),
+                (
+                    "sample_rate_hz".to_string(),
+                    data.sample_rate_hz.to_string(),
+                ),
                 ("period_samples".to_string(), p.period.to_string()),
                 ("periods".to_string(), p.periods.to_string()),
                 ("transient_samples".to_string(), p.transient.to_string()),
@@ -82,17 +94,32 @@ fn discover_on_mcap_logs_writes_json_and_report() {
         json.to_str().unwrap(),
     ]);
     let stdout = String::from_utf8_lossy(&run.stdout);
-    assert_eq!(run.status.code(), Some(0), "{}", String::from_utf8_lossy(&run.stderr));
-    assert!(stdout.contains("found: [momentum_drag, fan_gyroscopic]"), "{stdout}");
-    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    assert_eq!(doc["found"], serde_json::json!(["momentum_drag", "fan_gyroscopic"]));
+    assert_eq!(
+        run.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(
+        stdout.contains("found: [momentum_drag, fan_gyroscopic]"),
+        "{stdout}"
+    );
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(
+        doc["found"],
+        serde_json::json!(["momentum_drag", "fan_gyroscopic"])
+    );
     assert_eq!(doc["unexplained"], false);
     assert_eq!(doc["estimator"], "instrumental_variable");
     let steps = doc["steps"].as_array().unwrap();
     assert_eq!(steps.len(), 3);
     assert!(steps[0]["added"].is_null());
     assert_eq!(steps[1]["added"], "momentum_drag");
-    let (c0, c2) = (steps[0]["cost"].as_f64().unwrap(), steps[2]["cost"].as_f64().unwrap());
+    let (c0, c2) = (
+        steps[0]["cost"].as_f64().unwrap(),
+        steps[2]["cost"].as_f64().unwrap(),
+    );
     assert!(c2 < 0.05 * c0, "costs {c0} -> {c2}");
     assert!((steps[2]["params"]["c_alpha1"].as_f64().unwrap() - 2.388).abs() < 0.24);
     let html = std::fs::read_to_string(report.join("index.html")).unwrap();
@@ -103,14 +130,32 @@ fn discover_on_mcap_logs_writes_json_and_report() {
 fn fit_with_effects_reports_parameters_with_standard_errors() {
     let logs = temp("logs-fit");
     write_logs(&logs, None);
-    let run = stabilis(&["fit", "--with", "momentum_drag,fan_gyroscopic", "--data", logs.to_str().unwrap(), "--json"]);
-    assert_eq!(run.status.code(), Some(0), "{}", String::from_utf8_lossy(&run.stderr));
+    let run = stabilis(&[
+        "fit",
+        "--with",
+        "momentum_drag,fan_gyroscopic",
+        "--data",
+        logs.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(
+        run.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
     let doc: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     let step = &doc["steps"][0];
-    assert_eq!(step["effects"], serde_json::json!(["momentum_drag", "fan_gyroscopic"]));
+    assert_eq!(
+        step["effects"],
+        serde_json::json!(["momentum_drag", "fan_gyroscopic"])
+    );
     let c = step["params"]["c_omega_t0"].as_f64().unwrap();
     let s = step["std"]["c_omega_t0"].as_f64().unwrap();
-    assert!(s > 0.0 && (c - 0.018).abs() < 4.0 * s + 0.002, "c_omega_t0 = {c} +- {s}");
+    assert!(
+        s > 0.0 && (c - 0.018).abs() < 4.0 * s + 0.002,
+        "c_omega_t0 = {c} +- {s}"
+    );
 }
 
 #[test]
@@ -118,10 +163,19 @@ fn missing_channel_is_named_and_no_report_is_left() {
     let logs = temp("logs-missing");
     write_logs(&logs, Some("wz"));
     let report = temp("report-missing");
-    let run = stabilis(&["discover", "--data", logs.to_str().unwrap(), "--report", report.to_str().unwrap()]);
+    let run = stabilis(&[
+        "discover",
+        "--data",
+        logs.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
     assert_eq!(run.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&run.stderr);
-    assert!(stderr.contains("\"wz\"") && stderr.contains("missing field"), "{stderr}");
+    assert!(
+        stderr.contains("\"wz\"") && stderr.contains("missing field"),
+        "{stderr}"
+    );
     assert!(!report.exists());
 }
 
@@ -129,8 +183,17 @@ fn missing_channel_is_named_and_no_report_is_left() {
 fn unknown_effect_is_named() {
     let logs = temp("logs-unknown");
     write_logs(&logs, None);
-    let run = stabilis(&["fit", "--with", "ground_effect", "--data", logs.to_str().unwrap()]);
+    let run = stabilis(&[
+        "fit",
+        "--with",
+        "ground_effect",
+        "--data",
+        logs.to_str().unwrap(),
+    ]);
     assert_eq!(run.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&run.stderr);
-    assert!(stderr.contains("ground_effect") && stderr.contains("momentum_drag"), "{stderr}");
+    assert!(
+        stderr.contains("ground_effect") && stderr.contains("momentum_drag"),
+        "{stderr}"
+    );
 }
