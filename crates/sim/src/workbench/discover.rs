@@ -368,7 +368,11 @@ impl Workbench {
                 }
             }
             current.candidates = scores;
-            let chosen = best.filter(|(_, _, i)| current.candidates[*i].significant);
+            // A cost already consistent with noise alone gets nothing added, however a
+            // targeted test scores a candidate (the candidates are still reported).
+            let at_noise_level = self.noise_p_value(&current) >= LEVEL;
+            let chosen =
+                best.filter(|(_, _, i)| !at_noise_level && current.candidates[*i].significant);
             match chosen {
                 Some((with, r, i)) => {
                     let name = current.candidates[i].effect.clone();
