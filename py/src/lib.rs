@@ -9,6 +9,7 @@ mod event_est;
 mod flying_platform;
 mod geometry;
 mod log;
+mod pmpc;
 mod sim;
 mod tilt;
 mod workbench;
@@ -21,6 +22,7 @@ fn _stabilis(m: &Bound<'_, PyModule>) -> PyResult<()> {
     cubli::register(m)?;
     geometry::register(m)?;
     log::register(m)?;
+    pmpc::register(m)?;
     sim::register(m)?;
     tilt::register(m)?;
     workbench::register(m)?;

@@ -3,6 +3,7 @@ from . import _stabilis  # noqa: F401
 from ._stabilis import Error, LogError, SimError
 from . import geometry, log, sim
 from . import cubli
+from . import pmpc
 from . import tilt
 from .log import Log, read_csv, read_mcap
 from . import workbench

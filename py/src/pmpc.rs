@@ -1,0 +1,169 @@
+//! Python bindings of parametrized infinite-horizon MPC: `stabilis.pmpc.Controller`.
+//! Matrices are anything numpy can turn into nested float sequences; results are float64
+//! arrays and plain dicts.
+use ::pmpc::bounds::bounds;
+use ::pmpc::{Constraints, Error as PmpcError, Pmpc, Source};
+use nalgebra::DMatrix;
+use numpy::PyArray1;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use rigid_body::laguerre::Laguerre;
+use rigid_body::siqp::Settings;
+
+use crate::errors::{to_py_err, Error, IntoPyError};
+
+impl IntoPyError for PmpcError {
+    fn into_py_error(self) -> PyErr {
+        let message = self.to_string();
+        match self {
+            PmpcError::Shape { .. } | PmpcError::NonFinite(_) => PyValueError::new_err(message),
+            _ => Error::new_err(message),
+        }
+    }
+}
+
+fn matrix(name: &str, rows: Vec<Vec<f64>>) -> PyResult<DMatrix<f64>> {
+    let nrows = rows.len();
+    let ncols = rows.first().map_or(0, Vec::len);
+    if rows.iter().any(|r| r.len() != ncols) {
+        return Err(PyValueError::new_err(format!(
+            "{name} must be a rectangular matrix"
+        )));
+    }
+    Ok(DMatrix::from_fn(nrows, ncols, |i, j| rows[i][j]))
+}
+
+fn bounds_list(name: &str, v: Option<Vec<(f64, f64)>>, len: usize) -> PyResult<Vec<(f64, f64)>> {
+    match v {
+        None => Ok(vec![(f64::NEG_INFINITY, f64::INFINITY); len]),
+        Some(v) if v.len() == len => Ok(v),
+        Some(v) => Err(PyValueError::new_err(format!(
+            "{name} must have {len} (lower, upper) pairs, got {}",
+            v.len()
+        ))),
+    }
+}
+
+/// Parametrized infinite-horizon MPC: states and inputs in the span of `s` Laguerre functions
+/// with decay `nu` (1/s), constraints imposed for all t ≥ 0, re-solved every `Td` seconds.
+/// Constraints are box limits `x_bounds` / `u_bounds` (lists of (lower, upper), ±inf for
+/// none) or general rows `lower <= Cx x + Cu u <= upper`.
+#[pyclass(name = "Controller", module = "stabilis.pmpc")]
+#[derive(Debug)]
+pub struct PyController {
+    inner: Pmpc,
+}
+
+#[pymethods]
+impl PyController {
+    #[new]
+    #[pyo3(signature = (a, b, q, r, x_bounds=None, u_bounds=None, cx=None, cu=None, lower=None, upper=None, nu=0.7, s=12, td=0.02, tolerance=1e-6, max_iter=1000))]
+    #[allow(clippy::too_many_arguments)] // mirrors the Python keyword signature
+    fn new(
+        a: Vec<Vec<f64>>,
+        b: Vec<Vec<f64>>,
+        q: Vec<Vec<f64>>,
+        r: Vec<Vec<f64>>,
+        x_bounds: Option<Vec<(f64, f64)>>,
+        u_bounds: Option<Vec<(f64, f64)>>,
+        cx: Option<Vec<Vec<f64>>>,
+        cu: Option<Vec<Vec<f64>>>,
+        lower: Option<Vec<f64>>,
+        upper: Option<Vec<f64>>,
+        nu: f64,
+        s: usize,
+        td: f64,
+        tolerance: f64,
+        max_iter: usize,
+    ) -> PyResult<Self> {
+        let (a, b, q, r) = (
+            matrix("A", a)?,
+            matrix("B", b)?,
+            matrix("Q", q)?,
+            matrix("R", r)?,
+        );
+        let (n, m) = (a.nrows(), b.ncols());
+        let constraints = match (cx, cu, lower, upper) {
+            (Some(cx), Some(cu), Some(lower), Some(upper)) => Constraints {
+                cx: matrix("Cx", cx)?,
+                cu: matrix("Cu", cu)?,
+                lower,
+                upper,
+            },
+            (None, None, None, None) => Constraints::boxes(
+                &bounds_list("x_bounds", x_bounds, n)?,
+                &bounds_list("u_bounds", u_bounds, m)?,
+            ),
+            _ => {
+                return Err(PyValueError::new_err(
+                    "give all of cx, cu, lower, upper, or none of them",
+                ))
+            }
+        };
+        let basis = Laguerre::new(s, nu).map_err(to_py_err)?;
+        let settings = Settings {
+            tolerance,
+            max_iter,
+            ..Settings::default()
+        };
+        let inner = Pmpc::new(&a, &b, &q, &r, &constraints, basis, td)
+            .map_err(to_py_err)?
+            .with_settings(settings);
+        Ok(Self { inner })
+    }
+
+    /// Solve for the measured state and return the input to apply now (shape (m,)).
+    fn step<'py>(&mut self, py: Python<'py>, x: Vec<f64>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let u = self.inner.step(&x).map_err(to_py_err)?;
+        Ok(PyArray1::from_slice(py, u))
+    }
+
+    /// Planned input t seconds after the last step (shape (m,)).
+    fn input_at<'py>(&self, py: Python<'py>, t: f64) -> Bound<'py, PyArray1<f64>> {
+        let mut out = vec![0.0; self.inner.problem().m()];
+        self.inner.input_at(t, &mut out);
+        PyArray1::from_vec(py, out)
+    }
+
+    /// Coefficients (eta_x, eta_u) of the current plan.
+    #[getter]
+    fn plan<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, self.inner.plan())
+    }
+
+    /// Diagnostics of the last step: cost, iterations, active instants, fallback flag.
+    fn last_step<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let info = self.inner.last_step();
+        let d = PyDict::new(py);
+        d.set_item("cost", info.cost)?;
+        d.set_item("iterations", info.stats.iterations)?;
+        d.set_item("active", info.active)?;
+        d.set_item("fallback", matches!(info.source, Source::Fallback(_)))?;
+        Ok(d)
+    }
+
+    /// Forget the previous plan and warm start.
+    fn reset(&mut self) {
+        self.inner.reset();
+    }
+
+    /// Upper bound J_s, lower bound J~_s (Clarabel), their gap and the L2 error bound at x0.
+    fn bounds<'py>(&self, py: Python<'py>, x0: Vec<f64>) -> PyResult<Bound<'py, PyDict>> {
+        let b = bounds(self.inner.problem(), &x0, self.inner.settings()).map_err(to_py_err)?;
+        let d = PyDict::new(py);
+        d.set_item("upper", b.upper)?;
+        d.set_item("lower", b.lower)?;
+        d.set_item("gap", b.gap)?;
+        d.set_item("l2_error_bound", b.l2_error_bound)?;
+        Ok(d)
+    }
+}
+
+/// Adds the `pmpc` submodule.
+pub fn register(parent: &Bound<'_, PyModule>) -> PyResult<()> {
+    let m = PyModule::new(parent.py(), "pmpc")?;
+    m.add_class::<PyController>()?;
+    parent.add_submodule(&m)?;
+    Ok(())
+}

@@ -1,0 +1,62 @@
+"""stabilis.pmpc against the paper's quadruple-integrator numbers and numpy/scipy references."""
+import numpy as np
+import pytest
+import scipy.linalg
+
+import stabilis
+from stabilis import pmpc
+
+INF = float("inf")
+A = np.diag(np.ones(3), 1)
+B = np.array([[0.0], [0.0], [0.0], [1.0]])
+X_BOUNDS = [(0.0, INF)] + [(-INF, INF)] * 3
+U_BOUNDS = [(-0.5, 0.5)]
+X0 = [0.3, 0.3, 0.3, 0.3]
+
+
+def controller(s=12):
+    return pmpc.Controller(A, B, np.eye(4), np.eye(1), x_bounds=X_BOUNDS, u_bounds=U_BOUNDS,
+                           nu=0.7, s=s, td=0.02)
+
+
+def test_bounds_match_the_paper():
+    b = controller().bounds(X0)
+    assert abs(b["upper"] - 13.953) < 0.01
+    assert abs(b["lower"] - 10.910) < 0.02
+    assert b["gap"] == pytest.approx(b["upper"] - b["lower"])
+
+
+def test_closed_loop_against_scipy_plant():
+    """Apply u(t) over each interval exactly (scipy expm of the augmented ZOH plant, with the
+    plan sampled finely) and check cost, constraints and convergence."""
+    c = controller()
+    x = np.array(X0)
+    cost = 0.0
+    sub = 10
+    h = 0.02 / sub
+    aug = scipy.linalg.expm(np.block([[A, B], [np.zeros((1, 5))]]) * h)
+    ad, bd = aug[:4, :4], aug[:4, 4:]
+    for k in range(1001):
+        u = c.step(x)
+        assert abs(u[0]) <= 0.5 + 1e-6
+        assert x[0] >= -1e-5
+        if k >= 1:
+            cost += 0.5 * (x @ x + u[0] ** 2) * 0.02
+        # Piecewise-constant approximation of the planned input on a 2 ms grid.
+        for i in range(sub):
+            ui = c.input_at((i + 0.5) * h)
+            x = ad @ x + bd @ ui
+    # Spec 8.3 reproduction 12.98 (thesis 13.06); the 2 ms midpoint input adds a little error.
+    assert abs(cost - 12.98) < 0.01 * 12.98
+    assert np.linalg.norm(x) < 1e-2
+    assert c.last_step()["fallback"] is False
+
+
+def test_bad_input():
+    with pytest.raises(ValueError):
+        pmpc.Controller(np.zeros((4, 3)), B, np.eye(4), np.eye(1), u_bounds=U_BOUNDS)
+    c = controller()
+    with pytest.raises(ValueError):
+        c.step([0.1, 0.2])
+    with pytest.raises(stabilis.Error):
+        c.step([-0.1, 0.0, 0.0, 0.0])
