@@ -104,6 +104,10 @@ pub struct SimConfig {
     pub window_start: usize,
     /// Reset all estimates to their mean every this many steps (estimator resets).
     pub reset_period: Option<usize>,
+    /// Bound r on a disturbance δ_i(k) added to every estimate after the update (uniform in a
+    /// box of half-width r/√n per component, so |δ_i| ≤ r and |d_ji| ≤ 2r): the bounded
+    /// inter-agent disturbance of the reset analysis (App. E), injected directly.
+    pub estimate_disturbance: Option<f64>,
     /// RNG seed.
     pub seed: u64,
     /// Keep the full trajectory in [`SimResult::log`].
@@ -125,6 +129,7 @@ impl SimConfig {
             noise,
             window_start: 0,
             reset_period: None,
+            estimate_disturbance: None,
             seed,
             record: false,
         }
@@ -250,6 +255,15 @@ pub fn simulate_with<F: FnMut(&Step<'_>)>(
             value: 0.0,
             reason: "must be at least 1 step",
         });
+    }
+    if let Some(r) = cfg.estimate_disturbance {
+        if !(r.is_finite() && r > 0.0) {
+            return Err(EventEstError::Parameter {
+                name: "estimate_disturbance",
+                value: r,
+                reason: "the disturbance bound must be positive and finite",
+            });
+        }
     }
     check_vec("x0", &cfg.x0, n)?;
     if cfg.xhat0.len() != na {
@@ -377,6 +391,16 @@ pub fn simulate_with<F: FnMut(&Step<'_>)>(
                 .filter(|&j| j != i && fired[j] && !lost[j][i])
                 .map(|j| (j, &ys[out_off[j]..out_off[j + 1]]));
             agent.update(&ys[out_off[i]..out_off[i + 1]], received)?;
+        }
+        if let Some(r) = cfg.estimate_disturbance {
+            let half = r / (n as f64).sqrt();
+            for agent in agents.iter_mut() {
+                mean.copy_from_slice(agent.estimate());
+                for m in mean.iter_mut() {
+                    *m += rng.random_range(-half..half);
+                }
+                agent.reset(mean.as_slice())?;
+            }
         }
         if let Some(period) = cfg.reset_period {
             if k % period == 0 {

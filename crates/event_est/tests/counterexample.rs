@@ -110,6 +110,50 @@ fn reset_period_matches_the_recursion_and_vanishes_for_a_certified_design() {
     assert!(reset_schedule(&sys, &triple, &eye, &(-&eye), 0.1, 4.0).is_err());
 }
 
+/// Acceptance test 23, simulation half: a relaxed design (P = I certifies only λ̄ ≈ 0.30 > 0
+/// because L_1 = 2.9 over-corrects x_1, A_cl({1}) = diag(−1.14, 0)) under injected disturbances
+/// |δ_i| ≤ r (so |d_ji| ≤ D = 2r) keeps |ε_ji| ≤ sqrt(V_max/σ_lo) at every step when all
+/// estimates are reset every k_reset steps; without resets the same run leaves that level.
+#[test]
+fn periodic_resets_keep_the_inter_agent_error_within_the_reset_level() {
+    use event_est::synth::reset_schedule;
+    let (sys, _) = counterexample().unwrap();
+    let l = DMatrix::from_diagonal(&DVector::from_vec(vec![2.9, 1.0]));
+    // Full communication stays stable: ρ((I − LC)A) = 0.95.
+    assert!(spectral_radius(&((DMatrix::identity(2, 2) - &l * &sys.c) * &sys.a)) < 1.0);
+    let eye = DMatrix::<f64>::identity(2, 2);
+    let (r, v_max) = (0.05, 1.0);
+    let schedule = reset_schedule(&sys, &l, &eye, &eye, 2.0 * r, v_max).unwrap();
+    assert!((schedule.lambda_bar - (1.14f64.powi(2) - 1.0)).abs() < 1e-12);
+    let k_reset = schedule.k_reset.unwrap();
+    let level = (v_max / schedule.sigma_lo).sqrt();
+    // Small thresholds: both agents transmit almost always, the growing pattern {1,2} dominates.
+    let design = Design::scalar(l, &[1e-3, 1e-3]);
+    for seed in 0..4 {
+        let mut cfg = SimConfig::new(&sys, 400, None, 23 + seed);
+        cfg.loss = 0.0;
+        cfg.x0 = DVector::from_vec(vec![0.0, 2.0]);
+        cfg.estimate_disturbance = Some(r);
+        cfg.reset_period = Some(k_reset);
+        let with = simulate(&sys, &design, &cfg).unwrap();
+        assert!(
+            with.max_inter_agent <= level,
+            "seed {seed}: max |ε| = {} > {level} with resets every {k_reset} steps",
+            with.max_inter_agent
+        );
+        cfg.reset_period = None;
+        let without = simulate(&sys, &design, &cfg).unwrap();
+        assert!(
+            without.max_inter_agent > level,
+            "seed {seed}: without resets max |ε| = {} stayed below {level}",
+            without.max_inter_agent
+        );
+    }
+    let mut bad = SimConfig::new(&sys, 10, None, 0);
+    bad.estimate_disturbance = Some(-1.0);
+    assert!(simulate(&sys, &design, &bad).is_err());
+}
+
 /// ISS bound (5.22) of Thm 11 with the constants of the proof (σ_hi in the contractive case):
 /// for random communication patterns and random bounded d, |ε(k)| never exceeds
 /// a^{k/2} sqrt(σ_hi/σ_lo)|ε(0)| + sqrt(b/σ_lo) Σ_l a^{l/2} |d(k−l)| (acceptance test 24).
