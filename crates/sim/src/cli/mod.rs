@@ -58,6 +58,9 @@ pub enum SimSystem {
     /// Vehicle platoon with distributed event-based state estimation over a lossy network
     /// (gains and thresholds synthesised by LMIs; MCAP `/platoon/*`).
     Platoon(scenarios::platoon::Args),
+    /// Quadruple integrator under parametrized infinite-horizon MPC or discrete-time MPC
+    /// (MCAP `/quad_integrator/*`).
+    QuadIntegrator(scenarios::quad_integrator::Args),
 }
 
 impl SimSystem {
@@ -68,6 +71,7 @@ impl SimSystem {
             Self::Cubli(args) => args,
             Self::FlyingPlatform(args) => args,
             Self::Platoon(args) => args,
+            Self::QuadIntegrator(args) => args,
         }
     }
 

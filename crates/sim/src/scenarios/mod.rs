@@ -12,6 +12,7 @@ use crate::progress::Progress;
 pub mod cubli;
 pub mod flying_platform;
 pub mod platoon;
+pub mod quad_integrator;
 pub mod wheel_pendulum;
 
 /// Options every scenario takes.
