@@ -9,6 +9,7 @@
 //! 3. Levenberg-Marquardt fits with standard errors ([`fit`]);
 //! 4. diagnosis by line and channel ([`diagnose`]) and the discovery loop ([`discover`]).
 pub mod cost;
+pub mod cubli;
 pub mod dataset;
 pub mod diagnose;
 pub mod discover;
