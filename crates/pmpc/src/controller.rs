@@ -34,12 +34,12 @@ pub struct StepInfo {
 /// Parametrized infinite-horizon MPC (spec/pmpc.md §5).
 ///
 /// ```
-/// use nalgebra::{dmatrix, DMatrix};
+/// use nalgebra::DMatrix;
 /// use pmpc::{Constraints, Pmpc};
 /// use rigid_body::laguerre::Laguerre;
 /// // Double integrator, |u| <= 1.
-/// let a = dmatrix![0.0, 1.0; 0.0, 0.0];
-/// let b = dmatrix![0.0; 1.0];
+/// let a = DMatrix::from_row_slice(2, 2, &[0.0, 1.0, 0.0, 0.0]);
+/// let b = DMatrix::from_row_slice(2, 1, &[0.0, 1.0]);
 /// let c = Constraints::boxes(&[(f64::NEG_INFINITY, f64::INFINITY); 2], &[(-1.0, 1.0)]);
 /// let basis = Laguerre::new(8, 1.0).unwrap();
 /// let mut mpc = Pmpc::new(&a, &b, &DMatrix::identity(2, 2), &DMatrix::identity(1, 1), &c, basis, 0.05).unwrap();
