@@ -84,7 +84,7 @@ pub struct CubliOptions {
 impl Default for CubliOptions {
     fn default() -> Self {
         Self {
-            window: 10,
+            window: 25,
             skip: 200,
         }
     }
