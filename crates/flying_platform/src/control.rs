@@ -131,6 +131,72 @@ impl Default for OuterGains {
     }
 }
 
+/// Loop bandwidths of the cascade: the rate-loop weight and the outer-loop gains.
+///
+/// The paper's tuning (`Q = 512 I`, [`OuterGains::default`]) tolerates about 35 ms of
+/// actuator latency in the loop; fans whose thrust follows the command with a first-order lag
+/// of 60-80 ms need lower bandwidths, which [`Tuning::slow_actuators`] provides.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tuning {
+    /// Rate-loop weight `q` of `Q = q I` (R stays the paper's); smaller is slower.
+    pub rate_weight: f64,
+    /// Position/attitude loop gains.
+    pub gains: OuterGains,
+}
+
+impl Tuning {
+    /// The paper's tuning: `Q = 512 I` and [`OuterGains::default`].
+    pub fn paper() -> Self {
+        Self {
+            rate_weight: 512.0,
+            gains: OuterGains::default(),
+        }
+    }
+
+    /// Lower bandwidths for slow actuators: stable at hover with a first-order thrust lag of up
+    /// to 80 ms plus 15 ms of in-loop delay, on the low-complexity and on the augmented plant
+    /// (rate weight 192, x/y: d 0.5, w 3.5 rad/s, p 1 rad/s; z: w 1.5 rad/s; yaw pole 1 rad/s;
+    /// closed-loop eigenvalues and simulation checked in the tests).
+    pub fn slow_actuators() -> Self {
+        Self {
+            rate_weight: SLOW_RATE_WEIGHT,
+            gains: OuterGains {
+                d_xy: SLOW_D_XY,
+                w_xy: SLOW_W_XY,
+                p_xy: SLOW_P_XY,
+                d_z: 1.0,
+                w_z: SLOW_W_Z,
+                p_z: SLOW_P_Z,
+                yaw_law: YawLaw::Intended,
+            },
+        }
+    }
+
+    /// Parses `paper` or `slow-actuators` (CLI spelling).
+    pub fn from_name(name: &str) -> Result<Self> {
+        match name {
+            "paper" => Ok(Self::paper()),
+            "slow-actuators" | "slow_actuators" => Ok(Self::slow_actuators()),
+            other => Err(Error::Invalid {
+                name: "tuning",
+                reason: format!("unknown tuning `{other}` (known: paper, slow-actuators)"),
+            }),
+        }
+    }
+}
+
+// Chosen on a grid (rate weight 64..256, w_xy 2.5..4, p_xy 0.5..1.5, d_xy 0.4..0.7) for the
+// smallest closed-loop spectral radius over thrust lags 10-80 ms, with and without momentum
+// drag and fan gyroscopic torque, 0 and 15 ms in-loop delay. Momentum drag needs a fast
+// enough x/y loop, the lag a slower rate loop: the compromise lowers the rate weight and the
+// x/y damping.
+const SLOW_RATE_WEIGHT: f64 = 192.0;
+const SLOW_D_XY: f64 = 0.5;
+const SLOW_W_XY: f64 = 3.5;
+const SLOW_P_XY: f64 = 1.0;
+const SLOW_W_Z: f64 = 1.5;
+const SLOW_P_Z: f64 = 1.0;
+
 /// Measured state used by the controller (positions and velocities in the yaw frame J).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Measurement {
@@ -235,7 +301,25 @@ pub struct CascadedController {
 impl CascadedController {
     /// The paper's controller designed on `design` (nominal structure with l3 = 0.079 by default).
     pub fn new(design: &PlatformParams, gains: OuterGains, limits: ActuatorLimits) -> Result<Self> {
+        Self::with_tuning(
+            design,
+            &Tuning {
+                gains,
+                ..Tuning::paper()
+            },
+            limits,
+        )
+    }
+
+    /// The cascade designed on `design` with the bandwidths of `tuning`.
+    pub fn with_tuning(
+        design: &PlatformParams,
+        tuning: &Tuning,
+        limits: ActuatorLimits,
+    ) -> Result<Self> {
         design.validate()?;
+        require_positive("rate_weight", tuning.rate_weight)?;
+        let gains = tuning.gains;
         for (name, v) in [
             ("w_xy", gains.w_xy),
             ("p_xy", gains.p_xy),
@@ -244,7 +328,8 @@ impl CascadedController {
         ] {
             require_positive(name, v)?;
         }
-        let (q, r) = InnerLqr::paper_weights();
+        let (_, r) = InnerLqr::paper_weights();
+        let q = Matrix3::identity() * tuning.rate_weight;
         Ok(Self {
             inner: InnerLqr::design(design, &q, &r)?,
             gains,

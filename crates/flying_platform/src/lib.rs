@@ -43,12 +43,13 @@ pub mod error;
 pub mod excitation;
 pub mod experiments;
 pub mod geometry;
+pub mod loop_analysis;
 pub mod model;
 pub mod nonlinear;
 pub mod params;
 pub mod simulate;
 
-pub use control::{ActuatorLimits, CascadedController, InnerLqr, OuterGains, YawLaw};
+pub use control::{ActuatorLimits, CascadedController, InnerLqr, OuterGains, Tuning, YawLaw};
 pub use effects::{Effect, EffectSet, MomentumDrag, ParamSpec};
 pub use error::{Error, Result};
 pub use excitation::{ExperimentDesign, ExperimentSlot, Multisine};
