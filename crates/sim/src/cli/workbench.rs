@@ -6,11 +6,11 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use super::Output;
-use crate::error::Result;
+use crate::error::{Result, SimError};
 use crate::progress::Progress;
 use crate::workbench::flying_platform::{embedded_dataset, FlyingPlatform};
 use crate::workbench::report::{json, table, write_report};
-use crate::workbench::{load, Discovery, EstimatorChoice, ModelStructure, Workbench};
+use crate::workbench::{cubli, load, Discovery, EstimatorChoice, ModelStructure, Workbench};
 
 /// Systems the workbench has a model structure for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -18,6 +18,8 @@ use crate::workbench::{load, Discovery, EstimatorChoice, ModelStructure, Workben
 pub enum System {
     /// Ducted-fan flying platform (hover-linear model, effects of the flying_platform crate).
     FlyingPlatform,
+    /// Reaction-wheel cube (time-domain prediction error, `discover` only).
+    Cubli,
 }
 
 /// Non-parametric estimator.
@@ -71,6 +73,13 @@ impl Common {
     fn workbench(&self) -> Result<Workbench> {
         let structure: Arc<dyn ModelStructure> = match self.system {
             System::FlyingPlatform => Arc::new(FlyingPlatform::default()),
+            System::Cubli => {
+                return Err(SimError::invalid(
+                    "system",
+                    "cubli",
+                    "compare and fit work on the flying platform; use `stabilis discover --system cubli --data ...`",
+                ))
+            }
         };
         let data = if self.data.is_empty() {
             embedded_dataset()?
@@ -103,9 +112,38 @@ impl Common {
     }
 }
 
+impl Common {
+    /// Cubli discovery (prediction error on the logs; no FRF, no HTML report yet).
+    fn discover_cubli(&self) -> Result<Output> {
+        if self.data.is_empty() {
+            return Err(SimError::invalid(
+                "data",
+                "(none)",
+                "--system cubli needs logs: --data run1.mcap run2.mcap ...",
+            ));
+        }
+        if let Some(dir) = &self.report {
+            return Err(SimError::invalid(
+                "report",
+                dir.display(),
+                "the HTML report is not available for --system cubli; use --json",
+            ));
+        }
+        let data = cubli::load_cubli(&self.data)?;
+        let d = cubli::discover(&data, &cubli::CubliOptions::default())?;
+        Ok(Output {
+            human: d.table(),
+            json: d.json(),
+        })
+    }
+}
+
 impl DiscoverArgs {
     /// Finds the missing effects step by step.
     pub fn run(&self) -> Result<Output> {
+        if self.common.system == System::Cubli {
+            return self.common.discover_cubli();
+        }
         let wb = self.common.workbench()?;
         let candidates = wb.model().candidates().len() as u64;
         // One unit per candidate fit of the at most `candidates` steps.
