@@ -5,7 +5,9 @@ use serde::Serialize;
 use super::diagnose::{diagnose, matched_sf, Diagnosis, LEVEL};
 use super::fit::{fit, FitResult, ParamEstimate};
 use super::model::Model;
+use super::residual::{residual_tests, ResidualTests, DEFAULT_LAGS};
 use super::stats::f_sf;
+use super::timedomain::{time_fit, TimeFit, DEFAULT_HORIZON, DEFAULT_WINDOW};
 use super::Workbench;
 use crate::error::Result;
 
@@ -52,6 +54,10 @@ pub struct Step {
     pub params: Vec<ParamEstimate>,
     /// Where the misfit sits.
     pub diagnosis: Diagnosis,
+    /// Time-domain fit % (simulation and k-step prediction) with its policy.
+    pub time_fit: TimeFit,
+    /// Whiteness and input correlation of the simulation residual.
+    pub residual_tests: ResidualTests,
     /// Candidates scored on this step's model (empty on the last step if at the noise level).
     pub candidates: Vec<CandidateScore>,
     /// Parameter vector (model order).
@@ -160,7 +166,7 @@ impl Workbench {
         base_cost: Option<f64>,
     ) -> Result<Step> {
         let r = fit(model, &self.cost, start, &self.fit_options())?;
-        Ok(self.step_from(model, added, r, base_cost))
+        self.step_from(model, added, r, base_cost)
     }
 
     fn step_from(
@@ -169,11 +175,24 @@ impl Workbench {
         added: Option<String>,
         r: FitResult,
         base_cost: Option<f64>,
-    ) -> Step {
+    ) -> Result<Step> {
+        let ss = model.state_space(&r.theta)?;
+        let (time_fit, runs) = time_fit(&self.data, &ss, DEFAULT_HORIZON, DEFAULT_WINDOW)?;
+        let residuals: Vec<_> = runs.iter().map(|(e, _, _)| e).collect();
+        let states: Vec<_> = runs.iter().map(|(_, x, _)| x).collect();
+        let inputs: Vec<_> = runs.iter().map(|(_, _, u)| u).collect();
+        let residual_tests = residual_tests(
+            &residuals,
+            &inputs,
+            &states,
+            &self.data.outputs,
+            &self.data.inputs,
+            DEFAULT_LAGS,
+        );
         let diagnosis = diagnose(&self.frf, &self.cost, &self.noise, &r.model_frf, r.free);
         let (expected, _) = self.noise.fitted_level(r.free);
         let base = base_cost.unwrap_or(r.cost);
-        Step {
+        Ok(Step {
             added,
             effects: model.enabled(),
             cost: r.cost,
@@ -181,10 +200,12 @@ impl Workbench {
             normalized_cost: r.cost / expected,
             params: r.params,
             diagnosis,
+            time_fit,
+            residual_tests,
             candidates: Vec::new(),
             theta: r.theta,
             model_frf: r.model_frf,
-        }
+        })
     }
 
     /// Probability of the step's cost under noise alone.
@@ -377,7 +398,7 @@ impl Workbench {
                 Some((with, r, i)) => {
                     let name = current.candidates[i].effect.clone();
                     found.push(name.clone());
-                    let next = self.step_from(&with, Some(name), r, Some(base_cost));
+                    let next = self.step_from(&with, Some(name), r, Some(base_cost))?;
                     steps.push(std::mem::replace(&mut current, next));
                     model = with;
                 }

@@ -7,7 +7,9 @@
 //!    closed loop), with its covariance from period-to-period variation;
 //! 2. the variance-weighted cost ([`cost`]) and what it would be from noise alone ([`noise`]);
 //! 3. Levenberg-Marquardt fits with standard errors ([`fit`]);
-//! 4. diagnosis by line and channel ([`diagnose`]) and the discovery loop ([`discover`]).
+//! 4. diagnosis by line and channel ([`diagnose`]), in the time domain ([`timedomain`]: fit %
+//!    of simulation and k-step prediction; [`residual`]: whiteness and input correlation) and
+//!    the discovery loop ([`discover`]).
 pub mod cost;
 pub mod cubli;
 pub mod dataset;
@@ -20,8 +22,10 @@ pub mod load;
 pub mod model;
 pub mod noise;
 pub mod report;
+pub mod residual;
 pub mod spectra;
 pub mod stats;
+pub mod timedomain;
 
 use std::sync::Arc;
 

@@ -133,33 +133,17 @@ impl StateSpace {
                 })
                 .collect();
         };
-        if !(self.delay.is_finite() && self.delay >= 0.0) {
-            return Err(SimError::invalid(
-                "delay",
-                self.delay,
-                "must be non-negative and finite",
-            ));
-        }
-        let whole = (self.delay / t).floor();
-        let frac = self.delay - whole * t;
-        let lti = |a: &DMatrix<f64>, b: &DMatrix<f64>, h: f64| {
-            rigid_body::lti::c2d_zoh(a, b, h)
-                .map_err(|e| SimError::domain("sampling the model (zero-order hold)", e))
-        };
-        let (phi, _) = lti(&self.a, &self.b, t)?;
-        let (gamma0, gamma1) = if frac > 1e-12 * t {
-            let (phi_rest, g0) = lti(&self.a, &self.b, t - frac)?;
-            let (_, gf) = lti(&self.a, &self.b, frac)?;
-            (g0, &phi_rest * gf)
-        } else {
-            (
-                lti(&self.a, &self.b, t)?.1,
-                DMatrix::zeros(self.b.nrows(), self.b.ncols()),
-            )
-        };
+        let super::timedomain::Discrete {
+            phi,
+            gamma0,
+            gamma1,
+            whole,
+            d_shift,
+            ..
+        } = self.discretize(t)?;
+        let (whole, d_shift) = (whole as f64, d_shift as f64);
         let n = self.a.nrows();
         let c = self.c.map(C64::from);
-        let d_shift = whole + if frac > 1e-12 * t { 1.0 } else { 0.0 };
         freqs_hz
             .iter()
             .map(|f| {

@@ -53,6 +53,7 @@ pub fn table(wb: &Workbench, d: &Discovery) -> String {
         }
         s.push('\n');
     }
+    time_domain_table(&mut s, d);
     let last = d.steps.last();
     if let Some(st) = last {
         for c in &st.candidates {
@@ -93,6 +94,74 @@ pub fn table(wb: &Workbench, d: &Discovery) -> String {
     s
 }
 
+/// Time-domain fit % per step (simulation and k-step prediction) with the stated policy, and
+/// the residual tests of the last step.
+fn time_domain_table(s: &mut String, d: &Discovery) {
+    let Some(first) = d.steps.first() else {
+        return;
+    };
+    let _ = writeln!(s, "time domain: {}", first.time_fit.policy);
+    let _ = write!(s, "{:<5} {:<16}", "step", "fit % of");
+    for (o, _) in &first.time_fit.prediction {
+        let _ = write!(s, " {o:>7}");
+    }
+    s.push('\n');
+    for (i, st) in d.steps.iter().enumerate() {
+        let tf = &st.time_fit;
+        let k = tf.horizon_samples;
+        let rows = [
+            ("simulation".to_string(), tf.simulation.as_ref()),
+            (format!("{k}-step pred."), Some(&tf.prediction)),
+            ("1-step pred.".to_string(), Some(&tf.one_step)),
+        ];
+        for (what, fits) in rows {
+            let _ = write!(s, "{i:<5} {what:<16}");
+            match fits {
+                Some(fits) => {
+                    for (_, f) in fits {
+                        let _ = write!(s, " {f:>7.1}");
+                    }
+                }
+                None => {
+                    let _ = write!(
+                        s,
+                        " not scored: unstable model (spectral radius {:.4}), the free run diverges",
+                        tf.spectral_radius
+                    );
+                }
+            }
+            s.push('\n');
+        }
+    }
+    if let Some(st) = d.steps.last() {
+        let r = &st.residual_tests;
+        let _ = writeln!(
+            s,
+            "residual tests (last step; {}; {} lags, 99% band +-{:.4}, {} samples):",
+            r.residual,
+            r.lags,
+            r.channels.first().map_or(0.0, |c| c.whiteness.band),
+            r.samples
+        );
+        for c in &r.channels {
+            let _ = writeln!(
+                s,
+                "  {:<4} {} (peak {:+.3} at lag {}, p = {:.1e}); correlated with past inputs: [{}]; strongest lag-0 correlation: input {} {:+.3}, state {} {:+.3}",
+                c.output,
+                if c.not_white { "not white" } else { "white" },
+                c.whiteness.peak,
+                c.whiteness.peak_lag,
+                c.whiteness.p_value,
+                c.correlated_inputs.join(", "),
+                c.input_correlation.as_ref().map_or("-", |(n, _)| n.as_str()),
+                c.input_correlation.as_ref().map_or(0.0, |(_, v)| *v),
+                c.state_correlation.map_or(0, |(i, _)| i),
+                c.state_correlation.map_or(0.0, |(_, v)| v),
+            );
+        }
+    }
+}
+
 /// The JSON document: `steps` (added, cost, params, ...), `found`, `unexplained`, and more.
 pub fn json(wb: &Workbench, d: &Discovery) -> Value {
     let steps: Vec<Value> = d
@@ -112,6 +181,8 @@ pub fn json(wb: &Workbench, d: &Discovery) -> Value {
                 "held": s.params.iter().filter(|p| p.held).map(|p| p.name.clone()).collect::<Vec<_>>(),
                 "poorly_determined": s.params.iter().filter(|p| p.poorly_determined).map(|p| p.name.clone()).collect::<Vec<_>>(),
                 "fit_percent": s.diagnosis.fit_percent.iter().map(|(n, f)| (n.clone(), json!(f))).collect::<serde_json::Map<_, _>>(),
+                "time_fit": s.time_fit,
+                "residual_tests": s.residual_tests,
                 "candidates": s.candidates,
                 "diagnosis": s.diagnosis,
             })
