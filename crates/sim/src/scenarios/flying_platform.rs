@@ -66,6 +66,10 @@ pub struct Args {
     /// Truth dynamics.
     #[arg(long, value_enum, default_value_t = DynamicsArg::Linear)]
     pub dynamics: DynamicsArg,
+    /// Controller bandwidths: `paper`, or `slow-actuators` (lower bandwidths that keep hover
+    /// stable with a 60-80 ms `actuator_lag` in the truth, where the paper's tuning diverges).
+    #[arg(long, default_value = "paper")]
+    pub tuning: String,
     /// Logged outputs lag the logged inputs by this many samples (outside the loop).
     #[arg(long, default_value_t = 0)]
     pub log_delay_samples: usize,
@@ -134,6 +138,14 @@ impl Args {
         };
         let mut cfg = SimConfig::reference(self.truth()?, dynamics, self.seed)
             .map_err(|e| SimError::domain("flying-platform controller", e))?;
+        let tuning = flying_platform::Tuning::from_name(&self.tuning)
+            .map_err(|e| SimError::invalid("tuning", &self.tuning, e.to_string()))?;
+        cfg.controller = flying_platform::CascadedController::with_tuning(
+            &PlatformParams::nominal(),
+            &tuning,
+            flying_platform::ActuatorLimits::default(),
+        )
+        .map_err(|e| SimError::domain("flying-platform controller", e))?;
         cfg.log_delay_samples = self.log_delay_samples;
         if self.noise_free {
             cfg.noise = Noise::none();
@@ -154,6 +166,9 @@ impl Args {
             "dynamics".into(),
             format!("{:?}", self.dynamics).to_lowercase(),
         );
+        experiment
+            .extra
+            .insert("tuning".into(), self.tuning.clone());
         experiment.extra.insert(
             "noise".into(),
             if self.noise_free { "off" } else { "paper" }.into(),
@@ -455,6 +470,31 @@ mod tests {
         )
         .unwrap();
         assert!(system.run().unwrap_err().to_string().contains("lambda"));
+        let system = SimSystem::parse_args("flying-platform", ["--tuning", "fast"]).unwrap();
+        let err = system.run().unwrap_err().to_string();
+        assert!(err.contains("tuning") && err.contains("fast"), "{err}");
+    }
+
+    #[test]
+    fn slow_actuator_tuning_flies_a_70_ms_lag() {
+        let args = |tuning: &'static str| {
+            [
+                "--effects",
+                "actuator_lag,input_delay",
+                "--set",
+                "tau=0.07",
+                "--tuning",
+                tuning,
+                "--duration",
+                "20",
+            ]
+        };
+        let slow = SimSystem::parse_args("flying-platform", args("slow-actuators")).unwrap();
+        let recording = slow.run().unwrap();
+        assert_eq!(recording.topics["/flying_platform/input"].len(), 1000);
+        let paper = SimSystem::parse_args("flying-platform", args("paper")).unwrap();
+        let err = paper.run().unwrap_err().to_string();
+        assert!(err.contains("diverged"), "{err}");
     }
 
     #[test]
