@@ -727,3 +727,45 @@ pub fn discover(data: &Dataset, opts: &CubliOptions) -> Result<CubliDiscovery> {
         level: LEVEL,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use rand::rngs::StdRng;
+    use rand::{Rng, SeedableRng};
+
+    proptest! {
+        /// Noise-free rows generated from known parameters are fitted back exactly, whatever
+        /// the channel weights.
+        #[test]
+        fn weighted_least_squares_recovers_generating_parameters(
+            theta in proptest::array::uniform5(-2.0f64..2.0),
+            seed in 0u64..1000,
+            w in proptest::array::uniform9(0.1f64..10.0),
+        ) {
+            let mut rng = StdRng::seed_from_u64(seed);
+            let mut next = || rng.random::<f64>() - 0.5;
+            let mut rows = Rows {
+                r: Vec::new(),
+                x: Vec::new(),
+                probes: Vec::new(),
+                channel: Vec::new(),
+                bias_basis: [Vector3::x(), Vector3::y()],
+            };
+            for i in 0..60 {
+                let x: [f64; NCOL] = std::array::from_fn(|_| next());
+                rows.r.push(x.iter().zip(&theta).map(|(a, b)| a * b).sum());
+                rows.x.push(x);
+                rows.channel.push(i % 9);
+                rows.probes.push(vec![1.0]);
+            }
+            let cols: Vec<usize> = (0..NCOL).collect();
+            let (est, rss, _) = wls(&rows, &w, &cols).unwrap();
+            for (e, t) in est.iter().zip(&theta) {
+                prop_assert!((e - t).abs() < 1e-9, "{e} vs {t}");
+            }
+            prop_assert!(rss < 1e-15);
+        }
+    }
+}
