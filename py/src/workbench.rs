@@ -60,10 +60,20 @@ impl Workbench {
         to_dict(py, &json(&self.inner, &d))
     }
 
-    /// Where the current model fails: misfit per line and output against the noise level.
+    /// Where the current model fails: misfit per line and output against the noise level,
+    /// time-domain fit % and the residual whiteness / input-correlation tests.
     fn diagnose<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let step = py.detach(|| self.inner.compare()).map_err(to_py_err)?;
-        let value = serde_json::to_value(&step.diagnosis).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let mut value = serde_json::to_value(&step.diagnosis).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        for (key, part) in [
+            ("time_fit", serde_json::to_value(&step.time_fit)),
+            ("residual_tests", serde_json::to_value(&step.residual_tests)),
+        ] {
+            let part = part.map_err(|e| PyValueError::new_err(e.to_string()))?;
+            if let Some(map) = value.as_object_mut() {
+                map.insert(key.to_string(), part);
+            }
+        }
         to_dict(py, &value)
     }
 
