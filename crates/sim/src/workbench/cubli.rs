@@ -21,8 +21,9 @@
 //! Significance follows the flying-platform loop ([`super::discover`]): F test of the nested
 //! models at the Bonferroni-corrected level and a lower BIC, best candidate first, repeat.
 //! The verdict tests each channel's final residual against generic probe regressors (a
-//! constant and the window integrals of every measured signal and input); a channel whose
-//! residual they explain significantly carries a structured misfit.
+//! constant and every measured signal and input at the sample before the window, which in
+//! closed loop is the latest one independent of the window's noise); a channel whose residual
+//! they explain significantly carries a structured misfit.
 //!
 //! Held parameters: the inertias Θ0, Θw and m are held at their documented values (a torque
 //! constant and an inertia scale enter only as their ratio); the gyro-bias component along the
@@ -166,7 +167,11 @@ fn build_rows(data: &Dataset, opts: &CubliOptions) -> Result<Rows> {
     };
     for e in &data.experiments {
         let n = e.y.nrows();
-        let start = e.periodic.map_or(opts.skip, |pl| pl.transient).min(n);
+        let start = e
+            .periodic
+            .map_or(opts.skip, |pl| pl.transient)
+            .max(1)
+            .min(n);
         let wh = |k: usize| Vector3::new(e.y[(k, 0)], e.y[(k, 1)], e.y[(k, 2)]);
         let ww = |k: usize| Vector3::new(e.y[(k, 3)], e.y[(k, 4)], e.y[(k, 5)]);
         let gh = |k: usize| Vector3::new(e.y[(k, 6)], e.y[(k, 7)], e.y[(k, 8)]);
@@ -185,8 +190,6 @@ fn build_rows(data: &Dataset, opts: &CubliOptions) -> Result<Rows> {
             let mut int_g = Vector3::zeros();
             let mut int_bias_h = [Vector3::zeros(); 2];
             let mut int_bias_g = [Vector3::zeros(); 2];
-            let mut int_wh = Vector3::zeros();
-            let mut int_ghat = Vector3::zeros();
             for k in k0..k1 {
                 int_t += tq(k) * h;
             }
@@ -197,8 +200,6 @@ fn build_rows(data: &Dataset, opts: &CubliOptions) -> Result<Rows> {
                 int_sign += wwk.map(smooth_sign) * c;
                 int_ph += (-w.cross(&p_h) + m.cross(&(g * gravity))) * c;
                 int_g += (-w.cross(&g)) * c;
-                int_wh += w * c;
-                int_ghat += g * c;
                 let mh = theta0 + Matrix3::from_diagonal(&theta_w);
                 for (j, b) in basis.iter().enumerate() {
                     // Measured rate = true + b: first-order change of the measured-data
@@ -210,12 +211,17 @@ fn build_rows(data: &Dataset, opts: &CubliOptions) -> Result<Rows> {
             let dpw = pw(k1) - pw(k0);
             let dph = ph(k1) - ph(k0);
             let dg = gh(k1) - gh(k0);
-            // Generic probes: constant and window integrals of all signals.
-            let mut probe = vec![h * nw as f64];
-            probe.extend(int_wh.iter());
-            probe.extend(int_ww.iter());
-            probe.extend(int_ghat.iter());
-            probe.extend(int_t.iter());
+            // Generic probes: a constant and every signal at the sample before the window,
+            // times its length. The residual carries the noise of the window's samples, and in
+            // closed loop everything measured inside the window reacts to it through the
+            // controller; the sample before belongs to the previous window, so the probes stay
+            // independent of this residual under the null and the F test stays calibrated.
+            let tw = h * nw as f64;
+            let before = k0 - 1;
+            let mut probe = vec![tw];
+            for v in [wh(before), ww(before), gh(before), tq(before)] {
+                probe.extend(v.iter().map(|x| x * tw));
+            }
             for i in 0..3 {
                 // Wheel i: residual = (k − 1) ∫T − c_v ∫ω_w − c_c ∫tanh.
                 rows.r.push(dpw[i] - int_t[i]);
