@@ -39,7 +39,9 @@ fn matrix(array: &PyReadonlyArrayDyn<'_, f64>, name: &str) -> PyResult<DMatrix<f
     let a = array.as_array();
     let m = DMatrix::from_fn(shape[0], shape[1], |i, j| a[[i, j]]);
     if m.iter().any(|v| !v.is_finite()) {
-        return Err(PyValueError::new_err(format!("{name} contains NaN or infinity")));
+        return Err(PyValueError::new_err(format!(
+            "{name} contains NaN or infinity"
+        )));
     }
     Ok(m)
 }
@@ -71,7 +73,17 @@ fn system(
         Some(v) => matrix(v, "V_sqrt")?,
         None => DMatrix::zeros(n, 1),
     };
-    System::new(a, matrix(b, "B")?, c, matrix(f, "F")?, outputs, inputs, w, v_sqrt).map_err(to_py_err)
+    System::new(
+        a,
+        matrix(b, "B")?,
+        c,
+        matrix(f, "F")?,
+        outputs,
+        inputs,
+        w,
+        v_sqrt,
+    )
+    .map_err(to_py_err)
 }
 
 /// The M-vehicle platoon of the paper: dict with A, B, C, F, outputs, inputs, W, V_sqrt and
@@ -196,7 +208,9 @@ fn simulate<'py>(
     if let Some(x0) = x0 {
         cfg.x0 = DVector::from_vec(x0);
     }
-    let r = py.detach(|| run_sim(&sys, &design, &cfg)).map_err(to_py_err)?;
+    let r = py
+        .detach(|| run_sim(&sys, &design, &cfg))
+        .map_err(to_py_err)?;
     let d = PyDict::new(py);
     d.set_item("rates", r.rates)?;
     d.set_item("total_rate", r.total_rate)?;

@@ -22,31 +22,48 @@ struct Workbench {
 }
 
 fn to_dict<'py>(py: Python<'py>, value: &serde_json::Value) -> PyResult<Bound<'py, PyAny>> {
-    py.import("json")?.call_method1("loads", (value.to_string(),))
+    py.import("json")?
+        .call_method1("loads", (value.to_string(),))
 }
 
 #[pymethods]
 impl Workbench {
     #[new]
     #[pyo3(signature = (system = "flying_platform", data = None, estimator = "auto"))]
-    fn new(py: Python<'_>, system: &str, data: Option<Vec<PathBuf>>, estimator: &str) -> PyResult<Self> {
+    fn new(
+        py: Python<'_>,
+        system: &str,
+        data: Option<Vec<PathBuf>>,
+        estimator: &str,
+    ) -> PyResult<Self> {
         let structure: Arc<dyn ModelStructure> = match system {
             "flying_platform" => Arc::new(FlyingPlatform::default()),
             other => {
-                return Err(PyValueError::new_err(format!("unknown system {other:?}; the workbench knows: flying_platform")))
+                return Err(PyValueError::new_err(format!(
+                    "unknown system {other:?}; the workbench knows: flying_platform"
+                )))
             }
         };
         let choice = match estimator {
             "auto" => EstimatorChoice::Auto,
             "ls" => EstimatorChoice::LeastSquares,
             "iv" => EstimatorChoice::InstrumentalVariable,
-            other => return Err(PyValueError::new_err(format!("unknown estimator {other:?}; use auto, ls or iv"))),
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "unknown estimator {other:?}; use auto, ls or iv"
+                )))
+            }
         };
         let inner = py
             .detach(|| {
                 let dataset = match &data {
                     None => embedded_dataset()?,
-                    Some(paths) => load::load(structure.system(), &structure.inputs(), &structure.outputs(), paths)?,
+                    Some(paths) => load::load(
+                        structure.system(),
+                        &structure.inputs(),
+                        &structure.outputs(),
+                        paths,
+                    )?,
                 };
                 sim::workbench::Workbench::new(structure, dataset, choice)
             })
@@ -56,7 +73,9 @@ impl Workbench {
 
     /// Fits the current model: a dict with `steps` (one), `found` (empty), `unexplained`.
     fn compare<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let d = py.detach(|| self.inner.compare().map(|s| self.inner.record(s))).map_err(to_py_err)?;
+        let d = py
+            .detach(|| self.inner.compare().map(|s| self.inner.record(s)))
+            .map_err(to_py_err)?;
         to_dict(py, &json(&self.inner, &d))
     }
 
@@ -64,7 +83,8 @@ impl Workbench {
     /// time-domain fit % and the residual whiteness / input-correlation tests.
     fn diagnose<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let step = py.detach(|| self.inner.compare()).map_err(to_py_err)?;
-        let mut value = serde_json::to_value(&step.diagnosis).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let mut value = serde_json::to_value(&step.diagnosis)
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
         for (key, part) in [
             ("time_fit", serde_json::to_value(&step.time_fit)),
             ("residual_tests", serde_json::to_value(&step.residual_tests)),
@@ -92,7 +112,9 @@ impl Workbench {
 
     /// Fits all parameters of the current model (same record as `compare`).
     fn fit<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let d = py.detach(|| self.inner.compare().map(|s| self.inner.record(s))).map_err(to_py_err)?;
+        let d = py
+            .detach(|| self.inner.compare().map(|s| self.inner.record(s)))
+            .map_err(to_py_err)?;
         let value = json(&self.inner, &d);
         self.last = Some(d);
         to_dict(py, &value)
@@ -104,7 +126,9 @@ impl Workbench {
             self.last = Some(py.detach(|| self.inner.discover()).map_err(to_py_err)?);
         }
         match &self.last {
-            Some(d) => py.detach(|| write_report(&dir, &self.inner, d)).map_err(to_py_err),
+            Some(d) => py
+                .detach(|| write_report(&dir, &self.inner, d))
+                .map_err(to_py_err),
             None => Err(PyValueError::new_err("nothing to report")),
         }
     }
