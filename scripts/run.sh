@@ -5,5 +5,6 @@
 # write out/discover.json and the report out/report/index.html.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+scripts/setup.sh
 mkdir -p out
 cargo run --release -q -p sim --bin stabilis -- discover --report out/report --json out/discover.json
