@@ -93,6 +93,8 @@ pub struct FrfEstimate {
     pub periods: Vec<usize>,
     /// Complex degrees of freedom of the pooled noise covariance.
     pub noise_dof: usize,
+    /// Segmentation of a Welch estimate (non-periodic logs).
+    pub welch: Option<super::welch::WelchLayout>,
 }
 
 impl FrfEstimate {
@@ -103,6 +105,19 @@ impl FrfEstimate {
     /// Number of inputs.
     pub fn nu(&self) -> usize {
         self.inputs.len()
+    }
+    /// The estimator, and for a Welch estimate its segmentation, in words.
+    pub fn describe(&self) -> String {
+        match &self.welch {
+            Some(w) => format!(
+                "{}, Hann segments of {} samples ({:.3} Hz resolution), 50% overlap, {} segments",
+                self.estimator.describe(),
+                w.segment,
+                w.resolution_hz,
+                w.segments
+            ),
+            None => self.estimator.describe().to_string(),
+        }
     }
     /// Line frequencies in Hz.
     pub fn freqs_hz(&self) -> Vec<f64> {
@@ -282,6 +297,7 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
         lines,
         periods,
         noise_dof,
+        welch: None,
     })
 }
 

@@ -4,7 +4,8 @@
 //! The chain is the flying-platform paper's identification made general:
 //! 1. a non-parametric FRF from all experiments ([`frf`]: least squares, or the
 //!    instrumental-variable estimate when the excitation is logged, which stays unbiased in
-//!    closed loop), with its covariance from period-to-period variation;
+//!    closed loop), with its covariance from period-to-period variation; for non-periodic logs
+//!    the Welch estimate ([`welch`]: H1, or its instrumental-variable form with the excitation);
 //! 2. the variance-weighted cost ([`cost`]) and what it would be from noise alone ([`noise`]);
 //! 3. Levenberg-Marquardt fits with standard errors ([`fit`]);
 //! 4. diagnosis by line and channel ([`diagnose`]), in the time domain ([`timedomain`]: fit %
@@ -26,6 +27,7 @@ pub mod residual;
 pub mod spectra;
 pub mod stats;
 pub mod timedomain;
+pub mod welch;
 
 use std::sync::Arc;
 
@@ -89,9 +91,17 @@ impl Workbench {
                 ));
             }
         }
-        let frf = frf::periodic_frf(&data, estimator)?;
+        let (frf, noise) = if data.is_periodic() {
+            let frf = frf::periodic_frf(&data, estimator)?;
+            let noise = NoiseReference::periodic(&frf, NOISE_DRAWS, 0x5eed)?;
+            (frf, noise)
+        } else {
+            let segment = welch::segment_length(data.sample_rate_hz, welch::BAND_HZ.0);
+            let w = welch::welch_frf(&data, estimator, welch::BAND_HZ, segment)?;
+            let noise = w.noise_reference(NOISE_DRAWS, 0x5eed)?;
+            (w.frf, noise)
+        };
         let cost = WeightedCost::new(&frf)?;
-        let noise = NoiseReference::periodic(&frf, NOISE_DRAWS, 0x5eed)?;
         Ok(Self {
             data,
             frf,

@@ -79,9 +79,57 @@ impl ComplexWishart {
     }
 }
 
+/// One Monte-Carlo draw at line `k`: the FRF error and the noise covariance estimate.
+pub(crate) type LineDraw<'a> = dyn FnMut(usize, &mut StdRng) -> Result<(CMatrix, CMatrix)> + 'a;
+
+/// A circular complex normal draw, `CN(0, 1)`.
+pub(crate) fn complex_normal(rng: &mut StdRng) -> C64 {
+    let scale = std::f64::consts::FRAC_1_SQRT_2;
+    let re: f64 = rng.sample(StandardNormal);
+    let im: f64 = rng.sample(StandardNormal);
+    C64::new(re * scale, im * scale)
+}
+
 impl NoiseReference {
     /// Draws the reference for a periodic estimate (`draws` Monte-Carlo samples, seeded).
     pub fn periodic(frf: &FrfEstimate, draws: usize, seed: u64) -> Result<Self> {
+        let (ny, nu) = (frf.ny(), frf.nu());
+        let dof = frf.noise_dof;
+        let wishart = ComplexWishart::new(ny, dof)?;
+        let ms: Vec<CMatrix> = frf
+            .lines
+            .iter()
+            .map(|line| {
+                let mut m = CMatrix::zeros(nu, nu);
+                for (e, &p) in frf.periods.iter().enumerate() {
+                    let we = line.weights.row(e).transpose();
+                    m += &we * we.adjoint() / C64::from(p as f64);
+                }
+                m
+            })
+            .collect();
+        Self::from_draws(&ms, ny, draws, seed, &mut |k, rng| {
+            let w = &frf.lines[k].weights;
+            let mut err = CMatrix::zeros(ny, nu);
+            for (e, &p) in frf.periods.iter().enumerate() {
+                let mean = CMatrix::from_fn(ny, 1, |_, _| complex_normal(rng) / (p as f64).sqrt());
+                err += &mean * w.row(e);
+            }
+            let s = wishart.sample(rng, &complex_normal) / C64::from(dof as f64);
+            Ok((err, s))
+        })
+    }
+
+    /// The reference from joint draws, per line `k`, of the FRF error `E` and the noise
+    /// covariance estimate `Ŝ` for unit noise (`draw(k, rng)`), where `Cov(vec Ĝ) = M_k ⊗ S`:
+    /// the statistic of each draw is the line's cost `tr(E^H Ŝ^-1 E M_k^-T)`.
+    pub(crate) fn from_draws(
+        ms: &[CMatrix],
+        ny: usize,
+        draws: usize,
+        seed: u64,
+        draw: &mut LineDraw<'_>,
+    ) -> Result<Self> {
         if draws < 20 {
             return Err(SimError::invalid(
                 "draws",
@@ -89,27 +137,13 @@ impl NoiseReference {
                 "need at least 20 Monte-Carlo draws",
             ));
         }
-        let (ny, nu) = (frf.ny(), frf.nu());
-        let nl = frf.lines.len();
+        let nu = ms.first().map_or(0, |m| m.nrows());
+        let nl = ms.len();
         let mut rng = StdRng::seed_from_u64(seed);
         let mut line_draws = vec![vec![0.0; draws]; nl];
         let mut row_draws = vec![vec![0.0; draws]; ny];
         let mut entry_mean = DMatrix::zeros(ny, nu);
-        let dof = frf.noise_dof;
-        let scale = std::f64::consts::FRAC_1_SQRT_2;
-        let normal = |rng: &mut StdRng| {
-            let re: f64 = rng.sample(StandardNormal);
-            let im: f64 = rng.sample(StandardNormal);
-            C64::new(re * scale, im * scale)
-        };
-        let wishart = ComplexWishart::new(ny, dof)?;
-        for (k, line) in frf.lines.iter().enumerate() {
-            let w = &line.weights;
-            let mut m = CMatrix::zeros(nu, nu);
-            for (e, &p) in frf.periods.iter().enumerate() {
-                let we = w.row(e).transpose();
-                m += &we * we.adjoint() / C64::from(p as f64);
-            }
+        for (k, m) in ms.iter().enumerate() {
             let m_inv_t = m
                 .clone()
                 .try_inverse()
@@ -122,12 +156,7 @@ impl NoiseReference {
                 })?
                 .transpose();
             for d in 0..draws {
-                let mut err = CMatrix::zeros(ny, nu);
-                for (e, &p) in frf.periods.iter().enumerate() {
-                    let mean = CMatrix::from_fn(ny, 1, |_, _| normal(&mut rng) / (p as f64).sqrt());
-                    err += &mean * w.row(e);
-                }
-                let s = wishart.sample(&mut rng, &normal) / C64::from(dof as f64);
+                let (err, s) = draw(k, &mut rng)?;
                 let s_inv = s.clone().try_inverse().ok_or_else(|| {
                     SimError::invalid("noise reference", "singular draw", "too few periods")
                 })?;

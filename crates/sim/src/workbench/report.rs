@@ -21,7 +21,7 @@ pub fn table(wb: &Workbench, d: &Discovery) -> String {
         wb.frf().lines.first().map_or(0.0, |l| l.freq_hz),
         wb.frf().lines.last().map_or(0.0, |l| l.freq_hz),
         wb.data().experiments.len(),
-        wb.frf().estimator.describe()
+        wb.frf().describe()
     );
     let _ = writeln!(
         s,
@@ -443,7 +443,7 @@ fn html(wb: &Workbench, d: &Discovery) -> String {
         body,
         "<h1>stabilis workbench: {}</h1><p>Estimator: {}. {} excited lines, {} experiments. Expected cost of the true model from noise alone: {:.0}.</p>",
         escape(wb.model().structure().system()),
-        frf.estimator.describe(),
+        frf.describe(),
         f.len(),
         wb.data().experiments.len(),
         wb.noise().mean()

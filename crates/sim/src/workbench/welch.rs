@@ -1,0 +1,501 @@
+//! Non-parametric FRF from non-periodic logs: Welch-averaged cross-spectra.
+//!
+//! Each record is cut into linearly detrended, Hann-windowed segments with 50% overlap; the segment length puts
+//! the lower band edge on the second DFT bin, so the lowest line is resolved and clear of the
+//! window's leakage from DC. Per line the segment spectra are stacked like the experiments of
+//! the periodic estimate, `Ĝ = Y W` with `W = U^H (U U^H)^-1` (H1, `S_yu S_uu^-1`) or, when the
+//! excitation R is logged, `W = R^H (U R^H)^-1` (instrumental variable, `S_yr S_ur^-1`: under
+//! feedback the noise reaches U and biases H1, but not R). The noise covariance is estimated
+//! from the regression residuals `Y - Ĝ U` with `segments - inputs` degrees of freedom, and
+//! `Cov(vec Ĝ) = M ⊗ S` with `M = Σ_st ρ_st w_s w_t^H`, where `ρ` is the correlation of
+//! neighbouring overlapping segments (1/6 for Hann at 50%, sign `(-1)^k` at bin k).
+use nalgebra::DMatrix;
+use rand::rngs::StdRng;
+use serde::Serialize;
+
+use super::dataset::Dataset;
+use super::frf::{invert, CMatrix, Estimator, EstimatorChoice, FrfEstimate, FrfLine};
+use super::noise::{complex_normal, NoiseReference};
+use super::spectra::{Dft, C64};
+use crate::error::{Result, SimError};
+
+/// Band resolved by the estimate, Hz (the flying platform's identification band).
+pub const BAND_HZ: (f64, f64) = (0.2, 4.0);
+
+/// How the records were segmented.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct WelchLayout {
+    /// Samples per segment.
+    pub segment: usize,
+    /// Samples shared by neighbouring segments (half a segment).
+    pub overlap: usize,
+    /// Segments over all experiments.
+    pub segments: usize,
+    /// Frequency resolution (bin spacing), Hz.
+    pub resolution_hz: f64,
+}
+
+/// DFT bin of the band's lower edge: the second, the shortest segment that keeps the lowest
+/// line clear of the window's leakage from DC (on the first bin the cost of clean data is
+/// hundreds of times the noise level). Longer segments mean fewer segments, and in closed
+/// loop the instrumental-variable estimate from few segments keeps a finite-sample bias
+/// towards H1 at the low lines, where feedback of noise dominates the input.
+pub const LOWER_EDGE_BIN: usize = 2;
+
+/// Segment length that puts `f_low` on bin [`LOWER_EDGE_BIN`]: `2 fs / f_low`, rounded up to
+/// even.
+pub fn segment_length(sample_rate_hz: f64, f_low: f64) -> usize {
+    let l = (LOWER_EDGE_BIN as f64 * sample_rate_hz / f_low).ceil() as usize;
+    l + l % 2
+}
+
+/// Periodic Hann window `sin^2(pi n / L)`.
+pub fn hann(l: usize) -> Vec<f64> {
+    (0..l)
+        .map(|n| (std::f64::consts::PI * n as f64 / l as f64).sin().powi(2))
+        .collect()
+}
+
+/// Correlation at bin `k` of the windowed DFTs of white noise in two segments half a window
+/// apart: `(-1)^k Σ w(n) w(n - L/2) / Σ w(n)^2`.
+pub fn overlap_correlation(window: &[f64], k: usize) -> f64 {
+    let l = window.len();
+    let d = l / 2;
+    let cross: f64 = (d..l).map(|n| window[n] * window[n - d]).sum();
+    let energy: f64 = window.iter().map(|w| w * w).sum();
+    let c = cross / energy;
+    if k % 2 == 0 {
+        c
+    } else {
+        -c
+    }
+}
+
+/// `x` minus its least-squares straight line. Slow drift (closed-loop wander under process
+/// noise, far below the band) spans many segments; through the window's side lobes it would
+/// reach the lowest lines as noise correlated far beyond neighbouring segments, which the
+/// overlap correlation does not describe. Removing each segment's linear trend removes it.
+pub fn detrended(x: &[f64]) -> Vec<f64> {
+    let n = x.len() as f64;
+    let tm = (n - 1.0) / 2.0;
+    let xm = x.iter().sum::<f64>() / n;
+    let (mut sxy, mut sxx) = (0.0, 0.0);
+    for (i, v) in x.iter().enumerate() {
+        let t = i as f64 - tm;
+        sxy += t * (v - xm);
+        sxx += t * t;
+    }
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    x.iter()
+        .enumerate()
+        .map(|(i, v)| v - xm - slope * (i as f64 - tm))
+        .collect()
+}
+
+/// A Welch estimate with what its noise reference needs.
+#[derive(Debug, Clone)]
+pub struct WelchEstimate {
+    /// The FRF (lines in the band; `u_mean`/`y_mean` hold the segment spectra).
+    pub frf: FrfEstimate,
+    /// The segmentation.
+    pub layout: WelchLayout,
+    /// Segments per experiment (neighbours within one experiment overlap).
+    pub per_experiment: Vec<usize>,
+    /// Overlap correlation per line.
+    pub rho: Vec<f64>,
+}
+
+/// Pairs `(s, s + 1)` of overlapping segments.
+fn neighbours(per_experiment: &[usize]) -> Vec<usize> {
+    let mut out = Vec::new();
+    let mut base = 0;
+    for &n in per_experiment {
+        out.extend((base..base + n).take(n.saturating_sub(1)));
+        base += n;
+    }
+    out
+}
+
+/// `M = Σ_s w_s w_s^H + ρ Σ_neighbours (w_s w_{s+1}^H + w_{s+1} w_s^H)`.
+fn weight_covariance(w: &CMatrix, rho: f64, pairs: &[usize]) -> CMatrix {
+    let mut m = w.transpose() * w.conjugate();
+    for &s in pairs {
+        let a = w.row(s).transpose();
+        let b = w.row(s + 1).transpose();
+        let cross = &a * b.adjoint();
+        m += (&cross + cross.adjoint()) * C64::from(rho);
+    }
+    m
+}
+
+/// Welch FRF of the non-periodic experiments of `data` on the lines of `band_hz`, with
+/// segments of `segment` samples (even; [`segment_length`] gives the workbench's choice).
+pub fn welch_frf(
+    data: &Dataset,
+    choice: EstimatorChoice,
+    band_hz: (f64, f64),
+    segment: usize,
+) -> Result<WelchEstimate> {
+    data.validate()?;
+    let use_iv = match choice {
+        EstimatorChoice::LeastSquares => false,
+        EstimatorChoice::Auto => data.has_excitation(),
+        EstimatorChoice::InstrumentalVariable => {
+            if let Some(e) = data.experiments.iter().find(|e| e.r.is_none()) {
+                return Err(SimError::invalid(
+                    format!("excitation of {}", e.name),
+                    "absent",
+                    "the instrumental-variable estimate needs the logged excitation topic",
+                ));
+            }
+            true
+        }
+    };
+    let fs = data.sample_rate_hz;
+    let (nu, ny) = (data.inputs.len(), data.outputs.len());
+    if !(band_hz.0 > 0.0 && band_hz.1 > band_hz.0 && band_hz.1 < fs / 2.0) {
+        return Err(SimError::invalid(
+            "band_hz",
+            format!("{:?}", band_hz),
+            format!("need 0 < low < high < Nyquist ({} Hz)", fs / 2.0),
+        ));
+    }
+    if segment < 8 || segment % 2 != 0 {
+        return Err(SimError::invalid(
+            "Welch segment length",
+            segment,
+            "need an even number of at least 8 samples",
+        ));
+    }
+    let l = segment;
+    let hop = l / 2;
+    let per_experiment: Vec<usize> = data
+        .experiments
+        .iter()
+        .map(|e| {
+            let n = e.u.nrows();
+            if n >= l {
+                (n - l) / hop + 1
+            } else {
+                0
+            }
+        })
+        .collect();
+    let segments: usize = per_experiment.iter().sum();
+    let needed = nu + ny + 1;
+    if segments < needed {
+        return Err(SimError::invalid(
+            "samples",
+            format!("{segments} Welch segments of {l}"),
+            format!(
+                "too short for the excited band: resolving {} Hz at {fs} Hz needs segments of {l} samples, and {nu} inputs with {ny} outputs need at least {needed} segments ({} samples in one record)",
+                band_hz.0,
+                (needed + 1) * hop
+            ),
+        ));
+    }
+    let resolution_hz = fs / l as f64;
+    let k_lo = (band_hz.0 / resolution_hz - 1e-9).ceil() as usize;
+    let k_hi = ((band_hz.1 / resolution_hz + 1e-9).floor() as usize).min(l / 2 - 1);
+    let bins: Vec<usize> = (k_lo.max(1)..=k_hi).collect();
+    let window = hann(l);
+    let dft = Dft::new(l);
+    // Segment spectra per bin: channels x segments.
+    let spectra = |pick: &dyn Fn(&super::dataset::Experiment) -> Option<&DMatrix<f64>>,
+                   rows: usize|
+     -> Vec<CMatrix> {
+        let mut out = vec![CMatrix::zeros(rows, segments); bins.len()];
+        let mut s0 = 0;
+        for (e, &ns) in data.experiments.iter().zip(&per_experiment) {
+            if let Some(m) = pick(e) {
+                for s in 0..ns {
+                    let start = s * hop;
+                    for c in 0..rows {
+                        let seg: Vec<f64> = (0..l).map(|i| m[(start + i, c)]).collect();
+                        let x = detrended(&seg);
+                        for (b, &k) in bins.iter().enumerate() {
+                            let xw = x.iter().zip(&window).map(|(v, w)| v * w);
+                            out[b][(c, s0 + s)] = dft.bin(xw, k);
+                        }
+                    }
+                }
+            }
+            s0 += ns;
+        }
+        out
+    };
+    let u = spectra(&|e| Some(&e.u), nu);
+    let y = spectra(&|e| Some(&e.y), ny);
+    let r = if use_iv {
+        Some(spectra(&|e| e.r.as_ref(), nu))
+    } else {
+        None
+    };
+    let pairs = neighbours(&per_experiment);
+    let dof = segments - nu;
+    let mut lines = Vec::with_capacity(bins.len());
+    let mut rho = Vec::with_capacity(bins.len());
+    for (b, &k) in bins.iter().enumerate() {
+        let freq_hz = k as f64 * resolution_hz;
+        let weights = match &r {
+            Some(r) => r[b].adjoint() * invert(&(&u[b] * r[b].adjoint()), "S_ur", freq_hz)?,
+            None => u[b].adjoint() * invert(&(&u[b] * u[b].adjoint()), "S_uu", freq_hz)?,
+        };
+        let g = &y[b] * &weights;
+        let res = &y[b] - &g * &u[b];
+        let s = &res * res.adjoint() / C64::from(dof as f64);
+        let rk = overlap_correlation(&window, k);
+        let m = weight_covariance(&weights, rk, &pairs);
+        let coherence = coherence(&u[b], &y[b], &g);
+        lines.push(FrfLine {
+            freq_hz,
+            g,
+            cov: m.kronecker(&s),
+            weights,
+            period_noise: s.clone(),
+            u_mean: u[b].clone(),
+            y_mean: y[b].clone(),
+            coherence: Some(coherence),
+            kronecker: Some((m, s)),
+        });
+        rho.push(rk);
+    }
+    let layout = WelchLayout {
+        segment: l,
+        overlap: hop,
+        segments,
+        resolution_hz,
+    };
+    Ok(WelchEstimate {
+        frf: FrfEstimate {
+            estimator: if use_iv {
+                Estimator::H1WelchInstrumental
+            } else {
+                Estimator::H1Welch
+            },
+            inputs: data.inputs.clone(),
+            outputs: data.outputs.clone(),
+            sample_rate_hz: fs,
+            lines,
+            periods: vec![1; segments],
+            noise_dof: dof,
+            welch: Some(layout),
+        },
+        layout,
+        per_experiment,
+        rho,
+    })
+}
+
+/// Multiple coherence per output: the share of the output's segment power that the estimate
+/// explains through the inputs, `|Ĝ_i U|^2 / |Y_i|^2` (1 without noise, 0 without a relation).
+fn coherence(u: &CMatrix, y: &CMatrix, g: &CMatrix) -> Vec<f64> {
+    let fit = g * u;
+    (0..y.nrows())
+        .map(|i| {
+            let total: f64 = y.row(i).iter().map(|v| v.norm_sqr()).sum();
+            let explained: f64 = fit.row(i).iter().map(|v| v.norm_sqr()).sum();
+            if total > 0.0 {
+                (explained / total).min(1.0)
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+impl WelchEstimate {
+    /// Monte-Carlo reference of the cost at the true parameters for this estimator: per line,
+    /// unit noise with the overlap correlation between neighbouring segments (moving average
+    /// of two independent draws), the error `E = V W`, the residual covariance of `V - E U`
+    /// with the same degrees of freedom as the estimate, and the cost statistic. The segment
+    /// spectra U are held at their measured values, and the noise spectrum is taken as flat
+    /// over the window's main lobe (that is what makes `ρ` the white-noise value).
+    pub fn noise_reference(&self, draws: usize, seed: u64) -> Result<NoiseReference> {
+        let frf = &self.frf;
+        let (ny, nu) = (frf.ny(), frf.nu());
+        let pairs = neighbours(&self.per_experiment);
+        let ms: Vec<CMatrix> = frf
+            .lines
+            .iter()
+            .zip(&self.rho)
+            .map(|(line, &r)| weight_covariance(&line.weights, r, &pairs))
+            .collect();
+        let dof = frf.noise_dof;
+        let segments = self.layout.segments;
+        let mut draw = |k: usize, rng: &mut StdRng| -> Result<(CMatrix, CMatrix)> {
+            let line = &frf.lines[k];
+            let r = self.rho[k];
+            let root_plus = (1.0 + 2.0 * r).sqrt();
+            let root_minus = (1.0 - 2.0 * r).sqrt();
+            let (a, b) = (
+                0.5 * (root_plus + root_minus),
+                0.5 * (root_plus - root_minus),
+            );
+            let mut v = CMatrix::zeros(ny, segments);
+            let mut s0 = 0;
+            for &n in &self.per_experiment {
+                let z = CMatrix::from_fn(ny, n + 1, |_, _| complex_normal(rng));
+                for s in 0..n {
+                    for i in 0..ny {
+                        v[(i, s0 + s)] = z[(i, s)] * a + z[(i, s + 1)] * b;
+                    }
+                }
+                s0 += n;
+            }
+            let err = &v * &line.weights;
+            let res = &v - &err * &line.u_mean;
+            let s = &res * res.adjoint() / C64::from(dof as f64);
+            debug_assert_eq!(err.ncols(), nu);
+            Ok((err, s))
+        };
+        NoiseReference::from_draws(&ms, ny, draws, seed, &mut draw)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::workbench::dataset::Experiment;
+    use proptest::prelude::*;
+    use rand::{Rng, SeedableRng};
+    use rand_distr::StandardNormal;
+
+    /// Hann at 50% overlap: Σ w(n) w(n - L/2) / Σ w^2 = (L/16) / (3L/8) = 1/6 (Welch 1967).
+    #[test]
+    fn hann_overlap_correlation_is_one_sixth() {
+        let w = hann(500);
+        assert!((overlap_correlation(&w, 4) - 1.0 / 6.0).abs() < 1e-12);
+        assert!((overlap_correlation(&w, 5) + 1.0 / 6.0).abs() < 1e-12);
+    }
+
+    /// The measured correlation of neighbouring segment spectra of white noise matches `ρ`.
+    #[test]
+    fn overlap_correlation_matches_white_noise() {
+        let l = 64;
+        let (w, dft) = (hann(l), Dft::new(l));
+        let mut rng = StdRng::seed_from_u64(3);
+        let x: Vec<f64> = (0..200_000).map(|_| rng.sample(StandardNormal)).collect();
+        let k = 5;
+        let spec: Vec<C64> = (0..(x.len() - l) / (l / 2))
+            .map(|s| dft.bin((0..l).map(|i| w[i] * x[s * l / 2 + i]), k))
+            .collect();
+        let power: f64 = spec.iter().map(|v| v.norm_sqr()).sum::<f64>() / spec.len() as f64;
+        let cross: C64 =
+            spec.windows(2).map(|p| p[0] * p[1].conj()).sum::<C64>() / (spec.len() - 1) as f64;
+        let measured = cross.re / power;
+        assert!(
+            (measured - overlap_correlation(&w, k)).abs() < 0.02,
+            "{measured}"
+        );
+    }
+
+    fn first_order(seed: u64, n: usize, noise: f64, feedback: f64) -> Dataset {
+        // y[i] = 0.8 y[i-1] + 0.5 u[i-1] + v; u = r - feedback * y (closed loop when > 0).
+        let mut rng = StdRng::seed_from_u64(seed);
+        let mut u = DMatrix::zeros(n, 1);
+        let mut y = DMatrix::zeros(n, 1);
+        let mut r = DMatrix::zeros(n, 1);
+        let mut state = 0.0;
+        let mut prev_u = 0.0;
+        for i in 0..n {
+            state = 0.8 * state + 0.5 * prev_u;
+            let v: f64 = rng.sample::<f64, _>(StandardNormal) * noise;
+            y[(i, 0)] = state + v;
+            r[(i, 0)] = rng.sample(StandardNormal);
+            u[(i, 0)] = r[(i, 0)] - feedback * y[(i, 0)];
+            prev_u = u[(i, 0)];
+        }
+        Dataset {
+            sample_rate_hz: 10.0,
+            inputs: vec!["u".into()],
+            outputs: vec!["y".into()],
+            experiments: vec![Experiment {
+                name: "log".into(),
+                u,
+                y,
+                r: Some(r),
+                periodic: None,
+            }],
+        }
+    }
+
+    /// Closed form `G(z) = 0.5 z^-1 / (1 - 0.8 z^-1)` at frequency f.
+    fn truth(f: f64, fs: f64) -> C64 {
+        let z1 = C64::from_polar(1.0, -2.0 * std::f64::consts::PI * f / fs);
+        z1 * 0.5 / (C64::from(1.0) - z1 * 0.8)
+    }
+
+    #[test]
+    fn iv_recovers_closed_form_under_feedback_where_h1_is_biased() {
+        let data = first_order(1, 100_000, 0.5, 0.6);
+        let iv = welch_frf(
+            &data,
+            EstimatorChoice::Auto,
+            (0.2, 4.0),
+            segment_length(10.0, 0.2),
+        )
+        .unwrap();
+        let h1 = welch_frf(
+            &data,
+            EstimatorChoice::LeastSquares,
+            (0.2, 4.0),
+            segment_length(10.0, 0.2),
+        )
+        .unwrap();
+        assert_eq!(iv.frf.estimator, Estimator::H1WelchInstrumental);
+        assert_eq!(iv.layout.segment, 100);
+        let (mut worst_iv, mut worst_h1) = (0.0f64, 0.0f64);
+        for (a, b) in iv.frf.lines.iter().zip(&h1.frf.lines) {
+            let g = truth(a.freq_hz, 10.0);
+            // Error in units of the estimate's own standard deviation.
+            let sd = a.cov[(0, 0)].re.sqrt();
+            worst_iv = worst_iv.max((a.g[(0, 0)] - g).norm() / sd);
+            worst_h1 = worst_h1.max((b.g[(0, 0)] - g).norm() / g.norm());
+        }
+        assert!(worst_iv < 4.5, "IV error {worst_iv} standard deviations");
+        assert!(worst_h1 > 0.1, "H1 relative bias {worst_h1}");
+    }
+
+    #[test]
+    fn too_short_record_is_named() {
+        let data = first_order(2, 150, 0.1, 0.0);
+        let msg = welch_frf(
+            &data,
+            EstimatorChoice::Auto,
+            (0.2, 4.0),
+            segment_length(10.0, 0.2),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(msg.contains("too short for the excited band"), "{msg}");
+    }
+
+    #[test]
+    fn detrending_removes_a_line_and_keeps_a_sine() {
+        let x: Vec<f64> = (0..100).map(|i| 3.0 - 0.5 * i as f64).collect();
+        assert!(detrended(&x).iter().all(|v| v.abs() < 1e-9));
+        // Adding a line to any signal does not change its detrended version.
+        let s: Vec<f64> = (0..100).map(|i| (0.3 * i as f64).sin()).collect();
+        let shifted: Vec<f64> = s.iter().zip(&x).map(|(a, b)| a + b).collect();
+        let (d, e) = (detrended(&s), detrended(&shifted));
+        assert!(d.iter().zip(&e).all(|(a, b)| (a - b).abs() < 1e-9));
+    }
+
+    proptest! {
+        /// `M` is Hermitian and positive definite for |ρ| <= 1/6 (the covariance of a sum).
+        #[test]
+        fn weight_covariance_is_hermitian_positive(
+            re in proptest::collection::vec(-1.0f64..1.0, 12),
+            im in proptest::collection::vec(-1.0f64..1.0, 12),
+            rho in -1.0f64 / 6.0..1.0 / 6.0,
+        ) {
+            let w = CMatrix::from_fn(6, 2, |i, j| C64::new(re[2 * i + j], im[2 * i + j]));
+            let m = weight_covariance(&w, rho, &neighbours(&[4, 2]));
+            prop_assert!((&m - m.adjoint()).norm() < 1e-12);
+            let e = m.clone().symmetric_eigenvalues();
+            let min = e.iter().cloned().fold(f64::INFINITY, f64::min);
+            prop_assert!(min > -1e-12, "{:?}", m);
+        }
+    }
+}
