@@ -128,6 +128,9 @@ fn drag_and_gyroscopic_truth_finds_drag_first() {
     );
 }
 
+/// Seed 12 gives an empty `found`. This is not yet robust: seeds 13, 14 and 15 of the same
+/// flight find `momentum_drag` on clean data (the instrumental-variable estimate at the lowest
+/// lines keeps an excess over the noise reference that drag absorbs), see the README.
 #[test]
 fn low_complexity_truth_finds_nothing() {
     let d = discover(&[], 12);
