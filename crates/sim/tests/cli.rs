@@ -92,7 +92,11 @@ fn same_seed_gives_the_same_run() {
         .stdout
     };
     let first = run("9");
-    assert_eq!(first, run("9"), "a second run with seed 9 must reproduce the first");
+    assert_eq!(
+        first,
+        run("9"),
+        "a second run with seed 9 must reproduce the first"
+    );
     assert_ne!(first, run("10"), "another seed must give other noise");
 }
 
