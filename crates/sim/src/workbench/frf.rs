@@ -161,20 +161,7 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
             format!("all experiments must share one period; the first has {n}"),
         ));
     }
-    let use_iv = match choice {
-        EstimatorChoice::LeastSquares => false,
-        EstimatorChoice::Auto => data.has_excitation(),
-        EstimatorChoice::InstrumentalVariable => {
-            if let Some(e) = data.experiments.iter().find(|e| e.r.is_none()) {
-                return Err(SimError::invalid(
-                    format!("excitation of {}", e.name),
-                    "absent",
-                    "the instrumental-variable estimate needs the logged excitation topic",
-                ));
-            }
-            true
-        }
-    };
+    let use_iv = uses_instrumental_variable(data, choice)?;
     let nu = data.inputs.len();
     let ny = data.outputs.len();
     let ne = data.experiments.len();
@@ -303,6 +290,25 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
 
 /// Pooled covariance per period of residual sequences (channels x periods, one matrix per
 /// experiment): the deviations from each experiment's mean, summed and divided by `dof`.
+/// Whether `choice` resolves to the instrumental-variable estimate on `data` (`Auto` picks it
+/// when the excitation is logged); asking for it without a logged excitation is an error.
+pub(crate) fn uses_instrumental_variable(data: &Dataset, choice: EstimatorChoice) -> Result<bool> {
+    match choice {
+        EstimatorChoice::LeastSquares => Ok(false),
+        EstimatorChoice::Auto => Ok(data.has_excitation()),
+        EstimatorChoice::InstrumentalVariable => {
+            if let Some(e) = data.experiments.iter().find(|e| e.r.is_none()) {
+                return Err(SimError::invalid(
+                    format!("excitation of {}", e.name),
+                    "absent",
+                    "the instrumental-variable estimate needs the logged excitation topic",
+                ));
+            }
+            Ok(true)
+        }
+    }
+}
+
 fn period_covariance(residuals: &[CMatrix], dof: usize) -> CMatrix {
     let ny = residuals.first().map_or(0, |r| r.nrows());
     let mut s = CMatrix::zeros(ny, ny);

@@ -14,7 +14,9 @@ use rand::rngs::StdRng;
 use serde::Serialize;
 
 use super::dataset::Dataset;
-use super::frf::{invert, CMatrix, Estimator, EstimatorChoice, FrfEstimate, FrfLine};
+use super::frf::{
+    invert, uses_instrumental_variable, CMatrix, Estimator, EstimatorChoice, FrfEstimate, FrfLine,
+};
 use super::noise::{complex_normal, NoiseReference};
 use super::spectra::{Dft, C64};
 use crate::error::{Result, SimError};
@@ -137,20 +139,7 @@ pub fn welch_frf(
     segment: usize,
 ) -> Result<WelchEstimate> {
     data.validate()?;
-    let use_iv = match choice {
-        EstimatorChoice::LeastSquares => false,
-        EstimatorChoice::Auto => data.has_excitation(),
-        EstimatorChoice::InstrumentalVariable => {
-            if let Some(e) = data.experiments.iter().find(|e| e.r.is_none()) {
-                return Err(SimError::invalid(
-                    format!("excitation of {}", e.name),
-                    "absent",
-                    "the instrumental-variable estimate needs the logged excitation topic",
-                ));
-            }
-            true
-        }
-    };
+    let use_iv = uses_instrumental_variable(data, choice)?;
     let fs = data.sample_rate_hz;
     let (nu, ny) = (data.inputs.len(), data.outputs.len());
     if !(band_hz.0 > 0.0 && band_hz.1 > band_hz.0 && band_hz.1 < fs / 2.0) {
