@@ -87,13 +87,23 @@ fn vector_to_matrix<'py>(
     map_items(py, x, name, VECTOR, MATRIX, |d| Ok(rows(&f(&vector(d)))))
 }
 
-/// Skew matrix `[w]x` with `[w]x v = w x v`.
-#[pyfunction]
-fn hat<'py>(
-    py: Python<'py>,
-    w: PyReadonlyArrayDyn<'py, f64>,
-) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-    vector_to_matrix(py, &w, "w", so3::hat)
+/// Defines a Python function that applies a vector-to-matrix map to its one array argument.
+macro_rules! vector_to_matrix_fn {
+    ($(#[$doc:meta])* $name:ident($arg:ident) => $f:expr) => {
+        $(#[$doc])*
+        #[pyfunction]
+        fn $name<'py>(
+            py: Python<'py>,
+            $arg: PyReadonlyArrayDyn<'py, f64>,
+        ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+            vector_to_matrix(py, &$arg, stringify!($arg), $f)
+        }
+    };
+}
+
+vector_to_matrix_fn! {
+    /// Skew matrix `[w]x` with `[w]x v = w x v`.
+    hat(w) => so3::hat
 }
 
 /// Vector of the skew-symmetric part of `s` (inverse of `hat`).
@@ -107,13 +117,9 @@ fn vee<'py>(
     })
 }
 
-/// Rotation matrix `exp([w]x)` of a rotation vector `w`.
-#[pyfunction]
-fn exp<'py>(
-    py: Python<'py>,
-    w: PyReadonlyArrayDyn<'py, f64>,
-) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-    vector_to_matrix(py, &w, "w", |w| *so3::exp(w).matrix())
+vector_to_matrix_fn! {
+    /// Rotation matrix `exp([w]x)` of a rotation vector `w`.
+    exp(w) => |w| *so3::exp(w).matrix()
 }
 
 /// Rotation vector (angle at most pi) of a rotation matrix.
@@ -141,51 +147,29 @@ fn euler_zyx<'py>(
     })
 }
 
-/// Rotation matrix `Rz(yaw) Ry(pitch) Rx(roll)` from `(roll, pitch, yaw)`.
-#[pyfunction]
-fn from_euler_zyx<'py>(
-    py: Python<'py>,
-    angles: PyReadonlyArrayDyn<'py, f64>,
-) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-    vector_to_matrix(py, &angles, "angles", |a| {
-        *so3::from_euler_zyx(a.x, a.y, a.z).matrix()
-    })
+vector_to_matrix_fn! {
+    /// Rotation matrix `Rz(yaw) Ry(pitch) Rx(roll)` from `(roll, pitch, yaw)`.
+    from_euler_zyx(angles) => |a| *so3::from_euler_zyx(a.x, a.y, a.z).matrix()
 }
 
-/// Right Jacobian `J_r(w)`: `exp(w + d) ≈ exp(w) exp(J_r d)`.
-#[pyfunction]
-fn right_jacobian<'py>(
-    py: Python<'py>,
-    w: PyReadonlyArrayDyn<'py, f64>,
-) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-    vector_to_matrix(py, &w, "w", so3::right_jacobian)
+vector_to_matrix_fn! {
+    /// Right Jacobian `J_r(w)`: `exp(w + d) ≈ exp(w) exp(J_r d)`.
+    right_jacobian(w) => so3::right_jacobian
 }
 
-/// Left Jacobian `J_l(w)`: `exp(w + d) ≈ exp(J_l d) exp(w)`.
-#[pyfunction]
-fn left_jacobian<'py>(
-    py: Python<'py>,
-    w: PyReadonlyArrayDyn<'py, f64>,
-) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-    vector_to_matrix(py, &w, "w", so3::left_jacobian)
+vector_to_matrix_fn! {
+    /// Left Jacobian `J_l(w)`: `exp(w + d) ≈ exp(J_l d) exp(w)`.
+    left_jacobian(w) => so3::left_jacobian
 }
 
-/// Inverse of the right Jacobian.
-#[pyfunction]
-fn right_jacobian_inverse<'py>(
-    py: Python<'py>,
-    w: PyReadonlyArrayDyn<'py, f64>,
-) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-    vector_to_matrix(py, &w, "w", so3::right_jacobian_inverse)
+vector_to_matrix_fn! {
+    /// Inverse of the right Jacobian.
+    right_jacobian_inverse(w) => so3::right_jacobian_inverse
 }
 
-/// Inverse of the left Jacobian.
-#[pyfunction]
-fn left_jacobian_inverse<'py>(
-    py: Python<'py>,
-    w: PyReadonlyArrayDyn<'py, f64>,
-) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-    vector_to_matrix(py, &w, "w", so3::left_jacobian_inverse)
+vector_to_matrix_fn! {
+    /// Inverse of the left Jacobian.
+    left_jacobian_inverse(w) => so3::left_jacobian_inverse
 }
 
 /// Nearest point of the sphere of radius `radius` (default g0 = 9.81) to `x`.
