@@ -211,22 +211,8 @@ impl Laguerre {
         check_len("b", b.len(), n * m)?;
         check_len("out", out.len(), (n * s + n) * cols)?;
         out.fill(0.0);
+        self.add_dynamics_rows(n, m, a, b, -1.0, out);
         for i in 0..n {
-            for p in 0..s {
-                let row = i * s + p;
-                // I_n ⊗ Mᵀ: (Mᵀ)[p][q] = M[q][p]
-                for q in 0..s {
-                    out[row * cols + i * s + q] += self.m_entry(q, p);
-                }
-                // −A ⊗ I_s
-                for j in 0..n {
-                    out[row * cols + j * s + p] -= a[i * n + j];
-                }
-                // −B ⊗ I_s
-                for j in 0..m {
-                    out[row * cols + n * s + j * s + p] -= b[i * m + j];
-                }
-            }
             let row = n * s + i;
             for q in 0..s {
                 out[row * cols + i * s + q] = self.tau0_entry();
@@ -252,21 +238,43 @@ impl Laguerre {
         check_len("b", b.len(), n * m)?;
         check_len("out", out.len(), n * s * cols)?;
         out.fill(0.0);
+        self.add_dynamics_rows(n, m, a, b, 1.0, out);
+        Ok(())
+    }
+
+    /// Adds `[ I_n⊗M̃ + sign·A⊗I_s , sign·B⊗I_s ]` to the first ns rows of `out` (row-major,
+    /// (n+m)s columns), with `M̃ = M` for `sign = 1` (weak form) and `M̃ = Mᵀ` for `sign = -1`
+    /// (the strong form `ṽ = Mᵀ v` moved to the left-hand side).
+    fn add_dynamics_rows(
+        &self,
+        n: usize,
+        m: usize,
+        a: &[f64],
+        b: &[f64],
+        sign: f64,
+        out: &mut [f64],
+    ) {
+        let s = self.s;
+        let cols = (n + m) * s;
         for i in 0..n {
             for p in 0..s {
                 let row = i * s + p;
                 for q in 0..s {
-                    out[row * cols + i * s + q] += self.m_entry(p, q);
+                    let entry = if sign > 0.0 {
+                        self.m_entry(p, q)
+                    } else {
+                        self.m_entry(q, p)
+                    };
+                    out[row * cols + i * s + q] += entry;
                 }
                 for j in 0..n {
-                    out[row * cols + j * s + p] += a[i * n + j];
+                    out[row * cols + j * s + p] += sign * a[i * n + j];
                 }
                 for j in 0..m {
-                    out[row * cols + n * s + j * s + p] += b[i * m + j];
+                    out[row * cols + n * s + j * s + p] += sign * b[i * m + j];
                 }
             }
         }
-        Ok(())
     }
 
     /// Stage-constraint coefficient map `C_z = [Cx⊗I_s, Cu⊗I_s]` (nc·s × (n+m)s, row-major):
