@@ -196,8 +196,13 @@ impl ExperimentDesign {
     /// best of 1000 phase draws per signal, 10 periods after 200 transient samples,
     /// λ = (1.2, 0.8, 2.0) N.
     pub fn paper(seed: u64) -> Result<Self> {
+        Self::paper_with_lambda([1.2, 0.8, 2.0], seed)
+    }
+
+    /// The paper's design (lines, periods, phase search) with excitation RMS `lambda`.
+    pub fn paper_with_lambda(lambda: [f64; 3], seed: u64) -> Result<Self> {
         Self::new(
-            [1.2, 0.8, 2.0],
+            lambda,
             50.0,
             250,
             &(1..=20).collect::<Vec<_>>(),
@@ -216,16 +221,7 @@ impl ExperimentDesign {
 
     /// [`ExperimentDesign::paper`] with [`ExperimentDesign::LAMBDA_WITHIN_LIMITS`].
     pub fn within_limits(seed: u64) -> Result<Self> {
-        Self::new(
-            Self::LAMBDA_WITHIN_LIMITS,
-            50.0,
-            250,
-            &(1..=20).collect::<Vec<_>>(),
-            1000,
-            10,
-            200,
-            seed,
-        )
+        Self::paper_with_lambda(Self::LAMBDA_WITHIN_LIMITS, seed)
     }
 
     /// A design with the given settings; both signals share the amplitude spectrum.
