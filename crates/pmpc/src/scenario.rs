@@ -1,8 +1,12 @@
 //! The examples of the paper (spec/pmpc.md §8): the quadruple integrator and chains of n
 //! integrators, Q = I, R = 1, |u| ≤ 0.5, first state ≥ 0.
 
+use crate::baseline::{Backend, DiscreteMpc};
 use crate::constraints::Constraints;
+use crate::controller::Pmpc;
+use crate::error::Result;
 use nalgebra::DMatrix;
+use rigid_body::laguerre::Laguerre;
 
 /// Laguerre decay rate used in all experiments of the paper (1/s).
 pub const NU: f64 = 0.7;
@@ -26,6 +30,35 @@ pub struct Scenario {
     pub constraints: Constraints,
     /// Initial state.
     pub x0: Vec<f64>,
+}
+
+impl Scenario {
+    /// The parametrized controller for this system in `basis`, sampled every [`TD`].
+    pub fn pmpc(&self, basis: Laguerre) -> Result<Pmpc> {
+        Pmpc::new(
+            &self.a,
+            &self.b,
+            &self.q,
+            &self.r,
+            &self.constraints,
+            basis,
+            TD,
+        )
+    }
+
+    /// The discrete MPC baseline for this system over `horizon` steps of [`TD`].
+    pub fn discrete(&self, horizon: usize, backend: Backend) -> Result<DiscreteMpc> {
+        DiscreteMpc::new(
+            &self.a,
+            &self.b,
+            &self.q,
+            &self.r,
+            &self.constraints,
+            TD,
+            horizon,
+            backend,
+        )
+    }
 }
 
 /// Chain of n integrators x^{(n)} = u, state (x, ẋ, …, x^{(n−1)}), x0 = 0.1·𝟙.

@@ -2,7 +2,7 @@
 #![allow(clippy::unwrap_used)]
 
 use nalgebra::DMatrix;
-use pmpc::baseline::{Backend, DiscreteMpc};
+use pmpc::baseline::Backend;
 use pmpc::{scenario, simulate, Constraints, Error, Pmpc};
 use rigid_body::laguerre::Laguerre;
 
@@ -94,17 +94,7 @@ fn bad_input_gets_named_errors() {
 #[test]
 fn discrete_baseline_closed_loop_cost() {
     let sc = scenario::quad_integrator();
-    let mut mpc = DiscreteMpc::new(
-        &sc.a,
-        &sc.b,
-        &sc.q,
-        &sc.r,
-        &sc.constraints,
-        scenario::TD,
-        93,
-        Backend::Clarabel,
-    )
-    .unwrap();
+    let mut mpc = sc.discrete(93, Backend::Clarabel).unwrap();
     assert_eq!(mpc.size(), (93, 3 * 93));
     let cl = simulate::run_discrete(&mut mpc, &sc.x0, scenario::STEPS).unwrap();
     println!("N = 93: J_cl = {}, failures {}", cl.cost, cl.fallbacks);

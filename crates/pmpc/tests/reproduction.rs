@@ -4,7 +4,7 @@
 #![allow(clippy::unwrap_used)]
 
 use nalgebra::{DMatrix, DVector};
-use pmpc::{bounds, reference, scenario, simulate, Constraints, Error, Pmpc, Problem};
+use pmpc::{bounds, reference, scenario, simulate, Constraints, Error, Problem};
 use rigid_body::laguerre::Laguerre;
 use rigid_body::lti;
 use rigid_body::siqp::Settings;
@@ -230,16 +230,7 @@ fn infeasibility_is_reported() {
         Err(Error::Infeasible { .. })
     ));
     let (sc, _) = quad(12);
-    let mut c = Pmpc::new(
-        &sc.a,
-        &sc.b,
-        &sc.q,
-        &sc.r,
-        &sc.constraints,
-        Laguerre::new(12, 0.7).unwrap(),
-        0.02,
-    )
-    .unwrap();
+    let mut c = sc.pmpc(Laguerre::new(12, 0.7).unwrap()).unwrap();
     assert!(matches!(
         c.step(&[-1e-3, 0.3, 0.3, 0.3]),
         Err(Error::Infeasible { .. })
@@ -266,16 +257,7 @@ fn closed_loop_reproduces_reference_costs() {
     ];
     for (s, expect) in table {
         let (sc, _) = quad(s);
-        let mut c = Pmpc::new(
-            &sc.a,
-            &sc.b,
-            &sc.q,
-            &sc.r,
-            &sc.constraints,
-            Laguerre::new(s, 0.7).unwrap(),
-            0.02,
-        )
-        .unwrap();
+        let mut c = sc.pmpc(Laguerre::new(s, 0.7).unwrap()).unwrap();
         let cl = simulate::run_pmpc(&mut c, &sc.x0, scenario::STEPS, 40).unwrap();
         assert!(
             (cl.cost - expect).abs() <= 0.01 * expect,
@@ -305,16 +287,7 @@ fn closed_loop_reproduces_reference_costs() {
 #[test]
 fn recursive_feasibility_and_lyapunov_decrease() {
     let (sc, p) = quad(12);
-    let mut c = Pmpc::new(
-        &sc.a,
-        &sc.b,
-        &sc.q,
-        &sc.r,
-        &sc.constraints,
-        Laguerre::new(12, 0.7).unwrap(),
-        0.02,
-    )
-    .unwrap();
+    let mut c = sc.pmpc(Laguerre::new(12, 0.7).unwrap()).unwrap();
     let mut x = sc.x0.clone();
     let mut tau = vec![0.0; 12];
     let (mut xt, mut ut) = (vec![0.0; 4], vec![0.0; 1]);
@@ -359,7 +332,7 @@ fn recursive_feasibility_and_lyapunov_decrease() {
 fn warm_start_saves_iterations() {
     let (sc, p) = quad(12);
     let basis = Laguerre::new(12, 0.7).unwrap();
-    let mut warm = Pmpc::new(&sc.a, &sc.b, &sc.q, &sc.r, &sc.constraints, basis, 0.02).unwrap();
+    let mut warm = sc.pmpc(basis).unwrap();
     let mut cold = warm.clone().with_warm_start(false);
     let (mut warm_iters, mut cold_iters) = (0, 0);
     let mut x = sc.x0.clone();
