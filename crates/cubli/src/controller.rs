@@ -79,35 +79,53 @@ impl SampledController for NoControl {
     }
 }
 
-/// The jump-up controller of Algorithm 1 after braking: the guiding controller every call
-/// (call it at 10 ms) until the inclination drops below `switch_inclination`, then the balancing
-/// controller every `balance_every` calls (2 gives 20 ms), holding its torque in between.
+/// The jump-up controller of Algorithm 1 after braking: the guide every call (call it at 10 ms;
+/// [`NoControl`] for a free flight) until the inclination of the model `model` drops below
+/// `switch_inclination`, then the balancer every `balance_every` calls (2 gives 20 ms), holding
+/// its torque in between. Corner: [`GuidingController`] and [`Backstepping`]; edge: [`NoControl`]
+/// and [`crate::edge::EdgeBalance`] with the edge's planar model and
+/// [`JumpController::hand_over_at_top`], as in [`crate::jump_trial`] without a guide.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct JumpController {
-    guide: GuidingController,
-    balance: Backstepping,
+pub struct JumpController<G = GuidingController, B = Backstepping> {
+    model: Params,
+    guide: G,
+    balance: B,
     switch_inclination: f64,
     balance_every: usize,
     calls_since_switch: Option<usize>,
     held: Vector3<f64>,
+    at_top: bool,
+    last_inclination: f64,
 }
 
-impl JumpController {
-    /// Guide, then balance below `switch_inclination` (rad), updating balance every `balance_every` calls.
+impl<G: SampledController, B: SampledController> JumpController<G, B> {
+    /// Guide, then balance below `switch_inclination` (rad) of `model`, updating the balancer
+    /// every `balance_every` calls.
     pub fn new(
-        guide: GuidingController,
-        balance: Backstepping,
+        model: Params,
+        guide: G,
+        balance: B,
         switch_inclination: f64,
         balance_every: usize,
     ) -> Self {
         Self {
+            model,
             guide,
             balance,
             switch_inclination,
             balance_every: balance_every.max(1),
             calls_since_switch: None,
             held: Vector3::zeros(),
+            at_top: false,
+            last_inclination: f64::INFINITY,
         }
+    }
+
+    /// Also hand over at the first sample whose measured inclination is not below the previous
+    /// one (the top point of a free flight that stops short of the region).
+    pub fn hand_over_at_top(mut self) -> Self {
+        self.at_top = true;
+        self
     }
 
     /// Whether the balancing controller has taken over.
@@ -116,20 +134,20 @@ impl JumpController {
     }
 }
 
-impl SampledController for JumpController {
-    fn sample(&mut self, y: &Measurement, _dt: f64) -> Result<Vector3<f64>, CubliError> {
-        let model = *self.guide.params();
-        let x = y.state(&model)?;
-        if self.calls_since_switch.is_none()
-            && crate::model::inclination(&model, &x.gravity_body(&model)) < self.switch_inclination
-        {
+impl<G: SampledController, B: SampledController> SampledController for JumpController<G, B> {
+    fn sample(&mut self, y: &Measurement, dt: f64) -> Result<Vector3<f64>, CubliError> {
+        let x = y.state(&self.model)?;
+        let phi = crate::model::inclination(&self.model, &x.gravity_body(&self.model));
+        let top = self.at_top && phi >= self.last_inclination;
+        self.last_inclination = phi;
+        if self.calls_since_switch.is_none() && (phi < self.switch_inclination || top) {
             self.calls_since_switch = Some(0);
         }
         match self.calls_since_switch {
-            None => self.guide.control(&x),
+            None => self.guide.sample(y, dt),
             Some(k) => {
                 if k % self.balance_every == 0 {
-                    self.held = self.balance.control(&x.reduced(&model))?;
+                    self.held = self.balance.sample(y, dt * self.balance_every as f64)?;
                 }
                 self.calls_since_switch = Some(k + 1);
                 Ok(self.held)

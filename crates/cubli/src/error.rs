@@ -73,6 +73,12 @@ pub enum CubliError {
         /// h(gamma_hat).
         h: f64,
     },
+    /// An edge jump needs an edge of the resting face (normal −e3): body axis 0 or 1.
+    #[error("edge axis {axis} is not an edge of the resting face (use 0 or 1)")]
+    EdgeAxis {
+        /// The requested body axis index.
+        axis: usize,
+    },
     /// The learning step size must lie in (0, 2).
     #[error("learning step size lambda = {0} must lie in (0, 2)")]
     StepSize(f64),

@@ -1,7 +1,11 @@
 //! Jump-up (spec §5): impact models of the brakes, the nominal pre-brake wheel speeds, the model
 //! error and Jacobian (1.64)–(1.67), the learning update (1.63) and the guiding-effort
 //! compensation (1.68)–(1.69).
-use nalgebra::{ComplexField, Matrix3, UnitQuaternion, Vector3};
+//!
+//! The learning update is written once for any jump through [`ErrorModel`]: the face → corner
+//! jump learns three wheel speeds from three errors ([`JumpModel`]), the face → edge jump one
+//! wheel speed from the energy error ([`crate::edge::EdgeJumpModel`]).
+use nalgebra::{ComplexField, Matrix3, SMatrix, SVector, UnitQuaternion, Vector3};
 
 use crate::model::{figure_axis_momentum, housing_energy, tilt_axis, yaw_momentum};
 use crate::{CubliError, FullState, Params, ReducedState};
@@ -51,6 +55,30 @@ impl ImpactModel {
             }
             Self::Lossy { kappa } => lock(kappa.component_mul(&x.p_h), Vector3::zeros()),
         }
+    }
+
+    /// The same brake with its efficiency scaled per wheel by `factor` (spec §5.1: random κ per
+    /// trial): `Slip` and `Lossy` scale κ (clamped to [0, 1]), `Lock` becomes `Lossy` with
+    /// κ = `factor` clamped, `Ideal` (the model, which has no efficiency) stays `Ideal`.
+    pub fn scaled(&self, factor: &Vector3<f64>) -> Result<Self, CubliError> {
+        if !factor.iter().all(|v| v.is_finite()) {
+            return Err(CubliError::NonFinite {
+                field: "brake efficiency factor",
+            });
+        }
+        let scale = |kappa: &Vector3<f64>| kappa.component_mul(factor).map(|k| k.clamp(0.0, 1.0));
+        Ok(match self {
+            Self::Ideal => Self::Ideal,
+            Self::Lock => Self::Lossy {
+                kappa: scale(&Vector3::repeat(1.0)),
+            },
+            Self::Slip { kappa } => Self::Slip {
+                kappa: scale(kappa),
+            },
+            Self::Lossy { kappa } => Self::Lossy {
+                kappa: scale(kappa),
+            },
+        })
     }
 }
 
@@ -125,6 +153,40 @@ impl JumpModel {
     }
 }
 
+/// What the learner needs to know about a jump: P adjustable wheel speeds θ, N error
+/// components, the nominal model's root and Jacobian, and how θ and the measured
+/// (p_hᵐ, p_hᵍ, H_h) map onto the experiment.
+pub trait ErrorModel<const P: usize, const N: usize> {
+    /// Model root θ̄ with zero predicted error (the initial guess (1.67)).
+    fn root(&self) -> SVector<f64, P>;
+    /// Predicted error at `theta` (1.64)–(1.65).
+    fn predict(&self, theta: &SVector<f64, P>) -> SVector<f64, N>;
+    /// Model Jacobian ∂E/∂θ at `theta` (1.66).
+    fn jacobian(&self, theta: &SVector<f64, P>) -> SMatrix<f64, N, P>;
+    /// The three pre-brake wheel speeds of the experiment for `theta`.
+    fn wheel_speeds(&self, theta: &SVector<f64, P>) -> Vector3<f64>;
+    /// The learned error components out of a measured (p_hᵐ, p_hᵍ, H_h).
+    fn measured(&self, error: &Vector3<f64>) -> SVector<f64, N>;
+}
+
+impl ErrorModel<3, 3> for JumpModel {
+    fn root(&self) -> Vector3<f64> {
+        self.nominal_wheel_speeds()
+    }
+    fn predict(&self, theta: &Vector3<f64>) -> Vector3<f64> {
+        self.error(theta)
+    }
+    fn jacobian(&self, theta: &Vector3<f64>) -> Matrix3<f64> {
+        JumpModel::jacobian(self, theta)
+    }
+    fn wheel_speeds(&self, theta: &Vector3<f64>) -> Vector3<f64> {
+        *theta
+    }
+    fn measured(&self, error: &Vector3<f64>) -> Vector3<f64> {
+        *error
+    }
+}
+
 /// The measured error (p_hᵐ, p_hᵍ, H_h) of a state, evaluated with `params`.
 pub fn jump_error(params: &Params, x: &ReducedState) -> Vector3<f64> {
     Vector3::new(
@@ -135,33 +197,53 @@ pub fn jump_error(params: &Params, x: &ReducedState) -> Vector3<f64> {
 }
 
 /// Learning update (1.63) with a fixed model Jacobian pseudoinverse, computed once.
+///
+/// ```
+/// use cubli::jump::{ErrorModel, JumpModel, Learner};
+/// let model = JumpModel::new(cubli::Params::reference(), &nalgebra::Vector3::new(0.0, 0.0, -9.81)).unwrap();
+/// let learner = Learner::new(&model, 0.8).unwrap();
+/// let root = model.root();
+/// // Near the root, on the model itself, one step removes 80 % of the distance (λ = 0.8).
+/// let start = root * 1.01;
+/// let next = learner.update(&start, &model.predict(&start));
+/// assert!(((next - root).norm() / (start - root).norm() - 0.2).abs() < 0.02);
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Learner {
-    jac_pinv: Matrix3<f64>,
+pub struct Learner<const P: usize, const N: usize> {
+    jac_pinv: SMatrix<f64, P, N>,
     lambda: f64,
 }
 
-impl Learner {
+impl<const P: usize, const N: usize> Learner<P, N> {
     /// Learner with step `lambda` ∈ (0, 2) and the model Jacobian at the model root.
-    pub fn new(model: &JumpModel, lambda: f64) -> Result<Self, CubliError> {
+    ///
+    /// The Jacobian must have full column rank (N ≥ P); its pseudoinverse is (JᵀJ)⁻¹Jᵀ from a
+    /// Cholesky factor, refused when a pivot falls below 10⁻¹⁰ of the largest.
+    pub fn new<M: ErrorModel<P, N>>(model: &M, lambda: f64) -> Result<Self, CubliError> {
         let inside = lambda > 0.0 && lambda < 2.0;
         if !inside {
             return Err(CubliError::StepSize(lambda));
         }
-        let j = model.jacobian(&model.nominal_wheel_speeds());
-        let svd = j.svd(true, true);
-        let smax = svd.singular_values.max();
-        if svd.singular_values.min() <= 1e-10 * smax {
+        let j = model.jacobian(&model.root());
+        if !j.iter().all(|v| v.is_finite()) {
             return Err(CubliError::SingularJacobian);
         }
-        let jac_pinv = svd
-            .pseudo_inverse(0.0)
-            .map_err(|_| CubliError::SingularJacobian)?;
-        Ok(Self { jac_pinv, lambda })
+        let chol = j
+            .tr_mul(&j)
+            .cholesky()
+            .ok_or(CubliError::SingularJacobian)?;
+        let pivots = chol.l_dirty().diagonal();
+        if pivots.min() <= 1e-10 * pivots.max() {
+            return Err(CubliError::SingularJacobian);
+        }
+        Ok(Self {
+            jac_pinv: chol.solve(&j.transpose()),
+            lambda,
+        })
     }
 
     /// θ_{i+1} = θ_i − λ J† E_i.
-    pub fn update(&self, theta: &Vector3<f64>, error: &Vector3<f64>) -> Vector3<f64> {
+    pub fn update(&self, theta: &SVector<f64, P>, error: &SVector<f64, N>) -> SVector<f64, P> {
         theta - self.jac_pinv * error * self.lambda
     }
 }

@@ -18,6 +18,7 @@
 
 mod backstepping;
 mod controller;
+pub mod edge;
 mod error;
 mod feedback_linearization;
 pub mod jump;

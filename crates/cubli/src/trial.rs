@@ -65,13 +65,22 @@ pub struct JumpOutcome {
     pub success: bool,
 }
 
-/// Controllers used in a jump; both optional.
+/// Controllers used in a jump; both optional. The balancer is [`Backstepping`] on a corner and
+/// [`crate::edge::EdgeBalance`] on an edge.
 #[derive(Debug, Clone, Copy)]
-pub struct JumpControllers<'a> {
+pub struct JumpControllers<'a, B = Backstepping> {
     /// Guiding (tracking) controller during the flight.
     pub guide: Option<&'a GuidingController>,
-    /// Balancing controller after the hand-over (used only with a guide).
-    pub balance: Option<&'a Backstepping>,
+    /// Balancing controller after the hand-over.
+    pub balance: Option<&'a B>,
+}
+
+impl JumpControllers<'static> {
+    /// Neither guide nor balancer: the free jump, measured at its top point.
+    pub const NONE: Self = Self {
+        guide: None,
+        balance: None,
+    };
 }
 
 fn check_step(field: &'static str, value: f64) -> Result<(), CubliError> {
@@ -94,13 +103,15 @@ fn substeps(sample: f64, h: f64) -> usize {
 /// Runs one jump of `plant` from rest at `attitude` with pre-brake wheel speeds `theta`.
 ///
 /// Without a guide the top point is the first plant step at which the inclination stops
-/// decreasing. With a guide it is the first sample at which it stops decreasing or enters the
-/// balancing region; E and E' are measured there with the plant's parameters.
-pub fn jump_trial(
+/// decreasing or, with a balancer, enters the balancing region; a balancer takes over there
+/// (also at a top point short of the region) and success means it settles. With a guide it
+/// is the first sample at which it stops decreasing or enters the balancing region; E and E' are
+/// measured there with the plant's parameters.
+pub fn jump_trial<B: SampledController + Copy>(
     plant: &Plant,
     attitude: UnitQuaternion<f64>,
     theta: &Vector3<f64>,
-    controllers: JumpControllers<'_>,
+    controllers: JumpControllers<'_, B>,
     cfg: &JumpConfig,
 ) -> Result<JumpOutcome, CubliError> {
     check_step("plant_step", cfg.plant_step)?;
@@ -125,9 +136,17 @@ pub fn jump_trial(
         None => {
             let h = cfg.plant_step;
             while t < cfg.flight_timeout {
+                if controllers.balance.is_some() && phi < cfg.switch_inclination {
+                    switch_time = Some(t);
+                    break;
+                }
                 let next = plant.step(&x, &Vector3::zeros(), h);
                 let phi_next = phi_of(&next);
                 if phi_next >= phi {
+                    if controllers.balance.is_some() {
+                        // Top point short of the region: the balancer still gets its chance.
+                        switch_time = Some(t);
+                    }
                     break;
                 }
                 x = next;
@@ -180,26 +199,27 @@ pub fn jump_trial(
     let error = jump_error(p, &x_top.reduced(p));
     let top_inclination = phi_of(&x_top);
     let mut final_inclination = phi;
-    let mut success = match controllers.guide {
-        None => top_inclination < cfg.switch_inclination,
-        Some(_) => switch_time.is_some(),
+    let mut success = match (controllers.guide, controllers.balance) {
+        (None, None) => top_inclination < cfg.switch_inclination,
+        _ => switch_time.is_some(),
     };
-    if let (Some(mut balance), Some(_), true) =
-        (controllers.balance.copied(), controllers.guide, success)
-    {
+    if let (Some(mut balance), true) = (controllers.balance.copied(), success) {
         let n = substeps(cfg.balance_sample, cfg.plant_step);
         let h = cfg.balance_sample / n as f64;
         let mut tb = 0.0;
-        while tb < cfg.balance_time {
+        let mut grounded = false;
+        while tb < cfg.balance_time && !grounded {
             let torque = balance.sample(&Measurement::exact(p, &x), cfg.balance_sample)?;
             peak_torque = peak_torque.max(torque.amax());
             for _ in 0..n {
                 x = plant.step(&x, &torque, h);
+                // Falling back onto the resting face ends the trial (no ground contact model).
+                grounded |= phi_of(&x) > ground;
             }
             tb += cfg.balance_sample;
         }
         final_inclination = phi_of(&x);
-        success = final_inclination < cfg.success_inclination;
+        success = !grounded && final_inclination < cfg.success_inclination;
     }
     Ok(JumpOutcome {
         error,

@@ -118,10 +118,7 @@ fn learn(
         brake,
         ..JumpConfig::default()
     };
-    let none = JumpControllers {
-        guide: None,
-        balance: None,
-    };
+    let none = JumpControllers::NONE;
     let mut theta = start;
     let mut out = Vec::new();
     for _ in 0..=iterations {
@@ -221,7 +218,7 @@ fn guiding_effort_is_compensated() {
             &theta,
             JumpControllers {
                 guide: Some(&guide),
-                balance: None,
+                balance: None::<&Backstepping>,
             },
             &cfg,
         )
@@ -276,17 +273,8 @@ fn learning_from_twenty_percent_error_succeeds() {
                 &cfg,
             )
             .unwrap();
-            let free = jump_trial(
-                &plant,
-                face_attitude(),
-                &theta,
-                JumpControllers {
-                    guide: None,
-                    balance: None,
-                },
-                &cfg,
-            )
-            .unwrap();
+            let free =
+                jump_trial(&plant, face_attitude(), &theta, JumpControllers::NONE, &cfg).unwrap();
             successes.push(guided.success);
             if free.top_inclination < deg(3.0) && unguided_ok.is_none() {
                 unguided_ok = Some(i);
@@ -323,10 +311,7 @@ fn learning_is_robust_to_bounded_noise() {
         brake,
         ..JumpConfig::default()
     };
-    let none = JumpControllers {
-        guide: None,
-        balance: None,
-    };
+    let none = JumpControllers::NONE;
     let star = Vector3::new(570.55, -606.27, 0.0);
     let jinv = model.jacobian(&bar).try_inverse().unwrap();
     let d = Vector3::new(2e-4, 2e-4, 2e-3);

@@ -1,16 +1,21 @@
 //! `stabilis sim cubli`: the reaction-wheel cube balancing on its corner (backstepping at 20 ms),
-//! rejecting a push, or jumping up from a face after learning its pre-brake wheel speeds.
+//! rejecting a push, or jumping up from a face to its corner or to an edge after learning its
+//! pre-brake wheel speeds.
 //!
 //! The simulated plant may carry effects the controller's model lacks (wheel friction, a
 //! torque-constant error, a gyro bias, a known multisine excitation on the motor torques), so
 //! that its logs can serve model discovery.
-use nalgebra::Vector3;
+use nalgebra::{SVector, Vector3};
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
 
-use cubli::jump::{face_attitude, pre_brake_state, ImpactModel, JumpModel, Learner};
+use cubli::edge::{EdgeJump, EdgeJumpModel};
+use cubli::jump::{face_attitude, pre_brake_state, ErrorModel, ImpactModel, JumpModel, Learner};
 use cubli::simulate::{simulate, Multisine, RunConfig, Sensors, Trajectory};
 use cubli::{
-    jump_trial, Backstepping, FullState, Gains, GuidingController, JumpConfig, JumpController,
-    JumpControllers, JumpReference, Limits, Params, Plant, WheelEffects,
+    jump_trial, Backstepping, CubliError, FullState, Gains, GuidingController, JumpConfig,
+    JumpController, JumpControllers, JumpReference, Limits, NoControl, Params, Plant,
+    SampledController, WheelEffects,
 };
 
 use crate::error::{Result, SimError};
@@ -58,9 +63,19 @@ pub enum Kind {
     Balance,
     /// Upright at rest, a torque pulse on one wheel (paper: 0.17 N m for 60 ms).
     Disturbance,
-    /// Face to corner jump: learning trials on a plant the model does not match, then the last
-    /// jump (brake, guided flight at 10 ms, balancing at 20 ms) is logged.
+    /// Jump from a face (`--jump corner` or `edge`): learning trials on a plant the model does
+    /// not match, then the last jump (brake, flight, balancing at 20 ms) is logged.
     JumpUp,
+}
+
+/// Target of `jump-up`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Jump {
+    /// Face to corner (paper): three wheels, guided flight at 10 ms, corner backstepping.
+    #[default]
+    Corner,
+    /// Face to edge e1 (the planar Cubli): wheel 1 only, free flight, edge backstepping.
+    Edge,
 }
 
 /// Options of the Cubli run.
@@ -113,6 +128,13 @@ pub struct Args {
     /// First trial's wheel speeds as a multiple of the model's nominal speeds (`jump-up`).
     #[arg(long, default_value_t = 0.8)]
     pub start_scale: f64,
+    /// Jump target for `jump-up`.
+    #[arg(long, value_enum, default_value_t = Jump::Corner)]
+    pub jump: Jump,
+    /// Random brake efficiency per jump (`jump-up`): every wheel's κ is scaled by
+    /// U(1 − s, 1 + s), seeded by `--seed` (0 = the same brake every time).
+    #[arg(long, default_value_t = 0.0)]
+    pub brake_spread: f64,
 }
 
 impl Args {
@@ -134,6 +156,8 @@ impl Args {
             excitation_period: 200,
             trials: 6,
             start_scale: 0.8,
+            jump: Jump::Corner,
+            brake_spread: 0.0,
         }
     }
 }
@@ -170,6 +194,234 @@ pub fn mismatched_jump_plant(model: &Params, limits: Limits) -> Result<(Plant, I
             kappa: Vector3::new(0.90, 0.88, 0.92),
         },
     ))
+}
+
+/// How a jump-up is learned: target, motor limits, first guess, trials, random brake.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JumpSetup {
+    /// Corner or edge.
+    pub jump: Jump,
+    /// Motor limits of the true plant.
+    pub limits: Limits,
+    /// First trial's speeds as a multiple of the model's nominal speeds.
+    pub start_scale: f64,
+    /// Number of learning trials.
+    pub trials: usize,
+    /// Guided flight and balancing (false: the free jump, judged at its top point).
+    pub guided: bool,
+    /// Random brake efficiency spread s (κ scaled by U(1 − s, 1 + s) per jump), in [0, 1).
+    pub brake_spread: f64,
+    /// Seed of the random brake.
+    pub seed: u64,
+}
+
+/// One learning trial.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrialRecord {
+    /// Pre-brake wheel speeds (rad/s).
+    pub theta: Vector3<f64>,
+    /// Learned error E' (corner: p_hᵐ, p_hᵍ, H_h; edge: H_h in the last slot, zeros else).
+    pub error: Vector3<f64>,
+    /// Balanced after the jump (free jump: top point in the balancing region).
+    pub success: bool,
+    /// Inclination at the top point or hand-over (rad).
+    pub top_inclination: f64,
+    /// The brake the plant used.
+    pub brake: ImpactModel,
+}
+
+/// Result of [`learn_jump`]: the trials, and what the logged jump needs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JumpLearning {
+    /// Every trial in order.
+    pub trials: Vec<TrialRecord>,
+    /// Wheel speeds after the last update (rad/s).
+    pub theta: Vector3<f64>,
+    /// The model's nominal speeds (rad/s).
+    pub nominal: Vector3<f64>,
+    /// The true plant (for the edge: restricted to the edge plane).
+    pub plant: Plant,
+    /// The plant's nominal brake.
+    pub brake: ImpactModel,
+    /// The edge system of the model, for an edge jump.
+    pub edge: Option<EdgeJump>,
+    rng: StdRng,
+    spread: f64,
+}
+
+impl JumpLearning {
+    /// The brake of the next jump (random when a spread is set).
+    pub fn next_brake(&mut self) -> Result<ImpactModel> {
+        brake_draw(&self.brake, self.spread, &mut self.rng)
+    }
+}
+
+fn brake_draw(brake: &ImpactModel, spread: f64, rng: &mut StdRng) -> Result<ImpactModel> {
+    if spread == 0.0 {
+        return Ok(*brake);
+    }
+    let f = Vector3::from_fn(|_, _| rng.random_range(1.0 - spread..1.0 + spread));
+    brake.scaled(&f).map_err(domain("brake efficiency"))
+}
+
+/// Algorithm 1 for either jump, through the shared learner.
+#[allow(clippy::too_many_arguments)]
+fn learning_loop<const P: usize, const N: usize, M: ErrorModel<P, N>, B>(
+    model: &M,
+    plant: &Plant,
+    controllers: JumpControllers<'_, B>,
+    cfg: &JumpConfig,
+    setup: &JumpSetup,
+    rng: &mut StdRng,
+) -> Result<(Vec<TrialRecord>, Vector3<f64>)>
+where
+    B: SampledController + Copy,
+{
+    let learner = Learner::new(model, 0.8).map_err(domain("learner"))?;
+    let mut theta: SVector<f64, P> = model.root() * setup.start_scale;
+    let mut trials = Vec::with_capacity(setup.trials);
+    for _ in 0..setup.trials {
+        let brake = brake_draw(&cfg.brake, setup.brake_spread, rng)?;
+        let speeds = model.wheel_speeds(&theta);
+        let out = jump_trial(
+            plant,
+            face_attitude(),
+            &speeds,
+            controllers,
+            &JumpConfig { brake, ..*cfg },
+        )
+        .map_err(domain("jump trial"))?;
+        let error = model.measured(&out.corrected);
+        trials.push(TrialRecord {
+            theta: speeds,
+            error: Vector3::from_fn(|i, _| if i + N >= 3 { error[i + N - 3] } else { 0.0 }),
+            success: out.success,
+            top_inclination: out.top_inclination,
+            brake,
+        });
+        theta = learner.update(&theta, &error);
+    }
+    Ok((trials, model.wheel_speeds(&theta)))
+}
+
+/// Learns the pre-brake wheel speeds of a jump on the mismatched plant of
+/// [`mismatched_jump_plant`] with the reference model and the paper's gains and λ = 0.8.
+pub fn learn_jump(setup: &JumpSetup) -> Result<JumpLearning> {
+    if !setup.start_scale.is_finite() || setup.start_scale <= 0.0 {
+        return Err(SimError::invalid(
+            "start-scale",
+            setup.start_scale,
+            "must be positive",
+        ));
+    }
+    if !(0.0..1.0).contains(&setup.brake_spread) {
+        return Err(SimError::invalid(
+            "brake-spread",
+            setup.brake_spread,
+            "must lie in [0, 1)",
+        ));
+    }
+    let model = Params::reference();
+    let gains = Gains::paper();
+    let (full_plant, brake) = mismatched_jump_plant(&model, setup.limits)?;
+    let cfg = JumpConfig {
+        brake,
+        ..JumpConfig::default()
+    };
+    let mut rng = StdRng::seed_from_u64(setup.seed);
+    let (trials, theta, nominal, plant, edge) = match setup.jump {
+        Jump::Corner => {
+            let g0 = Vector3::new(0.0, 0.0, -model.gravity());
+            let jm = JumpModel::new(model, &g0).map_err(domain("jump model"))?;
+            let guide = corner_guide(&model, &gains)?;
+            let balance = Backstepping::new(model, gains);
+            let controllers = if setup.guided {
+                JumpControllers {
+                    guide: Some(&guide),
+                    balance: Some(&balance),
+                }
+            } else {
+                JumpControllers::NONE
+            };
+            let (trials, theta) =
+                learning_loop(&jm, &full_plant, controllers, &cfg, setup, &mut rng)?;
+            (trials, theta, jm.root(), full_plant, None)
+        }
+        Jump::Edge => {
+            let edge = EdgeJump::new(&model, 0).map_err(domain("edge"))?;
+            let em = EdgeJumpModel::new(&edge).map_err(domain("edge jump model"))?;
+            let plant = edge.plant(&full_plant).map_err(domain("edge plant"))?;
+            let balance = edge.balancer(gains);
+            let controllers = JumpControllers {
+                guide: None,
+                balance: setup.guided.then_some(&balance),
+            };
+            let (trials, theta) = learning_loop(&em, &plant, controllers, &cfg, setup, &mut rng)?;
+            (
+                trials,
+                theta,
+                em.wheel_speeds(&em.root()),
+                plant,
+                Some(edge),
+            )
+        }
+    };
+    Ok(JumpLearning {
+        trials,
+        theta,
+        nominal,
+        plant,
+        brake,
+        edge,
+        rng,
+        spread: setup.brake_spread,
+    })
+}
+
+fn corner_guide(model: &Params, gains: &Gains) -> Result<GuidingController> {
+    let g0 = Vector3::new(0.0, 0.0, -model.gravity());
+    let bar = JumpModel::new(*model, &g0)
+        .map_err(domain("jump model"))?
+        .nominal_wheel_speeds();
+    let reference = JumpReference::at_brake(model, &pre_brake_state(model, face_attitude(), &bar))
+        .map_err(domain("jump reference"))?;
+    Ok(GuidingController::new(*model, gains, reference))
+}
+
+/// The logged jump after learning: brake at the learned speeds, then the jump controller.
+fn jump_run(learned: &mut JumpLearning, cfg: &RunConfig) -> Result<Trajectory> {
+    let brake = learned.next_brake()?;
+    let plant = learned.plant;
+    let x0 = brake.apply(
+        &plant.params,
+        &pre_brake_state(&plant.params, face_attitude(), &learned.theta),
+    );
+    let switch = 5f64.to_radians();
+    let run = |ctrl: &mut dyn SampledController| -> std::result::Result<Trajectory, CubliError> {
+        simulate(&plant, &x0, ctrl, cfg, &mut cubli::simulate::quiet)
+    };
+    let model = Params::reference();
+    let gains = Gains::paper();
+    match learned.edge {
+        None => {
+            let guide = corner_guide(&model, &gains)?;
+            let balance = Backstepping::new(model, gains);
+            run(&mut JumpController::new(model, guide, balance, switch, 2))
+        }
+        Some(edge) => {
+            let mut ctrl =
+                JumpController::new(*edge.params(), NoControl, edge.balancer(gains), switch, 2)
+                    .hand_over_at_top();
+            run(&mut ctrl).map(|mut t| {
+                // Log the hinged cube's 3-D momenta (the plane model keeps only the edge part).
+                for x in &mut t.state {
+                    *x = edge.hinged_state(x);
+                }
+                t
+            })
+        }
+    }
+    .map_err(domain("jump run"))
 }
 
 impl Args {
@@ -459,87 +711,74 @@ impl Scenario for Args {
                 recorder.summarize("settled_below_max_5pct_or_0_025deg_s", settle);
             }
             Kind::JumpUp => {
-                if !self.start_scale.is_finite() || self.start_scale <= 0.0 {
-                    return Err(SimError::invalid(
-                        "start-scale",
-                        self.start_scale,
-                        "must be positive",
-                    ));
-                }
                 let limits = Limits {
                     max_torque: self.torque_max,
                     max_wheel_speed: self.wheel_speed_max,
                 };
-                let (plant, brake) = mismatched_jump_plant(&model, limits)?;
-                let g0 = Vector3::new(0.0, 0.0, -model.gravity());
-                let jm = JumpModel::new(model, &g0).map_err(domain("jump model"))?;
-                let learner = Learner::new(&jm, 0.8).map_err(domain("learner"))?;
-                let bar = jm.nominal_wheel_speeds();
-                let reference = JumpReference::at_brake(
-                    &model,
-                    &pre_brake_state(&model, face_attitude(), &bar),
-                )
-                .map_err(domain("jump reference"))?;
-                let guide = GuidingController::new(model, &gains, reference);
-                let balance = Backstepping::new(model, gains);
-                let jcfg = JumpConfig {
-                    brake,
-                    ..JumpConfig::default()
+                let setup = JumpSetup {
+                    jump: self.jump,
+                    limits,
+                    start_scale: self.start_scale,
+                    trials: self.trials,
+                    guided: true,
+                    brake_spread: self.brake_spread,
+                    seed: self.common.seed,
                 };
-                let mut theta = bar * self.start_scale;
-                let mut iterates = Vec::new();
-                for i in 0..self.trials {
-                    let out = jump_trial(
-                        &plant,
-                        face_attitude(),
-                        &theta,
-                        JumpControllers {
-                            guide: Some(&guide),
-                            balance: Some(&balance),
-                        },
-                        &jcfg,
-                    )
-                    .map_err(domain("jump trial"))?;
-                    iterates.push(serde_json::json!({
-                        "trial": i,
-                        "theta": theta.as_slice(),
-                        "error": out.corrected.as_slice(),
-                        "success": out.success,
-                    }));
-                    theta = learner.update(&theta, &out.corrected);
-                    progress.set(((i + 1) * 50 / self.trials.max(1)) as u64);
+                let mut learned = learn_jump(&setup)?;
+                progress.set(50);
+                let iterates: Vec<serde_json::Value> = learned
+                    .trials
+                    .iter()
+                    .enumerate()
+                    .map(|(i, t)| {
+                        serde_json::json!({
+                            "trial": i,
+                            "theta": t.theta.as_slice(),
+                            "error": t.error.as_slice(),
+                            "success": t.success,
+                            "brake": format!("{:?}", t.brake),
+                        })
+                    })
+                    .collect();
+                let theta = learned.theta;
+                for (key, value) in [
+                    ("jump", format!("{:?}", self.jump).to_lowercase()),
+                    ("brake", format!("{:?}", learned.brake)),
+                    ("brake_spread", self.brake_spread.to_string()),
+                    (
+                        "wheel_speeds_rad_s",
+                        format!("{},{},{}", theta[0], theta[1], theta[2]),
+                    ),
+                    (
+                        "inclination",
+                        match self.jump {
+                            Jump::Corner => "from upright on the corner",
+                            Jump::Edge => "about edge e1 from upright on the edge",
+                        }
+                        .to_string(),
+                    ),
+                ] {
+                    experiment.extra.insert(key.into(), value);
                 }
-                experiment
-                    .extra
-                    .insert("brake".into(), format!("{brake:?}"));
-                experiment.extra.insert(
-                    "wheel_speeds_rad_s".into(),
-                    format!("{},{},{}", theta[0], theta[1], theta[2]),
-                );
                 recorder.experiment(&experiment)?;
-                let x0 = brake.apply(
-                    &plant.params,
-                    &pre_brake_state(&plant.params, face_attitude(), &theta),
-                );
-                let mut ctrl = JumpController::new(guide, balance, 5f64.to_radians(), 2);
                 let jump_cfg = RunConfig {
                     control_every: 1,
                     ..cfg
                 };
-                let run = simulate(
-                    &plant,
-                    &x0,
-                    &mut ctrl,
-                    &jump_cfg,
-                    &mut cubli::simulate::quiet,
-                )
-                .map_err(domain("jump run"))?;
+                let run = jump_run(&mut learned, &jump_cfg)?;
                 progress.set(90);
-                record_trajectory(recorder, &plant.params, &run, false, false)?;
+                record_trajectory(recorder, &model, &run, false, false)?;
                 summarize(recorder, &run);
                 recorder.summarize("learning", serde_json::Value::Array(iterates));
-                recorder.summarize("nominal_wheel_speeds_rad_s", bar.as_slice().to_vec());
+                recorder.summarize(
+                    "nominal_wheel_speeds_rad_s",
+                    learned.nominal.as_slice().to_vec(),
+                );
                 recorder.summarize("learned_wheel_speeds_rad_s", theta.as_slice().to_vec());
+                recorder.summarize(
+                    "first_successful_trial",
+                    learned.trials.iter().position(|t| t.success).map(|i| i + 1),
+                );
                 let switch = run
                     .t
                     .iter()
