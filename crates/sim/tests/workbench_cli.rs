@@ -15,6 +15,25 @@ fn stabilis(args: &[&str]) -> Output {
         .unwrap()
 }
 
+/// Runs the binary, asserts exit code 0 and returns its stdout.
+fn ok(args: &[&str]) -> String {
+    let run = stabilis(args);
+    assert_eq!(
+        run.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    String::from_utf8_lossy(&run.stdout).into_owned()
+}
+
+/// Runs the binary, asserts exit code 2 (bad input) and returns its stderr.
+fn refused(args: &[&str]) -> String {
+    let run = stabilis(args);
+    assert_eq!(run.status.code(), Some(2), "{:?}", run);
+    String::from_utf8_lossy(&run.stderr).into_owned()
+}
+
 fn temp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("sim-workbench-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -84,7 +103,7 @@ fn discover_on_mcap_logs_writes_json_and_report() {
     write_logs(&logs, None);
     let json = temp("discover.json");
     let report = temp("report");
-    let run = stabilis(&[
+    let stdout = ok(&[
         "discover",
         "--data",
         logs.to_str().unwrap(),
@@ -93,13 +112,6 @@ fn discover_on_mcap_logs_writes_json_and_report() {
         "--json",
         json.to_str().unwrap(),
     ]);
-    let stdout = String::from_utf8_lossy(&run.stdout);
-    assert_eq!(
-        run.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
     assert!(
         stdout.contains("found: [momentum_drag, fan_gyroscopic]"),
         "{stdout}"
@@ -130,7 +142,7 @@ fn discover_on_mcap_logs_writes_json_and_report() {
 fn fit_with_effects_reports_parameters_with_standard_errors() {
     let logs = temp("logs-fit");
     write_logs(&logs, None);
-    let run = stabilis(&[
+    let stdout = ok(&[
         "fit",
         "--with",
         "momentum_drag,fan_gyroscopic",
@@ -138,13 +150,7 @@ fn fit_with_effects_reports_parameters_with_standard_errors() {
         logs.to_str().unwrap(),
         "--json",
     ]);
-    assert_eq!(
-        run.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let doc: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let doc: serde_json::Value = serde_json::from_str(&stdout).unwrap();
     let step = &doc["steps"][0];
     assert_eq!(
         step["effects"],
@@ -163,15 +169,13 @@ fn missing_channel_is_named_and_no_report_is_left() {
     let logs = temp("logs-missing");
     write_logs(&logs, Some("wz"));
     let report = temp("report-missing");
-    let run = stabilis(&[
+    let stderr = refused(&[
         "discover",
         "--data",
         logs.to_str().unwrap(),
         "--report",
         report.to_str().unwrap(),
     ]);
-    assert_eq!(run.status.code(), Some(2));
-    let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(
         stderr.contains("\"wz\"") && stderr.contains("missing field"),
         "{stderr}"
@@ -183,17 +187,196 @@ fn missing_channel_is_named_and_no_report_is_left() {
 fn unknown_effect_is_named() {
     let logs = temp("logs-unknown");
     write_logs(&logs, None);
-    let run = stabilis(&[
+    let stderr = refused(&[
         "fit",
         "--with",
         "ground_effect",
         "--data",
         logs.to_str().unwrap(),
     ]);
-    assert_eq!(run.status.code(), Some(2));
-    let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(
         stderr.contains("ground_effect") && stderr.contains("momentum_drag"),
         "{stderr}"
     );
+}
+
+/// Simulates four 40 s Cubli balancing runs with `stabilis sim cubli` (0.01 N m multisine on
+/// the commanded torques, default sensor noise) into `dir`, with `extra` options.
+fn cubli_logs(dir: &Path, extra: &[&str]) {
+    std::fs::create_dir_all(dir).unwrap();
+    for (seed, tilt) in [(21, "5"), (22, "-4"), (23, "3"), (24, "-4.5")] {
+        let out = dir.join(format!("run{seed}.mcap"));
+        let mut args = vec![
+            "sim".to_string(),
+            "cubli".into(),
+            "--duration=40".into(),
+            "--excitation-rms=0.01".into(),
+            format!("--seed={seed}"),
+            format!("--tilt-deg={tilt}"),
+            format!("--out={}", out.display()),
+        ];
+        args.extend(extra.iter().map(|s| s.to_string()));
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        ok(&args);
+    }
+}
+
+#[test]
+fn cubli_compare_fit_discover_and_report() {
+    let c = 2e-5;
+    let logs = temp("cubli-viscous");
+    cubli_logs(&logs, &["--viscous=2e-5,2e-5,2e-5"]);
+    let data = logs.to_str().unwrap();
+    let json = |args: &[&str]| -> serde_json::Value {
+        serde_json::from_str(&ok(&[
+            args,
+            &["--system", "cubli", "--data", data, "--json"],
+        ]
+        .concat()))
+        .unwrap()
+    };
+    let nominal = json(&["compare"]);
+    let fitted = json(&["fit", "--with", "wheel_viscous_friction"]);
+    let (s0, s1) = (&nominal["steps"][0], &fitted["steps"][0]);
+    assert_eq!(s1["effects"], serde_json::json!(["wheel_viscous_friction"]));
+    let est = s1["params"]["wheel_viscous_friction"].as_f64().unwrap();
+    let std = s1["std"]["wheel_viscous_friction"].as_f64().unwrap();
+    assert!((est - c).abs() < 0.15 * c && std > 0.0, "{est} +- {std}");
+    assert!(s1["cost"].as_f64() < s0["cost"].as_f64(), "{s0} vs {s1}");
+    // The fitted model explains the logs; the nominal one leaves the wheels' misfit.
+    assert_eq!(fitted["unexplained"], false, "{}", fitted["verdict"]);
+    assert_eq!(nominal["unexplained"], true, "{}", nominal["verdict"]);
+    let report = temp("cubli-report");
+    let stdout = ok(&[
+        "discover",
+        "--system",
+        "cubli",
+        "--data",
+        data,
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert!(
+        stdout.contains("found: [wheel_viscous_friction]"),
+        "{stdout}"
+    );
+    let html = std::fs::read_to_string(report.join("index.html")).unwrap();
+    for part in [
+        "<svg",
+        "Parameters",
+        "Error per step",
+        "Residuals",
+        "explained to the noise level",
+    ] {
+        assert!(html.contains(part), "report lacks {part}");
+    }
+    assert!(!html.contains("<script"));
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(report.join("discover.json")).unwrap())
+            .unwrap();
+    assert_eq!(doc["found"], serde_json::json!(["wheel_viscous_friction"]));
+    let stderr = refused(&[
+        "fit",
+        "--system",
+        "cubli",
+        "--with",
+        "ground_effect",
+        "--data",
+        data,
+    ]);
+    assert!(
+        stderr.contains("ground_effect") && stderr.contains("wheel_coulomb_friction"),
+        "{stderr}"
+    );
+}
+
+/// Writes one Cubli run as CSV with `t`, the inputs and the outputs, changed by `edit`.
+fn cubli_csv(path: &Path, source: &Path, edit: impl Fn(&mut Vec<String>, &mut Vec<Vec<String>>)) {
+    let data = sim::workbench::cubli::load_cubli(&[source.to_path_buf()]).unwrap();
+    let e = &data.experiments[0];
+    let mut header: Vec<String> = ["t"]
+        .iter()
+        .map(|s| s.to_string())
+        .chain(data.inputs.iter().cloned())
+        .chain(data.outputs.iter().cloned())
+        .collect();
+    let mut rows: Vec<Vec<String>> = (0..e.u.nrows())
+        .map(|k| {
+            std::iter::once(k as f64 / data.sample_rate_hz)
+                .chain(e.u.row(k).iter().copied())
+                .chain(e.y.row(k).iter().copied())
+                .map(|v| v.to_string())
+                .collect()
+        })
+        .collect();
+    edit(&mut header, &mut rows);
+    let text: Vec<String> = std::iter::once(header.join(","))
+        .chain(rows.iter().map(|r| r.join(",")))
+        .collect();
+    std::fs::write(path, text.join("\n")).unwrap();
+}
+
+#[test]
+fn cubli_bad_data_is_named_and_no_report_is_left() {
+    let logs = temp("cubli-bad-source");
+    cubli_logs(&logs, &[]);
+    let source = logs.join("run21.mcap");
+    let report = temp("cubli-bad-report");
+    let run = |file: &Path| {
+        refused(&[
+            "discover",
+            "--system",
+            "cubli",
+            "--data",
+            file.to_str().unwrap(),
+            "--report",
+            report.to_str().unwrap(),
+        ])
+    };
+    // A missing channel.
+    let missing = temp("cubli-missing.csv");
+    cubli_csv(&missing, &source, |h, rows| {
+        h.pop();
+        for r in rows.iter_mut() {
+            r.pop();
+        }
+    });
+    let stderr = run(&missing);
+    assert!(stderr.contains("\"gz\""), "{stderr}");
+    // A NaN sample.
+    let nan = temp("cubli-nan.csv");
+    cubli_csv(&nan, &source, |_, rows| rows[500][5] = "NaN".into());
+    let stderr = run(&nan);
+    assert!(
+        stderr.contains("\"wy\"") && stderr.contains("line 502"),
+        "{stderr}"
+    );
+    // Output and input logs of different lengths.
+    let short = temp("cubli-short.mcap");
+    let data = sim::workbench::cubli::load_cubli(&[source]).unwrap();
+    let e = &data.experiments[0];
+    let mut w = LogWriter::create(&short).unwrap();
+    let ti = w.add_topic("/cubli/input", &data.inputs).unwrap();
+    let to = w.add_topic("/cubli/output", &data.outputs).unwrap();
+    for k in 0..e.u.nrows() {
+        let t = k as f64 / data.sample_rate_hz;
+        w.write(
+            ti,
+            t,
+            e.u.row(k).iter().copied().collect::<Vec<_>>().as_slice(),
+        )
+        .unwrap();
+        if k + 10 < e.u.nrows() {
+            w.write(
+                to,
+                t,
+                e.y.row(k).iter().copied().collect::<Vec<_>>().as_slice(),
+            )
+            .unwrap();
+        }
+    }
+    w.finish().unwrap();
+    let stderr = run(&short);
+    assert!(stderr.contains("/cubli/output"), "{stderr}");
+    assert!(!report.exists());
 }

@@ -8,9 +8,10 @@ use std::sync::Arc;
 use super::Output;
 use crate::error::{Result, SimError};
 use crate::progress::Progress;
+use crate::workbench::cubli::{CubliBench, CubliDiscovery};
 use crate::workbench::flying_platform::{embedded_dataset, FlyingPlatform};
-use crate::workbench::report::{json, table, write_report};
-use crate::workbench::{cubli, load, Discovery, EstimatorChoice, ModelStructure, Workbench};
+use crate::workbench::report::{json, table, write_cubli_report, write_report};
+use crate::workbench::{load, Discovery, EstimatorChoice, ModelStructure, Workbench};
 
 /// Systems the workbench has a model structure for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -18,7 +19,7 @@ use crate::workbench::{cubli, load, Discovery, EstimatorChoice, ModelStructure, 
 pub enum System {
     /// Ducted-fan flying platform (hover-linear model, effects of the flying_platform crate).
     FlyingPlatform,
-    /// Reaction-wheel cube (time-domain prediction error, `discover` only).
+    /// Reaction-wheel cube (time-domain prediction error on its full-state logs).
     Cubli,
 }
 
@@ -77,7 +78,7 @@ impl Common {
                 return Err(SimError::invalid(
                     "system",
                     "cubli",
-                    "compare and fit work on the flying platform; use `stabilis discover --system cubli --data ...`",
+                    "the Cubli has no FRF model structure",
                 ))
             }
         };
@@ -113,8 +114,8 @@ impl Common {
 }
 
 impl Common {
-    /// Cubli discovery (prediction error on the logs; no FRF, no HTML report yet).
-    fn discover_cubli(&self) -> Result<Output> {
+    /// The Cubli workbench on `--data` (required: there is no embedded Cubli dataset).
+    fn cubli(&self) -> Result<CubliBench> {
         if self.data.is_empty() {
             return Err(SimError::invalid(
                 "data",
@@ -122,17 +123,17 @@ impl Common {
                 "--system cubli needs logs: --data run1.mcap run2.mcap ...",
             ));
         }
+        CubliBench::load(&self.data)
+    }
+
+    fn finish_cubli(&self, d: &CubliDiscovery) -> Result<Output> {
+        let mut human = d.table();
         if let Some(dir) = &self.report {
-            return Err(SimError::invalid(
-                "report",
-                dir.display(),
-                "the HTML report is not available for --system cubli; use --json",
-            ));
+            write_cubli_report(dir, d)?;
+            human.push_str(&format!("wrote {}\n", dir.join("index.html").display()));
         }
-        let data = cubli::load_cubli(&self.data)?;
-        let d = cubli::discover(&data, &cubli::CubliOptions::default())?;
         Ok(Output {
-            human: d.table(),
+            human,
             json: d.json(),
         })
     }
@@ -142,7 +143,8 @@ impl DiscoverArgs {
     /// Finds the missing effects step by step.
     pub fn run(&self) -> Result<Output> {
         if self.common.system == System::Cubli {
-            return self.common.discover_cubli();
+            let d = self.common.cubli()?.discover()?;
+            return self.common.finish_cubli(&d);
         }
         let wb = self.common.workbench()?;
         let candidates = wb.model().candidates().len() as u64;
@@ -161,6 +163,13 @@ impl DiscoverArgs {
 impl FitArgs {
     /// Fits the model with the given effects and reports it (a one-step discovery record).
     pub fn run(&self) -> Result<Output> {
+        if self.common.system == System::Cubli {
+            let mut bench = self.common.cubli()?;
+            for e in &self.with {
+                bench.add(e.trim())?;
+            }
+            return self.common.finish_cubli(&bench.fit()?);
+        }
         let mut wb = self.common.workbench()?;
         for e in &self.with {
             wb.add(e.trim())?;

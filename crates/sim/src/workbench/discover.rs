@@ -26,8 +26,10 @@ pub struct CandidateScore {
     pub f_statistic: f64,
     /// Its p-value.
     pub p_value: f64,
-    /// p-value of the same test without the line that gained most.
-    pub p_value_without_best_line: f64,
+    /// p-value of the robustness check: on FRF data the same test without the line that
+    /// gained most; on Cubli time-domain data the test with generic probe regressors as
+    /// nuisance columns (significance beyond any structured misfit they absorb).
+    pub robust_p_value: f64,
     /// Change of AIC = V/s + 2p (s: noise scale of one squared residual).
     pub delta_aic: f64,
     /// Change of BIC = V/s + p ln n.
@@ -326,7 +328,7 @@ impl Workbench {
             added_parameters: q,
             f_statistic,
             p_value,
-            p_value_without_best_line: robust_p,
+            robust_p_value: robust_p,
             delta_aic,
             delta_bic,
             significant,

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use serde_json::{json, Value};
 
+use super::cubli::{CubliDiscovery, CubliStep, CHANNELS as CUBLI_CHANNELS};
 use super::discover::{Discovery, Step};
 use super::frf::CMatrix;
 use super::Workbench;
@@ -230,7 +231,17 @@ fn sibling(path: &Path, tag: &str) -> PathBuf {
 /// Writes the HTML report into `dir`: built in a temporary sibling directory and renamed into
 /// place only when complete, so a failure never leaves a half report.
 pub fn write_report(dir: &Path, wb: &Workbench, d: &Discovery) -> Result<()> {
-    let html = html(wb, d);
+    publish(dir, &html(wb, d), &json(wb, d))
+}
+
+/// Writes the Cubli HTML report into `dir` (same temporary-directory rule).
+pub fn write_cubli_report(dir: &Path, d: &CubliDiscovery) -> Result<()> {
+    publish(dir, &cubli_html(d), &d.json())
+}
+
+/// Writes `index.html` and `discover.json` into a temporary sibling of `dir` and renames it
+/// into place.
+fn publish(dir: &Path, html: &str, json: &Value) -> Result<()> {
     if let Some(parent) = dir.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).map_err(|e| SimError::io(parent, e))?;
     }
@@ -238,7 +249,7 @@ pub fn write_report(dir: &Path, wb: &Workbench, d: &Discovery) -> Result<()> {
     std::fs::create_dir_all(&tmp).map_err(|e| SimError::io(&tmp, e))?;
     let index = tmp.join("index.html");
     std::fs::write(&index, html).map_err(|e| SimError::io(&index, e))?;
-    write_json(&tmp.join("discover.json"), &json(wb, d))?;
+    write_json(&tmp.join("discover.json"), json)?;
     if dir.exists() {
         let old = sibling(dir, "old");
         std::fs::rename(dir, &old).map_err(|e| SimError::io(dir, e))?;
@@ -262,11 +273,45 @@ struct Series<'a> {
     band: Option<Vec<(f64, f64, f64)>>,
 }
 
-/// An SVG chart with a logarithmic x axis (frequency) and a linear y axis.
-fn chart(title: &str, y_label: &str, series: &[Series<'_>]) -> String {
+/// The x axis of a chart.
+#[derive(Clone, Copy)]
+struct XAxis<'a> {
+    label: &'a str,
+    log: bool,
+}
+
+const FREQUENCY: XAxis<'static> = XAxis {
+    label: "frequency (Hz)",
+    log: true,
+};
+
+/// One series per step, coloured by step.
+fn per_step<S>(
+    steps: &[S],
+    label: impl Fn(usize, &S) -> String,
+    markers: bool,
+    points: impl Fn(&S) -> Vec<(f64, f64)>,
+) -> Vec<Series<'static>> {
+    steps
+        .iter()
+        .enumerate()
+        .map(|(k, st)| Series {
+            name: label(k, st),
+            color: COLORS[k % COLORS.len()],
+            points: points(st),
+            markers,
+            band: None,
+        })
+        .collect()
+}
+
+/// An SVG chart with a logarithmic or linear x axis and a linear y axis.
+fn chart(title: &str, x_axis: XAxis<'_>, y_label: &str, series: &[Series<'_>]) -> String {
     let (w, h, l, r, t, b) = (520.0, 300.0, 60.0, 150.0, 28.0, 40.0);
     let xs = series.iter().flat_map(|s| s.points.iter().map(|p| p.0));
-    let (xmin, xmax) = xs.fold((f64::INFINITY, 0.0f64), |(a, b), x| (a.min(x), b.max(x)));
+    let (xmin, xmax) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+        (a.min(x), b.max(x))
+    });
     let ys = series.iter().flat_map(|s| {
         s.points.iter().map(|p| p.1).chain(
             s.band
@@ -279,8 +324,10 @@ fn chart(title: &str, y_label: &str, series: &[Series<'_>]) -> String {
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| {
             (a.min(y), b.max(y))
         });
-    if !(ymin.is_finite() && ymax.is_finite() && xmin.is_finite() && xmin > 0.0) {
-        return format!("<p>{title}: nothing to plot</p>");
+    if !(ymin.is_finite() && ymax.is_finite() && xmin.is_finite() && xmax.is_finite())
+        || (x_axis.log && xmin <= 0.0)
+    {
+        return format!("<p>{}: nothing to plot</p>", escape(title));
     }
     if ymax - ymin < 1e-9 {
         ymin -= 1.0;
@@ -288,8 +335,14 @@ fn chart(title: &str, y_label: &str, series: &[Series<'_>]) -> String {
     }
     let pad = 0.05 * (ymax - ymin);
     let (ymin, ymax) = (ymin - pad, ymax + pad);
-    let (lx0, lx1) = (xmin.log10() - 0.05, xmax.log10() + 0.05);
-    let px = |x: f64| l + (x.log10() - lx0) / (lx1 - lx0) * (w - l - r);
+    let warp = |x: f64| if x_axis.log { x.log10() } else { x };
+    let margin = if x_axis.log {
+        0.05
+    } else {
+        0.02 * (xmax - xmin).max(1e-9)
+    };
+    let (lx0, lx1) = (warp(xmin) - margin, warp(xmax) + margin);
+    let px = |x: f64| l + (warp(x) - lx0) / (lx1 - lx0) * (w - l - r);
     let py = |y: f64| t + (ymax - y.clamp(ymin, ymax)) / (ymax - ymin) * (h - t - b);
     let mut s = format!(
         r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" font-family="sans-serif" font-size="11">"#
@@ -315,21 +368,33 @@ fn chart(title: &str, y_label: &str, series: &[Series<'_>]) -> String {
             fmt_num(y)
         );
     }
-    for x in [0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0] {
-        if x >= xmin * 0.8 && x <= xmax * 1.25 {
+    let ticks: Vec<f64> = if x_axis.log {
+        [0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0]
+            .into_iter()
+            .filter(|x| *x >= xmin * 0.8 && *x <= xmax * 1.25)
+            .collect()
+    } else {
+        (0..=4)
+            .map(|i| xmin + (xmax - xmin) * i as f64 / 4.0)
+            .collect()
+    };
+    for x in ticks {
+        {
             let _ = write!(
                 s,
-                r#"<text x="{:.1}" y="{}" text-anchor="middle">{x}</text>"#,
+                r#"<text x="{:.1}" y="{}" text-anchor="middle">{}</text>"#,
                 px(x),
-                h - b + 14.0
+                h - b + 14.0,
+                fmt_num(x)
             );
         }
     }
     let _ = write!(
         s,
-        r#"<text x="{}" y="{}" text-anchor="middle">frequency (Hz)</text>"#,
+        r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#,
         l + (w - l - r) / 2.0,
-        h - 6.0
+        h - 6.0,
+        escape(x_axis.label)
     );
     let _ = write!(
         s,
@@ -449,57 +514,27 @@ fn html(wb: &Workbench, d: &Discovery) -> String {
         wb.noise().mean()
     );
     let _ = write!(body, "<h2>Summary</h2><pre>{}</pre>", escape(&table(wb, d)));
-    // Error per step.
-    let costs: Vec<(f64, f64)> = d
+    let bars: Vec<(String, f64)> = d
         .steps
         .iter()
-        .enumerate()
-        .map(|(i, s)| (i as f64, s.cost.max(1e-300).log10()))
+        .map(|s| (s.added.clone().unwrap_or_else(|| "start".into()), s.cost))
         .collect();
-    body.push_str("<h2>Error per step</h2><svg xmlns=\"http://www.w3.org/2000/svg\" width=\"520\" height=\"220\" font-family=\"sans-serif\" font-size=\"11\">");
-    let max = costs.iter().map(|c| c.1).fold(1.0f64, f64::max).ceil();
-    let noise = wb.noise().mean().log10();
-    for (i, (_, c)) in costs.iter().enumerate() {
-        let bh = 170.0 * c.max(0.0) / max;
-        let x = 60.0 + 90.0 * i as f64;
-        let label = d.steps[i].added.as_deref().unwrap_or("start");
-        let _ = write!(
-            body,
-            r##"<rect x="{x}" y="{:.1}" width="60" height="{bh:.1}" fill="#1f77b4"/><text x="{}" y="212" text-anchor="middle">{}</text><text x="{}" y="{:.1}" text-anchor="middle">{:.0}</text>"##,
-            190.0 - bh,
-            x + 30.0,
-            escape(label),
-            x + 30.0,
-            186.0 - bh,
-            10f64.powf(*c)
-        );
-    }
-    let ny = 190.0 - 170.0 * noise / max;
-    let _ = write!(
-        body,
-        r##"<line x1="50" x2="510" y1="{ny:.1}" y2="{ny:.1}" stroke="#d62728" stroke-dasharray="4"/><text x="510" y="{:.1}" text-anchor="end" fill="#d62728">noise level</text></svg><p>Bar height: log10 of the weighted cost.</p>"##,
-        ny - 4.0
-    );
+    body.push_str(&cost_bars(&bars, wb.noise().mean()));
     // Residuals per line and step.
-    let series: Vec<Series<'_>> = d
-        .steps
-        .iter()
-        .enumerate()
-        .map(|(i, s)| Series {
-            name: s.added.clone().unwrap_or_else(|| "start".into()),
-            color: COLORS[i % COLORS.len()],
-            points: s
-                .diagnosis
+    let series = per_step(
+        &d.steps,
+        |_, s: &Step| s.added.clone().unwrap_or_else(|| "start".into()),
+        false,
+        |s| {
+            s.diagnosis
                 .lines
                 .iter()
                 .zip(&f)
                 .map(|(g, x)| (*x, (g.misfit / g.expected).max(1e-3).log10()))
-                .collect(),
-            markers: false,
-            band: None,
-        })
-        .collect();
-    let _ = write!(body, "<h2>Residuals</h2><p>Weighted misfit per line divided by what noise alone gives (log10; 0 = noise level).</p>{}", chart("misfit / noise per line", "log10 ratio", &series));
+                .collect()
+        },
+    );
+    let _ = write!(body, "<h2>Residuals</h2><p>Weighted misfit per line divided by what noise alone gives (log10; 0 = noise level).</p>{}", chart("misfit / noise per line", FREQUENCY, "log10 ratio", &series));
     // FRF per channel and step.
     body.push_str("<h2>Frequency response, measured and model</h2><p>Dots: measured FRF; shaded: one standard deviation; lines: model after each step.</p>");
     for (o, i) in channels(d, wb) {
@@ -578,9 +613,132 @@ fn html(wb: &Workbench, d: &Discovery) -> String {
         let _ = write!(
             body,
             "<div>{}{}</div>",
-            chart(&format!("{name}: magnitude"), "dB", &mag),
-            chart(&format!("{name}: phase"), "degrees", &phase)
+            chart(&format!("{name}: magnitude"), FREQUENCY, "dB", &mag),
+            chart(&format!("{name}: phase"), FREQUENCY, "degrees", &phase)
         );
     }
-    format!("<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>stabilis workbench</title><style>body{{font-family:sans-serif;max-width:1100px;margin:auto}} svg{{margin:4px}} pre{{background:#f4f4f4;padding:8px;overflow-x:auto}}</style></head><body>{body}</body></html>")
+    page(&body)
+}
+
+/// The HTML page around `body` (inline style, no scripts).
+fn page(body: &str) -> String {
+    format!("<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>stabilis workbench</title><style>body{{font-family:sans-serif;max-width:1100px;margin:auto}} svg{{margin:4px}} pre{{background:#f4f4f4;padding:8px;overflow-x:auto}} td,th{{padding:2px 8px;text-align:right}}</style></head><body>{body}</body></html>")
+}
+
+/// "Error per step": one bar per step, height log10 of the weighted cost, with the level
+/// noise alone gives as a dashed line.
+fn cost_bars(steps: &[(String, f64)], noise: f64) -> String {
+    let mut body = String::from("<h2>Error per step</h2><svg xmlns=\"http://www.w3.org/2000/svg\" width=\"520\" height=\"220\" font-family=\"sans-serif\" font-size=\"11\">");
+    let logs: Vec<f64> = steps.iter().map(|(_, c)| c.max(1e-300).log10()).collect();
+    let noise = noise.max(1e-300).log10();
+    let max = logs.iter().copied().fold(noise.max(1.0), f64::max).ceil();
+    let width = (440.0 / steps.len().max(1) as f64).min(90.0);
+    for (i, ((label, cost), c)) in steps.iter().zip(&logs).enumerate() {
+        let bh = 170.0 * c.max(0.0) / max;
+        let x = 60.0 + width * i as f64;
+        let _ = write!(
+            body,
+            r##"<rect x="{x}" y="{:.1}" width="{:.1}" height="{bh:.1}" fill="#1f77b4"/><text x="{}" y="212" text-anchor="middle">{}</text><text x="{}" y="{:.1}" text-anchor="middle">{}</text>"##,
+            190.0 - bh,
+            width * 2.0 / 3.0,
+            x + width / 3.0,
+            escape(label),
+            x + width / 3.0,
+            186.0 - bh,
+            fmt_num(*cost)
+        );
+    }
+    let ny = 190.0 - 170.0 * noise.max(0.0) / max;
+    let _ = write!(
+        body,
+        r##"<line x1="50" x2="510" y1="{ny:.1}" y2="{ny:.1}" stroke="#d62728" stroke-dasharray="4"/><text x="510" y="{:.1}" text-anchor="end" fill="#d62728">noise level</text></svg><p>Bar height: log10 of the weighted cost.</p>"##,
+        ny - 4.0
+    );
+    body
+}
+
+/// The Cubli report: summary, error per step, parameter table, residual level per channel
+/// and step, the residual over time of the worst channel, verdict.
+fn cubli_html(d: &CubliDiscovery) -> String {
+    let mut body = String::new();
+    let _ = write!(
+        body,
+        "<h1>stabilis workbench: cubli</h1><p>Time-domain prediction error over {} windows of {} samples from {} experiments; residual channels {}.</p><h2>Verdict</h2><p><b>{}</b>. Found: [{}]. Tentative: [{}].</p>",
+        d.windows,
+        d.window_samples,
+        d.experiments,
+        CUBLI_CHANNELS.join(", "),
+        escape(&d.verdict()),
+        escape(&d.found.join(", ")),
+        escape(&d.tentative.join(", "))
+    );
+    let _ = write!(body, "<h2>Summary</h2><pre>{}</pre>", escape(&d.table()));
+    let bars: Vec<(String, f64)> = d
+        .steps
+        .iter()
+        .map(|s| (s.added.clone().unwrap_or_else(|| "start".into()), s.cost))
+        .collect();
+    // The weighted cost of noise alone is about the number of residual rows.
+    body.push_str(&cost_bars(&bars, (d.windows * CUBLI_CHANNELS.len()) as f64));
+    body.push_str("<h2>Parameters</h2><table><tr><th>step</th><th>effect added</th><th>parameter</th><th>value</th><th>standard error</th></tr>");
+    for (i, st) in d.steps.iter().enumerate() {
+        for p in &st.params {
+            let _ = write!(
+                body,
+                "<tr><td>{i}</td><td>{}</td><td>{}</td><td>{:.5e}</td><td>{:.2e}</td></tr>",
+                escape(st.added.as_deref().unwrap_or("start")),
+                escape(&p.name),
+                p.value,
+                p.std
+            );
+        }
+    }
+    body.push_str("</table>");
+    let label =
+        |k: usize, st: &CubliStep| format!("{k}: {}", st.added.as_deref().unwrap_or("start"));
+    let rms = per_step(&d.steps, label, true, |st| {
+        st.channel_rms_over_noise
+            .iter()
+            .enumerate()
+            .map(|(c, v)| ((c + 1) as f64, *v))
+            .collect()
+    });
+    let channel_axis = XAxis {
+        label: "channel (1-3 p_w, 4-6 p_h, 7-9 g)",
+        log: false,
+    };
+    let _ = write!(
+        body,
+        "<h2>Residuals</h2><p>RMS window residual over the estimated noise standard deviation per channel (1 = noise level).</p>{}",
+        chart("residual rms / noise", channel_axis, "ratio", &rms)
+    );
+    let worst = d.steps.first().map_or(0, |st| {
+        st.channel_rms_over_noise
+            .iter()
+            .enumerate()
+            .fold(
+                (0, f64::NEG_INFINITY),
+                |a, (c, v)| if *v > a.1 { (c, *v) } else { a },
+            )
+            .0
+    });
+    let series = per_step(&d.steps, label, false, |st| {
+        d.rows
+            .iter()
+            .zip(&st.whitened_residuals)
+            .filter(|((c, e, _), _)| *c == worst && *e == 0)
+            .map(|((_, _, t), v)| (*t, *v))
+            .collect()
+    });
+    let time_axis = XAxis {
+        label: "time (s), experiment 1",
+        log: false,
+    };
+    let _ = write!(
+        body,
+        "<p>Residual of channel {} (largest misfit of the starting model) over the windows of the first experiment, in noise standard deviations.</p>{}",
+        CUBLI_CHANNELS[worst],
+        chart(&format!("{} residual / noise", CUBLI_CHANNELS[worst]), time_axis, "residual / std", &series)
+    );
+    page(&body)
 }
