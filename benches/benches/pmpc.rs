@@ -12,31 +12,12 @@ use std::hint::black_box;
 fn pmpc_controller(s: usize) -> Pmpc {
     let sc = scenario::quad_integrator();
     let basis = Laguerre::new(s, scenario::NU).unwrap();
-    Pmpc::new(
-        &sc.a,
-        &sc.b,
-        &sc.q,
-        &sc.r,
-        &sc.constraints,
-        basis,
-        scenario::TD,
-    )
-    .unwrap()
+    sc.pmpc(basis).unwrap()
 }
 
 fn discrete_controller(backend: Backend) -> DiscreteMpc {
     let sc = scenario::quad_integrator();
-    DiscreteMpc::new(
-        &sc.a,
-        &sc.b,
-        &sc.q,
-        &sc.r,
-        &sc.constraints,
-        scenario::TD,
-        100,
-        backend,
-    )
-    .unwrap()
+    sc.discrete(100, backend).unwrap()
 }
 
 fn quad_integrator_step(c: &mut Criterion) {
@@ -89,16 +70,7 @@ fn integrator_chain(c: &mut Criterion) {
     for n in 2..=7 {
         let sc = scenario::integrator_chain(n);
         let basis = Laguerre::new(12, scenario::NU).unwrap();
-        let mut ctrl = Pmpc::new(
-            &sc.a,
-            &sc.b,
-            &sc.q,
-            &sc.r,
-            &sc.constraints,
-            basis,
-            scenario::TD,
-        )
-        .unwrap();
+        let mut ctrl = sc.pmpc(basis).unwrap();
         // Cold single solve of the open-loop problem (no warm start, no allocation).
         group.bench_function(format!("pmpc_n{n}"), |b| {
             b.iter(|| {

@@ -2,8 +2,8 @@
 //! (x'''' = u, |u| ≤ 0.5, x ≥ 0, x0 = 0.3·𝟙) under parametrized infinite-horizon MPC or the
 //! standard discrete-time MPC baseline. Logs `/quad_integrator/input` (`u`) and
 //! `/quad_integrator/state` (`x dx ddx dddx`) at every sample.
-use pmpc::baseline::{Backend, DiscreteMpc};
-use pmpc::{scenario, simulate, Pmpc};
+use pmpc::baseline::Backend;
+use pmpc::{scenario, simulate};
 use rigid_body::laguerre::Laguerre;
 
 use crate::error::{Result, SimError};
@@ -60,30 +60,13 @@ impl Scenario for Args {
             Controller::Pmpc => {
                 let basis = Laguerre::new(self.s, self.nu)
                     .map_err(|e| SimError::domain("Laguerre basis", e))?;
-                let mut ctrl = Pmpc::new(
-                    &sc.a,
-                    &sc.b,
-                    &sc.q,
-                    &sc.r,
-                    &sc.constraints,
-                    basis,
-                    scenario::TD,
-                )
-                .map_err(domain)?;
+                let mut ctrl = sc.pmpc(basis).map_err(domain)?;
                 simulate::run_pmpc(&mut ctrl, &sc.x0, steps, 10).map_err(domain)?
             }
             Controller::Discrete => {
-                let mut ctrl = DiscreteMpc::new(
-                    &sc.a,
-                    &sc.b,
-                    &sc.q,
-                    &sc.r,
-                    &sc.constraints,
-                    scenario::TD,
-                    self.horizon,
-                    Backend::Clarabel,
-                )
-                .map_err(domain)?;
+                let mut ctrl = sc
+                    .discrete(self.horizon, Backend::Clarabel)
+                    .map_err(domain)?;
                 simulate::run_discrete(&mut ctrl, &sc.x0, steps).map_err(domain)?
             }
         };
