@@ -75,22 +75,56 @@ impl WeightedCost {
     /// Builds `L^-1` with `Cov = L L^H` for each line. A covariance that is exactly zero
     /// (noise-free data) cannot weight a cost and is reported as an error.
     pub fn new(frf: &FrfEstimate) -> Result<Self> {
+        Self::build(frf, None)
+    }
+
+    /// The cost with each line's noise covariance `S` of `Cov = M ⊗ S` replaced by `noise[k]`
+    /// (the weighting re-estimated from a model's residual, [`super::welch::model_noise`]).
+    pub fn with_noise(frf: &FrfEstimate, noise: &[CMatrix]) -> Result<Self> {
+        if noise.len() != frf.lines.len() {
+            return Err(SimError::invalid(
+                "noise covariances",
+                noise.len(),
+                format!("need one per FRF line ({})", frf.lines.len()),
+            ));
+        }
+        Self::build(frf, Some(noise))
+    }
+
+    fn build(frf: &FrfEstimate, noise: Option<&[CMatrix]>) -> Result<Self> {
         let (ny, nu) = (frf.ny(), frf.nu());
         let mut whiten = Vec::with_capacity(frf.lines.len());
         let mut std = Vec::with_capacity(frf.lines.len());
-        for line in &frf.lines {
+        for (k, line) in frf.lines.iter().enumerate() {
             let what = format!("FRF noise covariance at {:.3} Hz", line.freq_hz);
-            let w = match &line.kronecker {
-                Some((m, s)) => Whitener::Kronecker {
-                    m_inv_t: chol_inv(m, &what)?.transpose(),
-                    s_inv: chol_inv(s, &what)?,
-                },
-                None => Whitener::Full(chol_inv(&line.cov, &what)?),
+            let (w, sd) = match (&line.kronecker, noise) {
+                (Some((m, s)), _) => {
+                    let s = noise.map_or(s, |n| &n[k]);
+                    let sd = DMatrix::from_fn(ny, nu, |i, j| {
+                        (m[(j, j)].re * s[(i, i)].re).max(0.0).sqrt()
+                    });
+                    let w = Whitener::Kronecker {
+                        m_inv_t: chol_inv(m, &what)?.transpose(),
+                        s_inv: chol_inv(s, &what)?,
+                    };
+                    (w, sd)
+                }
+                (None, Some(_)) => {
+                    return Err(SimError::invalid(
+                        what,
+                        "not of the form M ⊗ S",
+                        "only a Kronecker-structured covariance can take a re-estimated noise",
+                    ))
+                }
+                (None, None) => {
+                    let sd = DMatrix::from_fn(ny, nu, |i, j| {
+                        line.cov[(j * ny + i, j * ny + i)].re.max(0.0).sqrt()
+                    });
+                    (Whitener::Full(chol_inv(&line.cov, &what)?), sd)
+                }
             };
             whiten.push(w);
-            std.push(DMatrix::from_fn(ny, nu, |i, j| {
-                line.cov[(j * ny + i, j * ny + i)].re.max(0.0).sqrt()
-            }));
+            std.push(sd);
         }
         Ok(Self {
             freqs_hz: frf.freqs_hz(),

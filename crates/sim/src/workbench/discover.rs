@@ -2,8 +2,10 @@
 //! if the data demand it, repeat; then say whether what is left is noise.
 use serde::Serialize;
 
+use super::cost::WeightedCost;
 use super::diagnose::{diagnose, matched_sf, Diagnosis, LEVEL};
 use super::fit::{fit, FitResult, ParamEstimate};
+use super::frf::Estimator;
 use super::model::Model;
 use super::residual::{residual_tests, ResidualTests, DEFAULT_LAGS};
 use super::stats::f_sf;
@@ -68,6 +70,10 @@ pub struct Step {
     /// Model FRF on the lines.
     #[serde(skip)]
     pub model_frf: Vec<super::frf::CMatrix>,
+    /// The step's own weighting when the noise is re-estimated from the model's residual
+    /// (Welch instrumental variable); `None`: the workbench's.
+    #[serde(skip)]
+    pub(crate) weighting: Option<WeightedCost>,
 }
 
 /// Final verdict on the data.
@@ -137,6 +143,9 @@ pub struct Discovery {
     pub level: f64,
 }
 
+/// Re-estimations of the noise after the first re-weighted fit (see `fit_reweighted`).
+const REWEIGHTINGS: usize = 2;
+
 /// Values tried for a new parameter: 17 points over its bounds (logarithmic for a positive
 /// range spanning decades), plus zero and the documented value when inside.
 fn scan_grid(p: &super::model::Parameter) -> Vec<f64> {
@@ -167,8 +176,51 @@ impl Workbench {
         start: Option<&[f64]>,
         base_cost: Option<f64>,
     ) -> Result<Step> {
-        let r = fit(model, &self.cost, start, &self.fit_options())?;
-        self.step_from(model, added, r, base_cost)
+        let (r, weighting) = self.fit_reweighted(model, start)?;
+        self.step_from(model, added, r, weighting, base_cost)
+    }
+
+    /// Whether the weighting's noise is re-estimated from each model's residual: for the
+    /// Welch instrumental variable, whose estimate-based noise is distorted at the lowest
+    /// lines of a closed loop ([`super::welch::model_noise`]).
+    fn reweights(&self) -> bool {
+        self.frf.estimator == Estimator::H1WelchInstrumental
+    }
+
+    /// The weighting of `step`'s cost.
+    fn weighting<'a>(&'a self, step: &'a Step) -> &'a WeightedCost {
+        step.weighting.as_ref().unwrap_or(&self.cost)
+    }
+
+    /// Fits `model` from `start`; when the workbench re-weights, by iterated re-weighting:
+    /// the noise of the weighting from the residual of the start (documented values if none),
+    /// fit, then [`REWEIGHTINGS`] times the noise from the fitted model's residual and refit.
+    fn fit_reweighted(
+        &self,
+        model: &Model,
+        start: Option<&[f64]>,
+    ) -> Result<(FitResult, Option<WeightedCost>)> {
+        let opts = self.fit_options();
+        if !self.reweights() {
+            return Ok((fit(model, &self.cost, start, &opts)?, None));
+        }
+        let theta: Vec<f64> = match start {
+            Some(t) => t.to_vec(),
+            None => model.parameters()?.iter().map(|p| p.value).collect(),
+        };
+        let g = model.frf(&theta, &self.cost.freqs_hz, opts.hold)?;
+        let mut cost = self.noise_weighting(&g)?;
+        let mut r = fit(model, &cost, Some(&theta), &opts)?;
+        for _ in 0..REWEIGHTINGS {
+            cost = self.noise_weighting(&r.model_frf)?;
+            r = fit(model, &cost, Some(&r.theta), &opts)?;
+        }
+        Ok((r, Some(cost)))
+    }
+
+    /// The cost weighted with the noise estimated from the residual of the model FRF `g`.
+    fn noise_weighting(&self, g: &[super::frf::CMatrix]) -> Result<WeightedCost> {
+        WeightedCost::with_noise(&self.frf, &super::welch::model_noise(&self.frf, g)?)
     }
 
     fn step_from(
@@ -176,6 +228,7 @@ impl Workbench {
         model: &Model,
         added: Option<String>,
         r: FitResult,
+        weighting: Option<WeightedCost>,
         base_cost: Option<f64>,
     ) -> Result<Step> {
         let ss = model.state_space(&r.theta)?;
@@ -191,7 +244,13 @@ impl Workbench {
             &self.data.inputs,
             DEFAULT_LAGS,
         );
-        let diagnosis = diagnose(&self.frf, &self.cost, &self.noise, &r.model_frf, r.free);
+        let diagnosis = diagnose(
+            &self.frf,
+            weighting.as_ref().unwrap_or(&self.cost),
+            &self.noise,
+            &r.model_frf,
+            r.free,
+        );
         let (expected, _) = self.noise.fitted_level(r.free);
         let base = base_cost.unwrap_or(r.cost);
         Ok(Step {
@@ -207,6 +266,7 @@ impl Workbench {
             candidates: Vec::new(),
             theta: r.theta,
             model_frf: r.model_frf,
+            weighting,
         })
     }
 
@@ -246,6 +306,8 @@ impl Workbench {
     ) -> Result<(Model, FitResult, CandidateScore)> {
         let with = model.with_effect(effect)?;
         let start = self.carry_over(model, &current.theta, &with)?;
+        // Candidates are fitted and compared under the current step's weighting.
+        let cost = self.weighting(current);
         // Two starts: the current estimate with the new parameters at their documented values,
         // and all parameters at their documented values with each new parameter chosen by a
         // coarse scan over its bounds. The current estimate of a misspecified model is
@@ -266,8 +328,8 @@ impl Workbench {
             for v in scan_grid(&params[i]) {
                 let mut t = scanned.clone();
                 t[i] = v;
-                if let Ok(g) = with.frf(&t, &self.cost.freqs_hz, hold) {
-                    let c = self.cost.cost(&g);
+                if let Ok(g) = with.frf(&t, &cost.freqs_hz, hold) {
+                    let c = cost.cost(&g);
                     if c < best.0 {
                         best = (c, v);
                     }
@@ -275,10 +337,10 @@ impl Workbench {
             }
             scanned[i] = best.1;
         }
-        let a = fit(&with, &self.cost, Some(&start), &self.fit_options())?;
-        let b = fit(&with, &self.cost, Some(&scanned), &self.fit_options())?;
+        let a = fit(&with, cost, Some(&start), &self.fit_options())?;
+        let b = fit(&with, cost, Some(&scanned), &self.fit_options())?;
         let r = if b.cost < a.cost { b } else { a };
-        let n = self.cost.n_residuals() as f64;
+        let n = cost.n_residuals() as f64;
         let p0 = current.params.iter().filter(|p| !p.held).count();
         let p1 = r.free;
         let q = p1.saturating_sub(p0);
@@ -295,9 +357,7 @@ impl Workbench {
         // no candidate describes (leakage of slow disturbances into the lowest line, a
         // corrupted record). Repeat the test without the line that gained most.
         let per_line = |g: &[super::frf::CMatrix]| -> Vec<f64> {
-            (0..g.len())
-                .map(|k| self.cost.line_cost(k, &g[k]))
-                .collect()
+            (0..g.len()).map(|k| cost.line_cost(k, &g[k])).collect()
         };
         let (before, after) = (per_line(&current.model_frf), per_line(&r.model_frf));
         let (kmax, gain_max) = before
@@ -400,7 +460,11 @@ impl Workbench {
                 Some((with, r, i)) => {
                     let name = current.candidates[i].effect.clone();
                     found.push(name.clone());
-                    let next = self.step_from(&with, Some(name), r, Some(base_cost))?;
+                    let next = if self.reweights() {
+                        self.step(&with, Some(name), Some(&r.theta), Some(base_cost))?
+                    } else {
+                        self.step_from(&with, Some(name), r, None, Some(base_cost))?
+                    };
                     steps.push(std::mem::replace(&mut current, next));
                     model = with;
                 }
