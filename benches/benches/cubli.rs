@@ -1,17 +1,21 @@
 //! Cubli: evaluation time of the backstepping and guiding controllers against the cheapest
 //! peer a user would otherwise pick (a linear state feedback u = −K x, as from LQR on the
-//! upright linearization), and the real-time factor of the closed-loop simulation.
+//! upright linearization), the same for the edge balancer against an LQR gain from
+//! `rigid_body::lti::lqr` on the planar linearization, and the real-time factor of the
+//! closed-loop simulation and of one face → edge jump trial.
 #![allow(clippy::unwrap_used)]
 
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use cubli::jump::{face_attitude, pre_brake_state, JumpModel};
+use cubli::edge::{EdgeJump, EdgeJumpModel};
+use cubli::jump::{face_attitude, pre_brake_state, ImpactModel, JumpModel};
 use cubli::simulate::{quiet, simulate, RunConfig};
 use cubli::{
-    Backstepping, FullState, Gains, GuidingController, JumpReference, Params, Plant, ReducedState,
+    jump_trial, Backstepping, FullState, Gains, GuidingController, JumpConfig, JumpControllers,
+    JumpReference, Params, Plant, ReducedState,
 };
-use nalgebra::{SMatrix, SVector, UnitQuaternion, Vector3};
+use nalgebra::{DMatrix, RowVector3, SMatrix, SVector, UnitQuaternion, Vector3};
 
 fn states(p: &Params) -> Vec<ReducedState> {
     (0..64)
@@ -110,5 +114,83 @@ fn simulation(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, controllers, simulation);
+/// Planar states (φ, p, p_w) about edge e1 and the reduced states the edge balancer reads.
+fn edge_states(edge: &EdgeJump) -> Vec<(Vector3<f64>, ReducedState)> {
+    let up = -edge.params().m().normalize();
+    let side = Vector3::x().cross(&up);
+    (0..64)
+        .map(|i| {
+            let a = i as f64 * 0.37;
+            let s = Vector3::new(0.2 * a.sin(), 0.02 * a.cos(), 0.05 * a.sin());
+            let g = (up * s[0].cos() + side * s[0].sin()) * 9.81;
+            let x = ReducedState {
+                g,
+                p_h: Vector3::new(s[1], 0.0, 0.0),
+                p_w: Vector3::new(s[2], 0.0, 0.0),
+            };
+            (s, x)
+        })
+        .collect()
+}
+
+fn edge(c: &mut Criterion) {
+    let p = Params::reference();
+    let edge = EdgeJump::new(&p, 0).unwrap();
+    let ctrl = edge.balancer(Gains::paper());
+    let xs = edge_states(&edge);
+    // Peer: LQR (Q = diag(100, 10, 0.01), R = 100) on the upright linearization of the plane.
+    let (ie, mgl) = (edge.inertia(), edge.mg());
+    let a = DMatrix::from_row_slice(
+        3,
+        3,
+        &[0.0, -1.0 / ie, 1.0 / ie, -mgl, 0.0, 0.0, 0.0, 0.0, 0.0],
+    );
+    let b = DMatrix::from_row_slice(3, 1, &[0.0, 0.0, 1.0]);
+    let q = DMatrix::from_diagonal(&nalgebra::DVector::from_row_slice(&[100.0, 10.0, 0.01]));
+    let r = DMatrix::from_element(1, 1, 100.0);
+    let lqr = rigid_body::lti::lqr(&a, &b, &q, &r).unwrap();
+    let k = RowVector3::new(lqr.k[(0, 0)], lqr.k[(0, 1)], lqr.k[(0, 2)]);
+
+    let mut group = c.benchmark_group("cubli_edge_controller");
+    group.throughput(Throughput::Elements(xs.len() as u64));
+    group.bench_function("edge_backstepping", |b| {
+        b.iter(|| {
+            for (_, x) in &xs {
+                black_box(ctrl.control(black_box(x)).unwrap());
+            }
+        })
+    });
+    group.bench_function("peer_planar_lqr", |b| {
+        b.iter(|| {
+            for (s, _) in &xs {
+                black_box(-(k * black_box(s)));
+            }
+        })
+    });
+    group.finish();
+
+    let plant = Plant::ideal(*edge.params());
+    let theta = Vector3::new(
+        EdgeJumpModel::new(&edge).unwrap().nominal_wheel_speed() * 1.0136,
+        0.0,
+        0.0,
+    );
+    let cfg = JumpConfig {
+        brake: ImpactModel::Lock,
+        ..JumpConfig::default()
+    };
+    let mut group = c.benchmark_group("cubli_edge_jump");
+    group.bench_function("trial_flight_and_4s_balance", |b| {
+        b.iter(|| {
+            let controllers = JumpControllers {
+                guide: None,
+                balance: Some(&ctrl),
+            };
+            black_box(jump_trial(&plant, face_attitude(), &theta, controllers, &cfg).unwrap());
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, controllers, simulation, edge);
 criterion_main!(benches);
