@@ -1,17 +1,19 @@
 //! Python bindings of the Cubli: parameters, model functions, the backstepping and guiding
 //! controllers, the tuning method and jump-up learning. 3-vectors are anything numpy can turn
 //! into three floats; results are float64 arrays.
-use cubli::jump::{face_attitude, pre_brake_state, JumpModel, Learner};
+use cubli::edge::{EdgeJump, EdgeJumpModel};
+use cubli::jump::{face_attitude, pre_brake_state, JumpModel};
 use cubli::model;
 use cubli::{
-    jump_trial, Backstepping, CubliError, FullState, Gains, GuidingController, JumpConfig,
-    JumpControllers, JumpReference, Limits, Params, ReducedState, TiltPolynomial,
+    Backstepping, CubliError, FullState, Gains, GuidingController, JumpReference, Limits, Params,
+    ReducedState, TiltPolynomial,
 };
 use nalgebra::{Complex, Matrix3, Quaternion, UnitQuaternion, Vector3};
 use numpy::{PyArray1, PyArray2};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyComplex, PyDict};
+use sim::scenarios::cubli::{learn_jump as learn_jump_trials, Jump, JumpSetup};
 
 use crate::errors::{to_py_err, Error, IntoPyError};
 
@@ -320,79 +322,92 @@ impl PyGuiding {
     }
 }
 
-/// Nominal face → corner wheel speeds (1.67) for the face with normal −e3 (rad/s).
+/// Nominal wheel speeds (1.67) for the face with normal −e3 (rad/s): the three face → corner
+/// speeds, or for `jump="edge"` the speeds with only wheel 1 spinning that lift the cube onto
+/// edge e1 (ideal brake).
 #[pyfunction]
-#[pyo3(signature = (params=None))]
+#[pyo3(signature = (params=None, jump="corner"))]
 fn nominal_wheel_speeds<'py>(
     py: Python<'py>,
     params: Option<&PyParams>,
+    jump: &str,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let p = self::params(params);
-    let jm = JumpModel::new(p, &Vector3::new(0.0, 0.0, -p.gravity())).map_err(to_py_err)?;
-    Ok(array(py, &jm.nominal_wheel_speeds()))
+    let theta = match jump {
+        "corner" => JumpModel::new(p, &Vector3::new(0.0, 0.0, -p.gravity()))
+            .map_err(to_py_err)?
+            .nominal_wheel_speeds(),
+        "edge" => {
+            let edge = EdgeJump::new(&p, 0).map_err(to_py_err)?;
+            let speed = EdgeJumpModel::new(&edge)
+                .map_err(to_py_err)?
+                .nominal_wheel_speed();
+            Vector3::new(speed, 0.0, 0.0)
+        }
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "jump must be \"corner\" or \"edge\", got {other:?}"
+            )))
+        }
+    };
+    Ok(array(py, &theta))
 }
 
 /// Learning of the pre-brake wheel speeds (Algorithm 1, λ = 0.8) on the mismatched plant of
-/// `stabilis sim cubli --scenario jump-up`; returns one dict per trial
-/// (theta, error, success, top_inclination).
+/// `stabilis sim cubli --scenario jump-up`; `jump` is "corner" (three wheels) or "edge" (wheel 1,
+/// face → edge e1); `brake_spread` > 0 draws a random brake efficiency per trial (seeded).
+/// Returns one dict per trial (theta, error, success, top_inclination, brake).
 #[pyfunction]
-#[pyo3(signature = (trials=8, start_scale=0.8, torque_max=0.2, guided=true))]
+#[pyo3(signature = (trials=8, start_scale=0.8, torque_max=0.2, guided=true, jump="corner", brake_spread=0.0, seed=0))]
+#[allow(clippy::too_many_arguments)]
 fn learn_jump<'py>(
     py: Python<'py>,
     trials: usize,
     start_scale: f64,
     torque_max: f64,
     guided: bool,
+    jump: &str,
+    brake_spread: f64,
+    seed: u64,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
-    if !start_scale.is_finite() || start_scale <= 0.0 || torque_max.is_nan() || torque_max <= 0.0 {
-        return Err(PyValueError::new_err(
-            "start_scale and torque_max must be positive",
-        ));
+    if torque_max.is_nan() || torque_max <= 0.0 {
+        return Err(PyValueError::new_err("torque_max must be positive"));
     }
-    let p = Params::reference();
-    let gains = Gains::paper();
-    let limits = Limits {
-        max_torque: torque_max,
-        ..Limits::cubli()
-    };
-    let (plant, brake) =
-        sim::scenarios::cubli::mismatched_jump_plant(&p, limits).map_err(to_py_err)?;
-    let jm = JumpModel::new(p, &Vector3::new(0.0, 0.0, -p.gravity())).map_err(to_py_err)?;
-    let learner = Learner::new(&jm, 0.8).map_err(to_py_err)?;
-    let bar = jm.nominal_wheel_speeds();
-    let reference = JumpReference::at_brake(&p, &pre_brake_state(&p, face_attitude(), &bar))
-        .map_err(to_py_err)?;
-    let guide = GuidingController::new(p, &gains, reference);
-    let balance = Backstepping::new(p, gains);
-    let controllers = if guided {
-        JumpControllers {
-            guide: Some(&guide),
-            balance: Some(&balance),
-        }
-    } else {
-        JumpControllers {
-            guide: None,
-            balance: None,
+    let jump = match jump {
+        "corner" => Jump::Corner,
+        "edge" => Jump::Edge,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "jump must be \"corner\" or \"edge\", got {other:?}"
+            )))
         }
     };
-    let cfg = JumpConfig {
-        brake,
-        ..JumpConfig::default()
+    let setup = JumpSetup {
+        jump,
+        limits: Limits {
+            max_torque: torque_max,
+            ..Limits::cubli()
+        },
+        start_scale,
+        trials,
+        guided,
+        brake_spread,
+        seed,
     };
-    let mut theta = bar * start_scale;
-    let mut out = Vec::with_capacity(trials);
-    for _ in 0..trials {
-        let o =
-            jump_trial(&plant, face_attitude(), &theta, controllers, &cfg).map_err(to_py_err)?;
-        let d = PyDict::new(py);
-        d.set_item("theta", array(py, &theta))?;
-        d.set_item("error", array(py, &o.corrected))?;
-        d.set_item("success", o.success)?;
-        d.set_item("top_inclination", o.top_inclination)?;
-        out.push(d);
-        theta = learner.update(&theta, &o.corrected);
-    }
-    Ok(out)
+    let learned = learn_jump_trials(&setup).map_err(to_py_err)?;
+    learned
+        .trials
+        .iter()
+        .map(|t| {
+            let d = PyDict::new(py);
+            d.set_item("theta", array(py, &t.theta))?;
+            d.set_item("error", array(py, &t.error))?;
+            d.set_item("success", t.success)?;
+            d.set_item("top_inclination", t.top_inclination)?;
+            d.set_item("brake", format!("{:?}", t.brake))?;
+            Ok(d)
+        })
+        .collect()
 }
 
 /// Adds the `cubli` submodule.

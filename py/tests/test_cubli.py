@@ -144,3 +144,48 @@ def test_guiding_controller_refuses_ninety_degrees():
         guide.control(qmul(tilt, q_up), np.zeros(3), np.zeros(3))
     torque = guide.control(q_up, np.zeros(3), np.zeros(3))
     assert torque.shape == (3,) and np.all(np.isfinite(torque))
+
+
+def _edge_lock_speed(theta0_scale, m, kappa):
+    """Closed form for the face -> edge e1 jump with the Lock brake and efficiency kappa:
+    Theta_w kappa theta = (I_e + Theta_w) sqrt(2 |m_perp||g| (1 - cos phi0) / I_e)."""
+    p = cubli.Params()
+    i_e = p.theta0[0, 0] * theta0_scale
+    tw = p.theta_w[0]
+    m_perp = np.array([0.0, m[1], m[2]])
+    mgl = np.linalg.norm(m_perp) * p.gravity
+    cos_phi0 = m_perp[2] / np.linalg.norm(m_perp)
+    return (i_e + tw) / (tw * kappa) * np.sqrt(2 * mgl * (1 - cos_phi0) / i_e)
+
+
+def test_edge_jump_learning_from_twenty_percent_too_slow():
+    p = cubli.Params()
+    nominal = cubli.nominal_wheel_speeds(jump="edge")
+    i_e, tw = p.theta0[0, 0], p.theta_w[0]
+    mgl = np.linalg.norm(p.m[1:]) * p.gravity
+    closed = np.sqrt(2 * i_e * mgl * (1 - np.cos(np.pi / 4))) / tw
+    np.testing.assert_allclose(nominal, [closed, 0.0, 0.0], rtol=1e-9)
+    trials = cubli.learn_jump(trials=8, start_scale=0.8, jump="edge")
+    assert not trials[0]["success"]
+    first = next(i for i, t in enumerate(trials) if t["success"])
+    assert first < 5 and all(t["success"] for t in trials[first:])
+    # The true plant of the scenario: 5 % heavier housing, shifted centre of mass, kappa = 0.9.
+    star = _edge_lock_speed(1.05, 0.97 * p.m + [0.002, -0.002, 0.0], 0.90)
+    assert abs(trials[-1]["theta"][0] - star) < 0.5
+    assert all(t["theta"][1] == 0.0 and t["theta"][2] == 0.0 for t in trials)
+
+
+def test_edge_jump_with_random_brake_efficiency():
+    trials = cubli.learn_jump(trials=12, jump="edge", brake_spread=0.01, seed=3)
+    assert len({t["brake"] for t in trials}) == 12
+    assert all(t["success"] for t in trials[6:])
+    with pytest.raises(ValueError, match="jump"):
+        cubli.learn_jump(jump="face")
+
+
+def test_simulated_edge_jump_ends_balanced_on_the_edge():
+    run = cubli.simulate("jump-up", duration=4.0, seed=2, jump="edge")
+    assert run["summary"]["final_inclination_deg"] < 0.5
+    assert np.all(run["input"][:, 1:] == 0.0)
+    assert np.all(run["omega_h"][:, 1:] == 0.0)
+    assert np.max(np.abs(run["inclination"][-100:])) < np.radians(0.5)

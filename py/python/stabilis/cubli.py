@@ -1,4 +1,4 @@
-"""The Cubli, a reaction-wheel cube that balances on its corner and jumps up from a face.
+"""The Cubli, a reaction-wheel cube that balances on its corner or an edge and jumps up from a face.
 
 Model in generalized momenta, the backstepping balancing controller with the paper's tuning
 method, the feedback-linearizing guiding controller, jump-up learning, and ``simulate`` for
@@ -39,7 +39,9 @@ def simulate(scenario="balance", duration=5.0, seed=0, out=None, **options):
 
     ``scenario`` is ``"balance"``, ``"disturbance"`` or ``"jump-up"``; further keyword options
     are the command-line options with underscores (``tilt_deg=3``, ``noise=(0, 0, 0)``,
-    ``viscous=(1e-5,) * 3``, ``gyro_bias=(0.01, 0, 0)``, ``excitation_rms=0.01``). Writes an
+    ``viscous=(1e-5,) * 3``, ``gyro_bias=(0.01, 0, 0)``, ``excitation_rms=0.01``; for
+    ``jump-up``: ``jump="corner"`` or ``"edge"``, ``brake_spread=0.01``, ``trials=6``). For the
+    edge jump ``inclination`` is the angle about edge e1 from upright on the edge. Writes an
     MCAP log to ``out`` if given. Returns a dict with ``t`` (N,), ``input`` (N, 3) motor torques,
     ``output`` (N, 9) measured ``wx wy wz w1 w2 w3 gx gy gz``, the true ``omega_h``, ``omega_w``,
     ``gravity`` (N, 3), ``quaternion`` (N, 4, w first), ``p_h``, ``p_w`` (N, 3), ``inclination``
