@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import stabilis
+from stabilis import flying_platform as fp
 
 
 @pytest.fixture(scope="module")
@@ -50,3 +51,141 @@ def test_bad_input_raises():
     wb = stabilis.Workbench()
     with pytest.raises(stabilis.Error, match="ground_effect"):
         wb.add("ground_effect")
+
+
+# --- user-defined effects: a Python callable returning the extra state-space terms ---------
+
+
+def vz_drag(p, m):
+    """Linear drag on the vertical velocity: vz' += -d vz (state 2 of the hover model)."""
+    dA = np.zeros_like(m["A"])
+    dA[2, 2] = -p["d"]
+    return {"A": dA}
+
+
+@pytest.fixture(scope="module")
+def drag_logs(tmp_path_factory):
+    """The 18 closed-loop experiments of the paper's design from a truth with momentum drag
+    only (linear hover dynamics, seed 12), as `stabilis sim flying-platform --scenario sysid`
+    writes them: the data of crates/sim/tests/workbench_user_effect.rs."""
+    out = tmp_path_factory.mktemp("drag")
+    stabilis.sim.run("flying-platform", duration=0.0, out=str(out), seed=12,
+                     scenario="sysid", effects="momentum_drag", dynamics="linear",
+                     **{"lambda": (1.2, 0.8, 2.0)})
+    return str(out)
+
+
+def test_python_vertical_drag_matches_the_rust_user_effect(drag_logs):
+    # Truth: the vz-vz entry of the momentum-drag hover model, computed by the
+    # flying_platform crate independently of the workbench.
+    truth = fp.Model("momentum_drag")
+    a_truth, _ = truth.hover_matrices()
+    expected = -a_truth[2, 2]
+    assert abs(expected - 1.85) < 0.01
+    wb = stabilis.Workbench(data=[drag_logs])
+    before = wb.fit()["steps"][0]["cost"]
+    wb.add(stabilis.Effect("vz_drag", {"d": 0.1}, vz_drag, bounds={"d": (0.0, 50.0)},
+                           units={"d": "1/s"}))
+    step = wb.fit()["steps"][0]
+    d, std = step["params"]["vz_drag.d"], step["std"]["vz_drag.d"]
+    # The Rust trait implementation of crates/sim/tests/workbench_user_effect.rs on the same
+    # files gives 1.857 +- 0.163 (truth 1.852; `cargo test --release -p sim --test
+    # workbench_user_effect -- --nocapture` prints it): the same fit, to 0.005.
+    assert abs(d - 1.857) < 0.005, d
+    assert abs(std - 0.163) < 0.005, std
+    assert abs(d - expected) < 0.10 * expected
+    assert step["cost"] < before
+    assert step["effects"][-1] == "vz_drag"
+
+
+def test_errors_in_the_callable_become_python_exceptions():
+    wb = stabilis.Workbench()
+
+    class Boom(RuntimeError):
+        pass
+
+    def raises(p, m):
+        raise Boom("inside the effect")
+
+    with pytest.raises(Boom, match="inside the effect"):
+        wb.add(stabilis.Effect("boom", {"k": 1.0}, raises))
+    with pytest.raises(ValueError, match=r"returned A of shape \(3, 3\)"):
+        wb.add(stabilis.Effect("small", {"k": 1.0}, lambda p, m: {"A": np.eye(3)}))
+    with pytest.raises(ValueError, match="nan"):
+        wb.add(stabilis.Effect("nan", {"k": 1.0},
+                               lambda p, m: {"B": np.full_like(m["B"], np.nan)}))
+    with pytest.raises(ValueError, match="use A, B, C or D"):
+        wb.add(stabilis.Effect("key", {"k": 1.0}, lambda p, m: {"E": m["A"]}))
+    with pytest.raises(TypeError, match="must return a dict"):
+        wb.add(stabilis.Effect("list", {"k": 1.0}, lambda p, m: [m["A"]]))
+    with pytest.raises(TypeError, match="callable"):
+        stabilis.Effect("nofunc", {"k": 1.0}, 3)
+    # Raising only away from the documented value: caught when the fit reaches it.
+    def late(p, m):
+        if p["k"] != 0.5:
+            raise Boom("k left its documented value")
+        return {}
+
+    wb.add(stabilis.Effect("late", {"k": 0.5}, late, bounds={"k": (0.0, 1.0)}))
+    with pytest.raises(Boom, match="documented value"):
+        wb.fit()
+
+
+# --- the Cubli workbench on `stabilis sim cubli` logs --------------------------------------
+
+
+def cubli_logs(directory, **hidden):
+    """Four 40 s balancing runs at 100 Hz with a 0.01 N m multisine on the commanded torques
+    and the default sensor noise; `hidden` are `stabilis sim cubli` options of the truth."""
+    paths = []
+    for seed, tilt in [(31, 5.0), (32, -4.0), (33, 3.0), (34, -4.5)]:
+        path = str(directory / f"run{seed}.mcap")
+        stabilis.sim.run("cubli", duration=40.0, out=path, seed=seed, tilt_deg=tilt,
+                         excitation_rms=0.01, **hidden)
+        paths.append(path)
+    return paths
+
+
+def test_cubli_finds_hidden_viscous_friction_within_15_percent(tmp_path):
+    c = 2e-5
+    wb = stabilis.Workbench("cubli", data=cubli_logs(tmp_path, viscous=(c, c, c)))
+    assert wb.system == "cubli"
+    nominal = wb.compare()
+    assert nominal["found"] == [] and len(nominal["steps"]) == 1
+    diagnosis = wb.diagnose()
+    flagged = [ch["channel"] for ch in diagnosis["channels"] if ch["flagged"]]
+    assert set(flagged) & {"p_w1", "p_w2", "p_w3"}, diagnosis
+    result = wb.discover()
+    assert result["found"] == ["wheel_viscous_friction"]
+    assert result["unexplained"] is False
+    est = result["steps"][-1]["params"]["wheel_viscous_friction"]
+    assert abs(est - c) < 0.15 * c, est
+    costs = [s["cost"] for s in result["steps"]]
+    assert costs[-1] < costs[0]
+    wb.report(tmp_path / "report")
+    html = (tmp_path / "report" / "index.html").read_text()
+    assert "<svg" in html and "wheel_viscous_friction" in html
+    wb.add("wheel_viscous_friction")
+    fitted = wb.fit()["steps"][0]
+    assert fitted["params"]["wheel_viscous_friction"] == pytest.approx(est, rel=1e-9)
+    assert fitted["std"]["wheel_viscous_friction"] > 0
+    with pytest.raises(ValueError, match="no FRF"):
+        wb.frf()
+    with pytest.raises(ValueError, match="named candidates"):
+        wb.add(stabilis.Effect("vz_drag", {"d": 0.1}, vz_drag))
+    with pytest.raises(stabilis.Error, match="wheel_coulomb_friction"):
+        wb.add("ground_effect")
+
+
+def test_cubli_clean_logs_find_nothing(tmp_path):
+    wb = stabilis.Workbench("cubli", data=cubli_logs(tmp_path))
+    result = wb.discover()
+    assert result["found"] == []
+    assert result["unexplained"] is False
+
+
+def test_cubli_bad_input_raises(tmp_path):
+    with pytest.raises(ValueError, match="needs logs"):
+        stabilis.Workbench("cubli")
+    with pytest.raises(stabilis.LogError):
+        stabilis.Workbench("cubli", data=[str(tmp_path / "missing.mcap")])

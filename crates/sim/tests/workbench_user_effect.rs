@@ -1,15 +1,17 @@
 //! A user-defined effect (the `workbench::Effect` trait) is fitted like a built-in one: a
 //! linear drag on the vertical velocity, fitted to data whose truth carries momentum drag,
 //! recovers the truth's vz-vz entry of A (the flying_platform model, computed independently).
+//! The data are the files `stabilis sim flying-platform --scenario sysid` writes, the same as
+//! py/tests/test_workbench.py fits with a Python callable.
 #![allow(clippy::unwrap_used)]
 use std::sync::Arc;
 
-use flying_platform::{
-    Dynamics, Effect as FpEffect, EffectSet, ExperimentDesign, Model, PlatformParams, SimConfig,
-};
-use sim::workbench::flying_platform::{dataset_from_experiments, FlyingPlatform};
+use flying_platform::{Effect as FpEffect, EffectSet, Model, PlatformParams};
+use sim::cli::SimSystem;
+use sim::workbench::flying_platform::FlyingPlatform;
+use sim::workbench::load;
 use sim::workbench::model::{Effect, Parameter, StateSpace};
-use sim::workbench::{EstimatorChoice, Workbench};
+use sim::workbench::{EstimatorChoice, ModelStructure, Workbench};
 
 /// `vz' += -d vz`: linear vertical drag, `d` in 1/s.
 #[derive(Debug)]
@@ -40,21 +42,38 @@ fn user_defined_vertical_drag_is_fitted_to_the_truths_value() {
     let (a_truth, _) = truth.hover_matrices().unwrap();
     let expected = -a_truth[(2, 2)];
     assert!(expected > 0.5, "truth vz drag {expected}");
-    let config = SimConfig::reference(truth, Dynamics::Linear, 12).unwrap();
-    let design = ExperimentDesign::paper(12).unwrap();
-    let runs = flying_platform::run_experiments(&config, &design).unwrap();
-    let data = dataset_from_experiments(&runs, &design).unwrap();
-    let base = Workbench::new(
-        Arc::new(FlyingPlatform::default()),
-        data,
-        EstimatorChoice::Auto,
+    // The paper's design and amplitudes, linear hover dynamics, seed 12.
+    let dir = std::env::temp_dir().join(format!("sim-user-effect-{}", std::process::id()));
+    let out = dir.display().to_string();
+    let args = [
+        "--scenario=sysid",
+        "--effects=momentum_drag",
+        "--dynamics=linear",
+        "--lambda=1.2,0.8,2.0",
+        "--seed=12",
+        "--out",
+        &out,
+    ];
+    SimSystem::parse_args("flying-platform", args)
+        .unwrap()
+        .run()
+        .unwrap();
+    let structure = Arc::new(FlyingPlatform::default());
+    let data = load::load(
+        structure.system(),
+        &structure.inputs(),
+        &structure.outputs(),
+        std::slice::from_ref(&dir),
     )
     .unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let base = Workbench::new(structure, data, EstimatorChoice::Auto).unwrap();
     let before = base.compare().unwrap();
     let mut wb = base.clone();
     wb.add_user_effect(Arc::new(VerticalDrag)).unwrap();
     let after = wb.compare().unwrap();
     let d = after.params.iter().find(|p| p.name == "vz_drag.d").unwrap();
+    println!("vz_drag.d = {} +- {:?} (truth {expected})", d.value, d.std);
     let rel = (d.value - expected).abs() / expected;
     assert!(
         rel < 0.10,

@@ -1,4 +1,4 @@
-"""The model workbench: compare a model with measured FRFs, see where it fails, discover the
+"""The model workbench: compare a model with measurements, see where it fails, discover the
 missing physical effect, add it and watch the weighted error fall.
 
 >>> import stabilis
@@ -6,9 +6,27 @@ missing physical effect, add it and watch the weighted error fall.
 >>> result = wb.discover()
 >>> result["found"]
 ['momentum_drag', 'fan_gyroscopic']
+
+``stabilis.Workbench("cubli", data=[...])`` works on Cubli balancing logs (time-domain
+prediction error). A user-defined effect for the flying platform is a
+:class:`stabilis.Effect`: a Python callable ``func(params, model)`` that receives the parameter
+values ``{name: float}`` and the model's matrices ``{"A", "B", "C", "D"}`` (numpy) and returns
+the extra terms ``{"A": dA, ...}`` (same shapes) that are added to them::
+
+    def vz_drag(p, m):
+        dA = np.zeros_like(m["A"])
+        dA[2, 2] = -p["d"]
+        return {"A": dA}
+
+    wb.add(stabilis.Effect("vz_drag", {"d": 0.1}, vz_drag, bounds={"d": (0.0, 50.0)}))
+    wb.fit()["steps"][0]["params"]["vz_drag.d"]
+
+Exceptions raised inside the callable reach the caller unchanged; a wrong shape or a
+non-finite entry raises ``ValueError`` naming the effect and the matrix.
 """
 from . import _stabilis
 
 Workbench = _stabilis.workbench.Workbench
+Effect = _stabilis.workbench.Effect
 
-__all__ = ["Workbench"]
+__all__ = ["Workbench", "Effect"]
