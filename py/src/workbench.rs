@@ -254,23 +254,66 @@ struct Workbench {
 }
 
 impl Workbench {
-    /// Runs `f` without the GIL; a failure caused by a user effect re-raises that effect's
-    /// Python exception.
+    /// [`run_with`] on this workbench's error slot.
     fn run<T: Send>(
         &self,
         py: Python<'_>,
         f: impl FnOnce() -> sim::Result<T> + Send,
     ) -> PyResult<T> {
-        if let Ok(mut slot) = self.error.lock() {
-            slot.take();
-        }
-        let result = py.detach(f);
-        let stashed = self.error.lock().ok().and_then(|mut slot| slot.take());
-        match (result, stashed) {
-            (Ok(v), _) => Ok(v),
-            (Err(_), Some(err)) => Err(err),
-            (Err(e), None) => Err(to_py_err(e)),
-        }
+        run_with(&self.error, py, f)
+    }
+}
+
+/// Runs `f` without the GIL; a failure caused by a user effect re-raises that effect's Python
+/// exception (kept in `error`).
+fn run_with<T: Send>(
+    error: &Mutex<Option<PyErr>>,
+    py: Python<'_>,
+    f: impl FnOnce() -> sim::Result<T> + Send,
+) -> PyResult<T> {
+    if let Ok(mut slot) = error.lock() {
+        slot.take();
+    }
+    let result = py.detach(f);
+    let stashed = error.lock().ok().and_then(|mut slot| slot.take());
+    match (result, stashed) {
+        (Ok(v), _) => Ok(v),
+        (Err(_), Some(err)) => Err(err),
+        (Err(e), None) => Err(to_py_err(e)),
+    }
+}
+
+impl Workbench {
+    /// Runs `discover` (or the one-step `fit`), keeps the result for `report` and returns its
+    /// JSON.
+    fn keep(&mut self, py: Python<'_>, discover: bool) -> PyResult<serde_json::Value> {
+        let error = &self.error;
+        Ok(match &mut self.inner {
+            Inner::Frf { wb, last } => {
+                let d = run_with(error, py, || {
+                    if discover {
+                        wb.discover()
+                    } else {
+                        wb.compare().map(|s| wb.record(s))
+                    }
+                })?;
+                let value = json(wb, &d);
+                *last = Some(d);
+                value
+            }
+            Inner::Cubli { bench, last } => {
+                let d = run_with(error, py, || {
+                    if discover {
+                        bench.discover()
+                    } else {
+                        bench.fit()
+                    }
+                })?;
+                let value = d.json();
+                *last = Some(d);
+                value
+            }
+        })
     }
 }
 
@@ -398,24 +441,7 @@ impl Workbench {
 
     /// Runs the discovery loop: `{"steps": [...], "found": [...], "unexplained": bool, ...}`.
     fn discover<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let value = match &self.inner {
-            Inner::Frf { wb, .. } => {
-                let d = self.run(py, || wb.discover())?;
-                let value = json(wb, &d);
-                if let Inner::Frf { last, .. } = &mut self.inner {
-                    *last = Some(d);
-                }
-                value
-            }
-            Inner::Cubli { bench, .. } => {
-                let d = self.run(py, || bench.discover())?;
-                let value = d.json();
-                if let Inner::Cubli { last, .. } = &mut self.inner {
-                    *last = Some(d);
-                }
-                value
-            }
-        };
+        let value = self.keep(py, true)?;
         to_dict(py, &value)
     }
 
@@ -459,24 +485,7 @@ impl Workbench {
 
     /// Fits all parameters of the current model (same record as `compare`).
     fn fit<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let value = match &self.inner {
-            Inner::Frf { wb, .. } => {
-                let d = self.run(py, || wb.compare().map(|s| wb.record(s)))?;
-                let value = json(wb, &d);
-                if let Inner::Frf { last, .. } = &mut self.inner {
-                    *last = Some(d);
-                }
-                value
-            }
-            Inner::Cubli { bench, .. } => {
-                let d = self.run(py, || bench.fit())?;
-                let value = d.json();
-                if let Inner::Cubli { last, .. } = &mut self.inner {
-                    *last = Some(d);
-                }
-                value
-            }
-        };
+        let value = self.keep(py, false)?;
         to_dict(py, &value)
     }
 

@@ -7,4 +7,4 @@ from . import pmpc
 from . import tilt
 from .log import Log, read_csv, read_mcap
 from . import workbench
-from .workbench import Workbench
+from .workbench import Effect, Workbench
