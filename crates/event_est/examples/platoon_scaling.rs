@@ -1,17 +1,23 @@
 //! Synthesis time and bounds of the M-vehicle platoon with Cor 13 (Step 1 + Step 2).
 //!
-//! `cargo run --release -p event_est --example platoon_scaling -- 3 4 6 8`
+//! `cargo run --release -p event_est --example platoon_scaling -- [clarabel|schur] 3 4 6 8`
+//! (the SDP solver defaults to Clarabel; `schur` is the Schur-complement interior-point method).
 #![allow(clippy::unwrap_used)]
 
 use event_est::model::platoon;
-use event_est::synth::{step1, step2_unit, Stability};
+use event_est::synth::{step1_using, step2_unit_using, Solver, Stability};
 use std::time::Instant;
 
 fn main() {
-    let sizes: Vec<usize> = std::env::args()
-        .skip(1)
-        .map(|a| a.parse().unwrap())
-        .collect();
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let solver = match args.first().map(|a| Solver::parse(a)) {
+        Some(Ok(s)) => {
+            args.remove(0);
+            s
+        }
+        _ => Solver::Clarabel,
+    };
+    let sizes: Vec<usize> = args.iter().map(|a| a.parse().unwrap()).collect();
     let sizes = if sizes.is_empty() {
         vec![3, 4, 5, 6]
     } else {
@@ -22,10 +28,10 @@ fn main() {
     for m in sizes {
         let (sys, _) = platoon(m).unwrap();
         let t0 = Instant::now();
-        match step1(&sys, Stability::Cor13) {
+        match step1_using(&sys, Stability::Cor13, solver) {
             Ok(s1) => {
                 let t1 = t0.elapsed().as_secs_f64();
-                let unit = step2_unit(&sys, &s1.l, 1.0);
+                let unit = step2_unit_using(&sys, &s1.l, 1.0, solver);
                 let t2 = t0.elapsed().as_secs_f64() - t1;
                 let step2 = match &unit {
                     Ok(_) => format!("{t2:.2} s"),

@@ -21,6 +21,7 @@
 //! ```
 
 use crate::error::EventEstError;
+use crate::ipm::Solver;
 use crate::linalg::min_eigenvalue;
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
@@ -250,14 +251,34 @@ impl Lmi {
         for &(var, i, j, v) in &self.terms {
             g[(i, j)] += v * x[var];
         }
-        DMatrix::from_fn(self.dim, self.dim, |i, j| {
-            if i <= j {
-                g[(i, j)]
-            } else {
-                g[(j, i)]
-            }
-        })
+        symmetric_from_upper(&g)
     }
+
+    /// G_0 as a dense symmetric matrix.
+    pub(crate) fn constant_full(&self) -> DMatrix<f64> {
+        symmetric_from_upper(&self.constant)
+    }
+
+    /// The LMI's own strictness margin, else `eps`.
+    pub(crate) fn margin_or(&self, eps: f64) -> f64 {
+        self.margin.unwrap_or(eps)
+    }
+
+    /// Coefficients (variable, row, col, value), row ≤ col, possibly repeated.
+    pub(crate) fn terms(&self) -> &[(usize, usize, usize, f64)] {
+        &self.terms
+    }
+}
+
+/// The symmetric matrix whose upper triangle is that of `g`.
+fn symmetric_from_upper(g: &DMatrix<f64>) -> DMatrix<f64> {
+    DMatrix::from_fn(g.nrows(), g.ncols(), |i, j| {
+        if i <= j {
+            g[(i, j)]
+        } else {
+            g[(j, i)]
+        }
+    })
 }
 
 /// A linear objective (minimised) over LMI constraints.
@@ -348,6 +369,29 @@ impl Problem {
         &mut self.lmis[last]
     }
 
+    /// [`Problem::solve`] with a choice of SDP solver; the same eigenvalue post-verification
+    /// applies to both.
+    pub fn solve_with(
+        &self,
+        solver: Solver,
+        problem: &'static str,
+        eps: f64,
+    ) -> Result<Solution, EventEstError> {
+        match solver {
+            Solver::Clarabel => self.solve(problem, eps),
+            Solver::SchurIpm => {
+                let out = crate::ipm::solve(self, problem, eps)?;
+                self.verified(
+                    problem,
+                    out.x,
+                    out.status.into(),
+                    out.solve_time,
+                    out.iterations,
+                )
+            }
+        }
+    }
+
     /// Solves with every LMI tightened to G(x) ⪰ `eps`·I (or its own margin), then checks λ_min(G_l(x)) > 0 for
     /// every l. `problem` names the problem in errors.
     pub fn solve(&self, problem: &'static str, eps: f64) -> Result<Solution, EventEstError> {
@@ -423,7 +467,24 @@ impl Problem {
                 })
             }
         }
-        let x = sol.x.clone();
+        self.verified(
+            problem,
+            sol.x.clone(),
+            format!("{:?}", sol.status),
+            sol.solve_time,
+            sol.iterations,
+        )
+    }
+
+    /// Post-verification: λ_min(G_l(x)) ≥ −[`VERIFY_TOL`]·‖G_l(x)‖_F for every l.
+    fn verified(
+        &self,
+        problem: &'static str,
+        x: Vec<f64>,
+        status: String,
+        solve_time: f64,
+        iterations: u32,
+    ) -> Result<Solution, EventEstError> {
         let mut margins = Vec::with_capacity(self.lmis.len());
         for lmi in &self.lmis {
             let g = lmi.evaluate(&x);
@@ -438,9 +499,9 @@ impl Problem {
         }
         Ok(Solution {
             x,
-            status: format!("{:?}", sol.status),
-            solve_time: sol.solve_time,
-            iterations: sol.iterations,
+            status,
+            solve_time,
+            iterations,
             margins,
         })
     }

@@ -7,6 +7,7 @@
 //! Step 2 on a balanced realisation, and every returned certificate is re-checked by eigenvalues.
 
 use crate::error::EventEstError;
+pub use crate::ipm::Solver;
 use crate::linalg::{
     self, cholesky_lower, h2_squared, hinf_norm, kalman, max_eigenvalue, spectral_radius,
 };
@@ -95,7 +96,16 @@ fn subset_name(s: u64, n: usize) -> String {
 
 /// Step 1 (5.39): minimise tr X over (P, [P_2], U, X) subject to the H2 LMIs and `stability`.
 pub fn step1(sys: &System, stability: Stability) -> Result<Step1, EventEstError> {
-    Ok(step1_with(sys, stability, None)?.0)
+    step1_using(sys, stability, Solver::Clarabel)
+}
+
+/// [`step1`] on a chosen SDP solver (use [`Solver::SchurIpm`] for Cor 13 with ≳ 8 agents).
+pub fn step1_using(
+    sys: &System,
+    stability: Stability,
+    solver: Solver,
+) -> Result<Step1, EventEstError> {
+    Ok(step1_with(sys, stability, None, solver)?.0)
 }
 
 /// Gain step of the alternation: thresholds Δ fixed, the bounded-real LMI of G_1 = (zI − Â)^{-1}LΔ
@@ -116,6 +126,7 @@ fn step1_with(
     sys: &System,
     stability: Stability,
     brl: Option<&GainBrl<'_>>,
+    solver: Solver,
 ) -> Result<(Step1, f64), EventEstError> {
     let (n, p, na) = (sys.n(), sys.p(), sys.agents());
     if na > 63 {
@@ -320,7 +331,7 @@ fn step1_with(
             stability_lmis += na + 2;
         }
     }
-    let sol = prob.solve("Step 1 (gains)", EPS)?;
+    let sol = prob.solve_with(solver, "Step 1 (gains)", EPS)?;
     let pm = pv.value(&sol.x);
     let um = uv.value(&sol.x);
     let chol = pm
@@ -496,6 +507,16 @@ pub fn step2_unit(
     l: &DMatrix<f64>,
     gamma_factor: f64,
 ) -> Result<UnitThresholds, EventEstError> {
+    step2_unit_using(sys, l, gamma_factor, Solver::Clarabel)
+}
+
+/// [`step2_unit`] on a chosen SDP solver.
+pub fn step2_unit_using(
+    sys: &System,
+    l: &DMatrix<f64>,
+    gamma_factor: f64,
+    solver: Solver,
+) -> Result<UnitThresholds, EventEstError> {
     check_gain(sys, l)?;
     if !(gamma_factor.is_finite() && gamma_factor > 0.0) {
         return Err(EventEstError::Parameter {
@@ -580,7 +601,7 @@ pub fn step2_unit(
             lm.add_const(0, 0, &(DMatrix::identity(pi, pi) * cap));
         }
     }
-    let sol = prob.solve("Step 2 (thresholds)", EPS * gamma_s.sqrt())?;
+    let sol = prob.solve_with(solver, "Step 2 (thresholds)", EPS * gamma_s.sqrt())?;
     let scale = 1.0 / gamma_s.sqrt();
     let delta: Vec<DMatrix<f64>> = deltas.iter().map(|d| d.value(&sol.x) * scale).collect();
     // Post-verification: ‖(zI−Â)^{-1} L Δ̃‖_∞ ≤ 1 (1 + 1e−3) and Δ̃_i ≻ 0.
@@ -1001,7 +1022,7 @@ pub fn alternate(
             w_gamma: ns / current.bound.g1_hinf.max(1e-300),
             w_x: 1.0 / current.bound.g2_h2.max(1e-300),
         };
-        let target = match step1_with(sys, stability, Some(&brl)) {
+        let target = match step1_with(sys, stability, Some(&brl), Solver::Clarabel) {
             Ok((c, _)) => c.l,
             Err(e) => {
                 stop = format!("gain step failed: {e}");
