@@ -4,7 +4,9 @@
 mod common;
 
 use common::*;
-use cubli::jump::{face_attitude, jump_error, pre_brake_state, ImpactModel, JumpModel, Learner};
+use cubli::jump::{
+    face_attitude, jump_error, pre_brake_state, ErrorModel, ImpactModel, JumpModel, Learner,
+};
 use cubli::model::inclination;
 use cubli::{
     jump_trial, Backstepping, Gains, GuidingController, JumpConfig, JumpControllers, JumpReference,
@@ -331,4 +333,68 @@ fn learning_is_robust_to_bounded_noise() {
     }
     println!("noisy learning: max |theta - theta*| after convergence {worst_late:.2} rad/s (bound {bound:.1})");
     assert!(worst_late < 4.0 * bound, "{worst_late} vs {bound}");
+}
+
+/// A linear error model E(θ) = J (θ − θ0) with a fixed 3 × 2 Jacobian, for checking the generic
+/// learner against an independent pseudoinverse.
+struct Linear {
+    j: nalgebra::SMatrix<f64, 3, 2>,
+    root: nalgebra::Vector2<f64>,
+}
+
+impl ErrorModel<2, 3> for Linear {
+    fn root(&self) -> nalgebra::Vector2<f64> {
+        self.root
+    }
+    fn predict(&self, theta: &nalgebra::Vector2<f64>) -> Vector3<f64> {
+        self.j * (theta - self.root)
+    }
+    fn jacobian(&self, _theta: &nalgebra::Vector2<f64>) -> nalgebra::SMatrix<f64, 3, 2> {
+        self.j
+    }
+    fn wheel_speeds(&self, theta: &nalgebra::Vector2<f64>) -> Vector3<f64> {
+        Vector3::new(theta[0], theta[1], 0.0)
+    }
+    fn measured(&self, error: &Vector3<f64>) -> Vector3<f64> {
+        *error
+    }
+}
+
+proptest! {
+    /// The learner's step uses the Moore–Penrose pseudoinverse of a tall Jacobian: it equals
+    /// the SVD pseudoinverse, and on a linear model one step removes the fraction λ of the error.
+    #[test]
+    fn learner_step_uses_the_pseudoinverse(
+        a in vec3(2.0), b in vec3(2.0), theta in vec3(100.0), e in vec3(1.0), lambda in 0.1f64..1.9,
+    ) {
+        let j = nalgebra::SMatrix::<f64, 3, 2>::from_columns(&[a, b]);
+        prop_assume!(j.svd(false, false).singular_values.min() > 0.05);
+        let model = Linear { j, root: nalgebra::Vector2::new(3.0, -4.0) };
+        let learner = Learner::new(&model, lambda).unwrap();
+        let th = nalgebra::Vector2::new(theta[0], theta[1]);
+        let pinv = j.svd(true, true).pseudo_inverse(0.0).unwrap();
+        let want = th - pinv * e * lambda;
+        prop_assert!((learner.update(&th, &e) - want).amax() < 1e-9 * (1.0 + want.amax()));
+        let next = learner.update(&th, &model.predict(&th));
+        prop_assert!(((next - model.root) - (th - model.root) * (1.0 - lambda)).amax() < 1e-8 * (1.0 + th.amax()));
+    }
+}
+
+/// A rank-deficient Jacobian and a step outside (0, 2) are refused with named errors.
+#[test]
+fn learner_refuses_singular_jacobian_and_bad_step() {
+    let a = Vector3::new(1.0, 2.0, 3.0);
+    let model = Linear {
+        j: nalgebra::SMatrix::<f64, 3, 2>::from_columns(&[a, a * 2.0]),
+        root: nalgebra::Vector2::zeros(),
+    };
+    assert_eq!(
+        Learner::new(&model, 0.8),
+        Err(cubli::CubliError::SingularJacobian)
+    );
+    let model = JumpModel::new(Params::reference(), &g0()).unwrap();
+    assert_eq!(
+        Learner::new(&model, 2.0),
+        Err(cubli::CubliError::StepSize(2.0))
+    );
 }

@@ -97,3 +97,22 @@ fn edge_jump_with_random_brake_efficiency_still_balances() {
     assert_eq!(log.experiment().unwrap()["brake_spread"], "0.01");
     assert!(json["summary"]["final_inclination_deg"].as_f64().unwrap() < 0.5);
 }
+
+#[test]
+fn bad_jump_options_are_named() {
+    for (args, name) in [
+        (&["--jump", "face"][..], "face"),
+        (&["--brake-spread", "1.5"][..], "brake-spread"),
+        (&["--start-scale", "0"][..], "start-scale"),
+    ] {
+        let mut all = vec!["sim", "cubli", "--scenario", "jump-up", "--duration", "1"];
+        all.extend_from_slice(args);
+        let run = Command::new(env!("CARGO_BIN_EXE_stabilis"))
+            .args(&all)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains(name), "{args:?}: {stderr}");
+    }
+}
