@@ -62,8 +62,8 @@ pub struct JumpOutcome {
     /// Largest |T_i| commanded (N m).
     pub peak_torque: f64,
     /// Without controllers: the top point lies inside the balancing region; with a guide only:
-    /// the flight reached the region. With a balancer: it
-    /// took over and settled below the success inclination without falling back onto the face.
+    /// the flight reached the region; with a balancer: it took over and settled below the
+    /// success inclination without falling back onto the face.
     pub success: bool,
 }
 
