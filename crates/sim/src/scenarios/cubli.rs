@@ -265,7 +265,6 @@ fn brake_draw(brake: &ImpactModel, spread: f64, rng: &mut StdRng) -> Result<Impa
 }
 
 /// Algorithm 1 for either jump, through the shared learner.
-#[allow(clippy::too_many_arguments)]
 fn learning_loop<const P: usize, const N: usize, M: ErrorModel<P, N>, B>(
     model: &M,
     plant: &Plant,
