@@ -395,3 +395,44 @@ fn free_edge_trial_measures_the_energy_at_the_top_point() {
     let top = -mgl * (1.0 - out.top_inclination.cos());
     assert!((out.error[2] - top).abs() < 1e-3 * expected.abs());
 }
+
+/// A centre-of-mass error leaves the edge wheel spinning in steady state (as for the corner,
+/// spec §3.3): with ω = 0 and T = 0 the law gives γαI_e p = −(1 + (α+βγ+δ)I_e) τ_model, where
+/// τ_model is the gravity torque the model computes at the true upright.
+#[test]
+fn centre_of_mass_error_leaves_the_predicted_wheel_speed() {
+    use cubli::simulate::{quiet, simulate, RunConfig};
+    let (plant, _) = mismatched();
+    let model = EdgeJump::new(&Params::reference(), 0).unwrap();
+    let mut ctrl = model.balancer(Gains::paper());
+    let m_true = *plant.params.m();
+    let m_model = *model.params().m();
+    // At rest, 1° off the true upright (centre of mass straight above the edge).
+    let up_true = m_true.normalize();
+    let attitude = nalgebra::UnitQuaternion::rotation_between(&up_true, &Vector3::z()).unwrap();
+    let x0 = cubli::FullState::from_velocities(
+        &plant.params,
+        attitude * nalgebra::UnitQuaternion::from_axis_angle(&Vector3::x_axis(), deg(1.0)),
+        &Vector3::zeros(),
+        &Vector3::zeros(),
+    );
+    let cfg = RunConfig {
+        duration: 20.0,
+        ..RunConfig::default()
+    };
+    let run = simulate(&plant, &x0, &mut ctrl, &cfg, &mut quiet).unwrap();
+    let k = Gains::paper();
+    let ie = model.inertia();
+    let g_true = up_true * -9.81;
+    let tau = m_model.cross(&g_true)[0];
+    let p = -(1.0 + (k.alpha + k.beta * k.gamma + k.delta) * ie) * tau / (k.gamma * k.alpha * ie);
+    let expected = p / plant.params.theta_w()[0];
+    let got = run.omega_w.last().unwrap()[0];
+    println!("edge, centre-of-mass error: wheel speed {got:.2} rad/s, predicted {expected:.2}");
+    assert!(*run.inclination.last().unwrap() < deg(0.01));
+    assert!(expected.abs() > 10.0);
+    assert!(
+        (got - expected).abs() < 1e-3 * expected.abs(),
+        "{got} vs {expected}"
+    );
+}
