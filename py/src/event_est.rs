@@ -4,7 +4,8 @@
 use event_est::model::{platoon, System};
 use event_est::runtime::{InputMode, LocalUpdate};
 use event_est::sim::{simulate as run_sim, Design, SimConfig};
-use event_est::synth::{complete, step1, Stability};
+use event_est::alternation::alternate;
+use event_est::synth::{complete, step1, step1_relaxed, Stability};
 use event_est::EventEstError;
 use nalgebra::{DMatrix, DVector};
 use numpy::ndarray::Array2;
@@ -50,36 +51,40 @@ fn to_numpy<'py>(py: Python<'py>, m: &DMatrix<f64>) -> Bound<'py, PyArray2<f64>>
     Array2::from_shape_fn((m.nrows(), m.ncols()), |(i, j)| m[(i, j)]).into_pyarray(py)
 }
 
-/// The system from its matrices and agent blocks.
-#[allow(clippy::too_many_arguments)]
-fn system(
-    a: &PyReadonlyArrayDyn<'_, f64>,
-    b: &PyReadonlyArrayDyn<'_, f64>,
-    c: &PyReadonlyArrayDyn<'_, f64>,
-    f: &PyReadonlyArrayDyn<'_, f64>,
-    outputs: Vec<usize>,
-    inputs: Vec<usize>,
-    w: Option<&PyReadonlyArrayDyn<'_, f64>>,
-    v_sqrt: Option<&PyReadonlyArrayDyn<'_, f64>>,
-) -> PyResult<System> {
-    let a = matrix(a, "A")?;
-    let n = a.nrows();
-    let c = matrix(c, "C")?;
-    let w = match w {
-        Some(w) => matrix(w, "W")?,
-        None => DMatrix::identity(c.nrows(), c.nrows()),
-    };
-    let v_sqrt = match v_sqrt {
-        Some(v) => matrix(v, "V_sqrt")?,
-        None => DMatrix::zeros(n, 1),
+/// Entry `key` of the model dict.
+fn model_item<'py>(model: &Bound<'py, PyDict>, key: &str) -> PyResult<Bound<'py, PyAny>> {
+    model
+        .get_item(key)?
+        .ok_or_else(|| PyValueError::new_err(format!("model has no entry {key}")))
+}
+
+/// Matrix entry `key` of the model dict (a float64 array).
+fn model_matrix(model: &Bound<'_, PyDict>, key: &str) -> PyResult<DMatrix<f64>> {
+    let item = model_item(model, key)?;
+    let array: PyReadonlyArrayDyn<'_, f64> = item.extract()?;
+    matrix(&array, key)
+}
+
+/// The system of a model dict (A, B, C, F, outputs, inputs and, if `covariances`, W and
+/// V_sqrt; otherwise unit W and no process noise, which the simulation does not use).
+fn system(model: &Bound<'_, PyDict>, covariances: bool) -> PyResult<System> {
+    let a = model_matrix(model, "A")?;
+    let c = model_matrix(model, "C")?;
+    let (w, v_sqrt) = if covariances {
+        (model_matrix(model, "W")?, model_matrix(model, "V_sqrt")?)
+    } else {
+        (
+            DMatrix::identity(c.nrows(), c.nrows()),
+            DMatrix::zeros(a.nrows(), 1),
+        )
     };
     System::new(
         a,
-        matrix(b, "B")?,
+        model_matrix(model, "B")?,
         c,
-        matrix(f, "F")?,
-        outputs,
-        inputs,
+        model_matrix(model, "F")?,
+        model_item(model, "outputs")?.extract()?,
+        model_item(model, "inputs")?.extract()?,
         w,
         v_sqrt,
     )
@@ -105,65 +110,115 @@ fn platoon_model(py: Python<'_>, vehicles: usize) -> PyResult<Bound<'_, PyDict>>
     Ok(d)
 }
 
-/// Step 1 + Step 2: gains L and thresholds Δ_i for the bound J_max (default 37·c*).
+/// Gains L and thresholds Δ_i for the bound J_max (default 37·c*): Step 1 + Step 2
+/// (`objective = "kalman"`, optionally with the relaxed Step 1 of weight `relax`) or the
+/// alternation of gain and threshold steps that maximises Σ tr Δ_i (`objective = "general"`).
 #[pyfunction]
-#[pyo3(signature = (a, b, c, f, outputs, inputs, w, v_sqrt, j_max = None, condition = "cor12"))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (model, j_max = None, condition = "cor12", objective = "kalman", relax = None,
+    max_iter = 20))]
 fn synthesize<'py>(
     py: Python<'py>,
-    a: PyReadonlyArrayDyn<'py, f64>,
-    b: PyReadonlyArrayDyn<'py, f64>,
-    c: PyReadonlyArrayDyn<'py, f64>,
-    f: PyReadonlyArrayDyn<'py, f64>,
-    outputs: Vec<usize>,
-    inputs: Vec<usize>,
-    w: PyReadonlyArrayDyn<'py, f64>,
-    v_sqrt: PyReadonlyArrayDyn<'py, f64>,
+    model: &Bound<'py, PyDict>,
     j_max: Option<f64>,
     condition: &str,
+    objective: &str,
+    relax: Option<f64>,
+    max_iter: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let sys = system(&a, &b, &c, &f, outputs, inputs, Some(&w), Some(&v_sqrt))?;
+    let sys = system(model, true)?;
     let stability = Stability::parse(condition).map_err(to_py_err)?;
-    let syn = py
-        .detach(|| {
-            let s1 = step1(&sys, stability)?;
-            let j = j_max.unwrap_or(37.0 * s1.c_star);
-            complete(&sys, s1, j)
-        })
-        .map_err(to_py_err)?;
     let d = PyDict::new(py);
-    d.set_item("L", to_numpy(py, &syn.design.l))?;
-    let deltas: Vec<_> = syn.design.delta.iter().map(|m| to_numpy(py, m)).collect();
-    d.set_item("delta", deltas)?;
-    let unit: Vec<_> = syn.unit.delta.iter().map(|m| to_numpy(py, m)).collect();
-    d.set_item("delta_unit", unit)?;
-    d.set_item("j_max", syn.j_max)?;
-    d.set_item("c_star", syn.step1.c_star)?;
-    d.set_item("true_h2", syn.step1.true_h2)?;
-    d.set_item("kalman_cost", syn.step1.kalman_cost)?;
-    d.set_item("bound", syn.bound.bound)?;
-    d.set_item("g1_hinf", syn.bound.g1_hinf)?;
-    d.set_item("status", syn.step1.status.clone())?;
-    d.set_item("solve_time", syn.step1.solve_time + syn.unit.solve_time)?;
-    d.set_item("stability_lmis", syn.step1.stability_lmis)?;
+    match objective {
+        "kalman" => {
+            let (syn, lambda_bar) = py
+                .detach(|| {
+                    let (s1, lambda_bar) = match relax {
+                        Some(w) => {
+                            let r = step1_relaxed(&sys, stability, w)?;
+                            (r.step1, r.lambda_bar)
+                        }
+                        None => (step1(&sys, stability)?, 0.0),
+                    };
+                    let j = j_max.unwrap_or(37.0 * s1.c_star);
+                    Ok::<_, EventEstError>((complete(&sys, s1, j)?, lambda_bar))
+                })
+                .map_err(to_py_err)?;
+            design_items(py, &d, &syn.design, syn.j_max, &syn.bound)?;
+            let unit: Vec<_> = syn.unit.delta.iter().map(|m| to_numpy(py, m)).collect();
+            d.set_item("delta_unit", unit)?;
+            d.set_item("c_star", syn.step1.c_star)?;
+            d.set_item("true_h2", syn.step1.true_h2)?;
+            d.set_item("kalman_cost", syn.step1.kalman_cost)?;
+            d.set_item("lambda_bar", lambda_bar)?;
+            d.set_item("status", syn.step1.status.clone())?;
+            d.set_item("solve_time", syn.step1.solve_time + syn.unit.solve_time)?;
+            d.set_item("stability_lmis", syn.step1.stability_lmis)?;
+        }
+        "general" => {
+            if relax.is_some() {
+                return Err(PyValueError::new_err(
+                    "relax applies to objective \"kalman\" (the alternation certifies every \
+                     iterate with the unrelaxed condition)",
+                ));
+            }
+            let (alt, j) = py
+                .detach(|| {
+                    let j = match j_max {
+                        Some(j) => j,
+                        None => 37.0 * step1(&sys, stability)?.c_star,
+                    };
+                    Ok::<_, EventEstError>((alternate(&sys, stability, j, max_iter)?, j))
+                })
+                .map_err(to_py_err)?;
+            let last = alt.iterates.last().ok_or_else(|| {
+                Error::new_err("the alternation returned no iterate")
+            })?;
+            design_items(py, &d, &last.design, j, &last.bound)?;
+            let history: Vec<f64> = alt.iterates.iter().map(|it| it.trace_delta).collect();
+            d.set_item("trace_delta", history)?;
+            let bounds: Vec<Option<f64>> =
+                alt.iterates.iter().map(|it| it.gain_step_bound).collect();
+            d.set_item("gain_step_bound", bounds)?;
+            d.set_item("stop", alt.stop.clone())?;
+            d.set_item("stability_certificate", to_numpy(py, &last.stability_certificate))?;
+        }
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "objective must be \"kalman\" or \"general\", got {other:?}"
+            )))
+        }
+    }
     Ok(d)
+}
+
+/// L, delta, j_max and the certified bound of a design.
+fn design_items<'py>(
+    py: Python<'py>,
+    d: &Bound<'py, PyDict>,
+    design: &Design,
+    j_max: f64,
+    bound: &event_est::synth::Bound,
+) -> PyResult<()> {
+    d.set_item("L", to_numpy(py, &design.l))?;
+    let deltas: Vec<_> = design.delta.iter().map(|m| to_numpy(py, m)).collect();
+    d.set_item("delta", deltas)?;
+    d.set_item("j_max", j_max)?;
+    d.set_item("bound", bound.bound)?;
+    d.set_item("g1_hinf", bound.g1_hinf)?;
+    d.set_item("g2_h2", bound.g2_h2)?;
+    Ok(())
 }
 
 /// Networked closed loop: returns rates, total_rate, error_power, agent_error_power,
 /// max_inter_agent_error, max_state.
 #[pyfunction]
-#[pyo3(signature = (a, b, c, f, outputs, inputs, l, delta, steps, loss = 0.1, x0 = None,
+#[pyo3(signature = (model, l, delta, steps, loss = 0.1, x0 = None,
     noise_output = None, noise_input = None, seed = 0, local_update = false,
     communicated_inputs = false, window_start = 0))]
 #[allow(clippy::too_many_arguments)]
 fn simulate<'py>(
     py: Python<'py>,
-    a: PyReadonlyArrayDyn<'py, f64>,
-    b: PyReadonlyArrayDyn<'py, f64>,
-    c: PyReadonlyArrayDyn<'py, f64>,
-    f: PyReadonlyArrayDyn<'py, f64>,
-    outputs: Vec<usize>,
-    inputs: Vec<usize>,
+    model: &Bound<'py, PyDict>,
     l: PyReadonlyArrayDyn<'py, f64>,
     delta: Vec<PyReadonlyArrayDyn<'py, f64>>,
     steps: usize,
@@ -176,7 +231,7 @@ fn simulate<'py>(
     communicated_inputs: bool,
     window_start: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let sys = system(&a, &b, &c, &f, outputs, inputs, None, None)?;
+    let sys = system(model, false)?;
     let delta = delta
         .iter()
         .map(|d| matrix(d, "delta[i]"))

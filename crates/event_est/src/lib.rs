@@ -27,6 +27,8 @@ pub mod sim;
 #[cfg(feature = "synthesis")]
 extern crate openblas_src;
 #[cfg(feature = "synthesis")]
+pub mod alternation;
+#[cfg(feature = "synthesis")]
 pub mod ipm;
 #[cfg(feature = "synthesis")]
 pub mod lmi;

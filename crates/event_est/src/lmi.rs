@@ -182,6 +182,12 @@ impl Lmi {
         }
     }
 
+    /// Adds `scale`·x[`var`] at entry (i, j) (and its mirror), for one scalar entry of any block
+    /// (`VarId::index`), e.g. a trace in a scalar constraint.
+    pub fn add_entry(&mut self, var: usize, i: usize, j: usize, scale: f64) {
+        self.push(var, i, j, scale);
+    }
+
     /// Adds `scale`·t·I_d at diagonal block (r0, r0) for a scalar variable t.
     pub fn add_scalar_identity(&mut self, t: VarId, r0: usize, d: usize, scale: f64) {
         for i in 0..d {
@@ -205,20 +211,10 @@ impl Lmi {
         }
     }
 
-    /// Adds `scale`·M·S at off-diagonal block (r0, c0) (M h×d, S symmetric d×d).
+    /// Adds `scale`·M·S at off-diagonal block (r0, c0) (M h×d, S symmetric d×d): the transpose
+    /// S·Mᵀ of the mirrored block, since only the upper triangle is stored.
     pub fn add_times_sym(&mut self, m: &DMatrix<f64>, s: VarId, r0: usize, c0: usize, scale: f64) {
-        let VarKind::Sym(d) = s.kind else { return };
-        for j in 0..d {
-            for i in 0..=j {
-                let idx = s.index(i, j);
-                for a in 0..m.nrows() {
-                    self.push(idx, r0 + a, c0 + j, scale * m[(a, i)]);
-                    if i != j {
-                        self.push(idx, r0 + a, c0 + i, scale * m[(a, j)]);
-                    }
-                }
-            }
-        }
+        self.add_sym_times(s, &m.transpose(), c0, r0, scale);
     }
 
     /// Adds `scale`·U[:, cols]·G[cols, :] at off-diagonal block (r0, c0) for a full variable U
@@ -232,14 +228,44 @@ impl Lmi {
         c0: usize,
         scale: f64,
     ) {
+        self.add_full_product(None, u, g, cols, (r0, c0), scale);
+    }
+
+    /// Adds `scale`·M·U[:, cols]·G[cols, :] at the off-diagonal block whose top-left corner is
+    /// `at`, for a full variable U and a constant M (h×rows of U; `None` = identity), e.g. a
+    /// congruence-transformed gain R·L·G.
+    pub fn add_full_product(
+        &mut self,
+        m: Option<&DMatrix<f64>>,
+        u: VarId,
+        g: &DMatrix<f64>,
+        cols: core::ops::Range<usize>,
+        at: (usize, usize),
+        scale: f64,
+    ) {
         let VarKind::Full(rows, _) = u.kind else {
             return;
         };
+        let identity;
+        let m = match m {
+            Some(m) => m,
+            None => {
+                identity = DMatrix::identity(rows, rows);
+                &identity
+            }
+        };
+        let (r0, c0) = at;
         for r in cols {
             for a in 0..rows {
                 let idx = u.index(a, r);
-                for b in 0..g.ncols() {
-                    self.push(idx, r0 + a, c0 + b, scale * g[(r, b)]);
+                for h in 0..m.nrows() {
+                    let ma = scale * m[(h, a)];
+                    if ma == 0.0 {
+                        continue;
+                    }
+                    for b in 0..g.ncols() {
+                        self.push(idx, r0 + h, c0 + b, ma * g[(r, b)]);
+                    }
                 }
             }
         }

@@ -86,7 +86,7 @@ pub struct Step1 {
     pub stability_margins: Vec<(String, f64)>,
 }
 
-fn subset_name(s: u64, n: usize) -> String {
+pub(crate) fn subset_name(s: u64, n: usize) -> String {
     let members: Vec<String> = (0..n)
         .filter(|m| s >> m & 1 == 1)
         .map(|m| (m + 1).to_string())
@@ -108,24 +108,45 @@ pub fn step1_using(
     Ok(step1_with(sys, stability, None, solver)?.0)
 }
 
-/// Gain step of the alternation: thresholds Δ fixed, the bounded-real LMI of G_1 = (zI − Â)^{-1}LΔ
-/// in primal form (PÂ = PA − UCA, PLΔ = UΔ, linear in P, U, γ) joins Step 1, and the objective
-/// w_γ γ + w_X tr X is the linearisation of sqrt(N_s γ) + sqrt(tr X) at the current iterate.
-struct GainBrl<'a> {
-    /// Block-diagonal Δ (p×p, physical units).
-    delta: &'a DMatrix<f64>,
-    /// Weight of γ (bound on ‖G_1‖²_∞).
-    w_gamma: f64,
-    /// Weight of tr X.
-    w_x: f64,
+/// Result of the relaxed Step 1.
+#[derive(Debug, Clone)]
+pub struct RelaxedStep1 {
+    /// Gains, certificates and post-verification; the stability margins are those of
+    /// A_clᵀP_kA_cl − P_l − λ̄ I (all negative).
+    pub step1: Step1,
+    /// Decay bound λ̄ ≥ 0 of A_clᵀP_kA_cl − P_l ≺ λ̄ I (0: the unrelaxed conditions hold).
+    pub lambda_bar: f64,
 }
 
-/// Step 1 with an optional bounded-real term; returns the result and the certified
-/// ‖G_1‖²_∞ bound γ (physical units; 0 without the term).
+/// Step 1 with the feasibility relaxation of App. E (spec 8.2): the stability inequalities
+/// A_clᵀ P_k A_cl − P_l ≺ λ̄ I with the decay bound λ̄ ≥ 0 as a decision variable, minimising
+/// tr X + `weight`·λ̄/|P|_scale (|P|_scale = norm of the Kalman error Gramian, the scale of P).
+/// Always feasible when (A, C) is detectable; λ̄ > 0 calls for the estimator resets of
+/// [`reset_schedule`].
+pub fn step1_relaxed(
+    sys: &System,
+    stability: Stability,
+    weight: f64,
+) -> Result<RelaxedStep1, EventEstError> {
+    if matches!(stability, Stability::None | Stability::Cor13WithH) {
+        return Err(EventEstError::Parameter {
+            name: "stability condition of the relaxed Step 1 (thm11, cor12, cor13)",
+            value: f64::NAN,
+            reason: "nothing to relax, or the H form (use cor13)",
+        });
+    }
+    let (step1, lambda_bar) = step1_with(sys, stability, Some(weight), Solver::Clarabel)?;
+    Ok(RelaxedStep1 { step1, lambda_bar })
+}
+
+/// Step 1, optionally relaxed (App. E): with `relax = Some(w)` the stability inequalities become
+/// A_clᵀP_kA_cl − P_l ≺ λ̄ I with the decay bound λ̄ ≥ 0 a decision variable and the objective
+/// tr X + w λ̄/|P|_scale (λ̄ measured relative to the scale of P). Returns the result and λ̄
+/// (0 without relaxation).
 fn step1_with(
     sys: &System,
     stability: Stability,
-    brl: Option<&GainBrl<'_>>,
+    relax: Option<f64>,
     solver: Solver,
 ) -> Result<(Step1, f64), EventEstError> {
     let (n, p, na) = (sys.n(), sys.p(), sys.agents());
@@ -172,34 +193,22 @@ fn step1_with(
     let uv = vars.full(n, p);
     let xv = vars.sym(p + nv);
     let hv = (stability == Stability::Cor13WithH).then(|| vars.sym(2 * n));
-    let gv = brl.map(|_| vars.scalar());
+    let lambda_v = relax.map(|_| vars.scalar());
     let mut prob = Problem::new(vars);
     for i in 0..(p + nv) {
-        prob.objective[xv.index(i, i)] = brl.map_or(1.0, |b| b.w_x);
+        prob.objective[xv.index(i, i)] = 1.0;
     }
-    if let (Some(b), Some(g)) = (brl, gv) {
-        if b.delta.nrows() != p || b.delta.ncols() != p {
-            return Err(EventEstError::Dimension {
-                name: "Δ (block diagonal)",
-                expected_rows: p,
-                expected_cols: p,
-                found_rows: b.delta.nrows(),
-                found_cols: b.delta.ncols(),
+    if let (Some(w), Some(lv)) = (relax, lambda_v) {
+        if !(w.is_finite() && w > 0.0) {
+            return Err(EventEstError::Parameter {
+                name: "relaxation weight",
+                value: w,
+                reason: "must be positive",
             });
         }
-        prob.objective[g.index(0, 0)] = b.w_gamma;
-        // [[P, PA − UCA, UΔ_s, 0], [*, P, 0, I], [*, *, γ I_p, 0], [*, *, *, I_n]] ≻ 0
-        // ⇔ ‖(zI − Â)^{-1} L Δ_s‖²_∞ < γ (Δ_s = sqrt(s) Δ on the scaled noise level).
-        let delta_s = b.delta * s.sqrt();
-        let l = prob.lmi("bounded-real lemma ‖(zI − Â)^{-1}LΔ‖²_∞ < γ", 3 * n + p);
-        l.add_sym(pv, 0, 1.0);
-        l.add_sym_times(pv, a, 0, n, 1.0);
-        l.add_full_times(uv, &(c * a), 0..p, 0, n, -1.0);
-        l.add_full_times(uv, &delta_s, 0..p, 0, 2 * n, 1.0);
-        l.add_sym(pv, n, 1.0);
-        l.add_const(n, 2 * n + p, &identity);
-        l.add_scalar_identity(g, 2 * n, p, 1.0);
-        l.add_const(2 * n + p, 2 * n + p, &identity);
+        prob.objective[lv.index(0, 0)] = w / p_scale;
+        prob.lmi("decay bound λ̄ ≥ 0", 1)
+            .add_scalar_identity(lv, 0, 1, 1.0);
     }
     let ca = c * a;
     let caf = c * &af;
@@ -239,6 +248,9 @@ fn step1_with(
             }
         }
         l.add_sym(pl, n, 1.0);
+        if let Some(lv) = lambda_v {
+            l.add_scalar_identity(lv, n, n, 1.0);
+        }
         l.set_margin(stab_eps);
     };
     let measuring = sys.measuring_agents();
@@ -276,11 +288,7 @@ fn step1_with(
             }
         }
         Stability::Thm11 => {
-            let p2 = p2v.ok_or(EventEstError::Parameter {
-                name: "P_2",
-                value: f64::NAN,
-                reason: "missing",
-            })?;
+            let p2 = declared(p2v, "P_2")?;
             for subset in 0..(1u64 << na) {
                 let (pk, name) = if subset == 0 {
                     (p2, "P_2")
@@ -304,11 +312,7 @@ fn step1_with(
             }
         }
         Stability::Cor13WithH => {
-            let h = hv.ok_or(EventEstError::Parameter {
-                name: "H",
-                value: f64::NAN,
-                reason: "missing",
-            })?;
+            let h = declared(hv, "H")?;
             add_pattern(&mut prob, "Cor 13 M_0 ≻ 0".into(), 0, 1.0, pv, pv);
             // H − M_0 ⪰ 0.
             {
@@ -343,6 +347,7 @@ fn step1_with(
     let l = chol.solve(&um);
     let c_star = (xv.value(&sol.x).trace() / s).sqrt();
     let p2 = p2v.map(|v| v.value(&sol.x));
+    let lambda_bar = lambda_v.map_or(0.0, |v| v.value(&sol.x)[(0, 0)].max(0.0));
 
     // Post-verification with the returned L.
     let a_hat = (&identity - &l * c) * a;
@@ -359,7 +364,8 @@ fn step1_with(
                      pk: &DMatrix<f64>,
                      pl: &DMatrix<f64>|
      -> Result<(), EventEstError> {
-        let m = max_eigenvalue(&(acl.transpose() * pk * acl - pl)) / pl.norm().max(1e-300);
+        let shifted = acl.transpose() * pk * acl - pl - &identity * lambda_bar;
+        let m = max_eigenvalue(&shifted) / pl.norm().max(1e-300);
         if m.is_nan() || m >= 0.0 {
             return Err(EventEstError::Verification {
                 condition: name,
@@ -422,16 +428,6 @@ fn step1_with(
             margin: true_h2 - c_star,
         });
     }
-    let gamma = gv.map_or(0.0, |g| g.value(&sol.x)[(0, 0)] / s);
-    if let Some(b) = brl {
-        let g1 = hinf_norm(&a_hat, &(&l * b.delta), &identity);
-        if g1 > gamma.max(0.0).sqrt() * (1.0 + 1e-3) {
-            return Err(EventEstError::Verification {
-                condition: "‖(zI − Â)^{-1}LΔ‖_∞ ≤ sqrt(γ) for the gain step".into(),
-                margin: g1 - gamma.max(0.0).sqrt(),
-            });
-        }
-    }
     let step = Step1 {
         l,
         p: pm,
@@ -446,7 +442,19 @@ fn step1_with(
         stability_lmis,
         stability_margins: margins,
     };
-    Ok((step, gamma))
+    Ok((step, lambda_bar))
+}
+
+/// A decision variable declared only for some stability conditions.
+fn declared(
+    var: Option<crate::lmi::VarId>,
+    name: &'static str,
+) -> Result<crate::lmi::VarId, EventEstError> {
+    var.ok_or(EventEstError::Parameter {
+        name,
+        value: f64::NAN,
+        reason: "missing",
+    })
 }
 
 /// B̂_2 = [−L W^½, (I − LC) V^½].
@@ -636,7 +644,7 @@ pub fn g1_norm(sys: &System, design: &Design) -> Result<f64, EventEstError> {
 }
 
 /// Block-diagonal p×p matrix diag(Δ_1, …, Δ_N) (blocks already checked by the caller).
-fn delta_block(sys: &System, delta: &[DMatrix<f64>]) -> DMatrix<f64> {
+pub(crate) fn delta_block(sys: &System, delta: &[DMatrix<f64>]) -> DMatrix<f64> {
     let p = sys.p();
     let off = sys.output_offsets();
     let mut block = DMatrix::zeros(p, p);
@@ -877,218 +885,4 @@ pub fn reset_schedule(
         }
     }
     Ok(best)
-}
-
-/// One iterate of [`alternate`].
-#[derive(Debug, Clone)]
-pub struct Iterate {
-    /// Gains and thresholds.
-    pub design: Design,
-    /// Σ_i tr Δ_i (the objective, maximised; −tr Δ is non-increasing).
-    pub trace_delta: f64,
-    /// Certified bound of the design (analysis mode), ≤ J_max.
-    pub bound: Bound,
-    /// Largest eigenvalue of each stability inequality A_clᵀPA_cl − P (relative to |P|) for a
-    /// common P found by an analysis SDP for these gains (empty for `Stability::None`).
-    pub stability_margins: Vec<(String, f64)>,
-}
-
-/// Result of [`alternate`].
-#[derive(Debug, Clone)]
-pub struct Alternation {
-    /// Iterate 0 is the two-step design (Step 1, then Step 2 on the exact H2 budget); every
-    /// further entry follows one accepted gain step and one threshold step.
-    pub iterates: Vec<Iterate>,
-    /// Why the iteration ended.
-    pub stop: String,
-}
-
-/// Closed-loop matrices whose common quadratic Lyapunov function certifies `stability`
-/// (Cor 12: all 2^N patterns; Cor 13: the N_s + 1 vertices).
-fn certified_matrices(
-    sys: &System,
-    l: &DMatrix<f64>,
-    stability: Stability,
-) -> Result<Vec<(String, DMatrix<f64>)>, EventEstError> {
-    let (n, na) = (sys.n(), sys.agents());
-    let af = sys.a_cl();
-    let identity = DMatrix::<f64>::identity(n, n);
-    let acl = |subset: u64, w: f64| (&identity - sys.lc_subset(l, subset) * w) * &af;
-    Ok(match stability {
-        Stability::None => Vec::new(),
-        Stability::Cor12 | Stability::Cor13WithH => (0..(1u64 << na))
-            .map(|s| {
-                (
-                    format!("Cor 12 pattern {}", subset_name(s, na)),
-                    acl(s, 1.0),
-                )
-            })
-            .collect(),
-        Stability::Cor13 => {
-            let ns = sys.measuring_agents() as f64;
-            let mut v = vec![("Cor 13 vertex A+BF".to_string(), af.clone())];
-            for m in 0..na {
-                if sys.outputs[m] > 0 {
-                    v.push((format!("Cor 13 vertex m = {}", m + 1), acl(1 << m, ns)));
-                }
-            }
-            v
-        }
-        Stability::Thm11 => {
-            return Err(EventEstError::Parameter {
-                name: "stability condition of the alternation",
-                value: f64::NAN,
-                reason: "the alternation certifies gains with a common P (none, cor12, cor13)",
-            })
-        }
-    })
-}
-
-/// Analysis SDP: a common P ⪰ I with A_clᵀPA_cl − P ≺ 0 for every matrix of `stability`,
-/// re-checked by eigenvalues; returns the relative margins.
-fn certify_gains(
-    sys: &System,
-    l: &DMatrix<f64>,
-    stability: Stability,
-) -> Result<Vec<(String, f64)>, EventEstError> {
-    let mats = certified_matrices(sys, l, stability)?;
-    if mats.is_empty() {
-        return Ok(Vec::new());
-    }
-    let n = sys.n();
-    let identity = DMatrix::<f64>::identity(n, n);
-    let mut vars = Vars::default();
-    let pv = vars.sym(n);
-    let mut prob = Problem::new(vars);
-    for i in 0..n {
-        prob.objective[pv.index(i, i)] = 1.0;
-    }
-    {
-        let lm = prob.lmi("P ⪰ I", n);
-        lm.add_sym(pv, 0, 1.0);
-        lm.add_const(0, 0, &(-&identity));
-    }
-    for (name, m) in &mats {
-        let lm = prob.lmi(name.clone(), 2 * n);
-        lm.add_sym(pv, 0, 1.0);
-        lm.add_sym_times(pv, m, 0, n, 1.0);
-        lm.add_sym(pv, n, 1.0);
-    }
-    let sol = prob.solve("stability analysis of alternated gains", EPS)?;
-    let pm = pv.value(&sol.x);
-    let mut margins = Vec::with_capacity(mats.len());
-    for (name, m) in mats {
-        let margin = max_eigenvalue(&(m.transpose() * &pm * &m - &pm)) / pm.norm().max(1e-300);
-        if margin.is_nan() || margin >= 0.0 {
-            return Err(EventEstError::Verification {
-                condition: name,
-                margin,
-            });
-        }
-        margins.push((name, margin));
-    }
-    Ok(margins)
-}
-
-/// Step 1/Step 2 alternation (Section 6.3 [reconstruction]): maximise tr Δ subject to the
-/// certified bound sqrt(N_s)‖G_1‖_∞ + ‖G_2‖_2 ≤ J_max, alternating
-/// (i) gains with Δ fixed: Step 1 plus the primal bounded-real LMI of (zI − Â)^{-1}LΔ, minimising
-///     the linearisation of the bound; because that LMI shares P with the H2 and stability
-///     LMIs its optimum L' may be worse than the current L, so a line search over
-///     L + θ(L' − L), θ = 1, 1/2, …, 1/64, keeps the gain with the lowest exact bound at the
-///     current Δ, accepted only if that bound decreases and an analysis SDP certifies it;
-/// (ii) thresholds with L fixed: Step 2 on the budget J_max − ‖G_2(L)‖_2.
-///
-/// The previous Δ stays feasible in (ii) (its bound did not increase in (i)), so tr Δ cannot
-/// decrease except by solver tolerance. Stops after `max_iter` iterations, when the relative
-/// change of Δ is below 1e−4, or when the gain step finds no improvement (reason in `stop`).
-pub fn alternate(
-    sys: &System,
-    stability: Stability,
-    j_max: f64,
-    max_iter: usize,
-) -> Result<Alternation, EventEstError> {
-    certified_matrices(sys, &DMatrix::zeros(sys.n(), sys.p()), stability)?;
-    let start = step1(sys, stability)?;
-    let margins = certify_gains(sys, &start.l, stability)?;
-    let mut iterates = vec![threshold_iterate(sys, start.l, j_max, margins)?];
-    let mut stop = format!("max_iter = {max_iter} reached");
-    for _ in 0..max_iter {
-        let current = &iterates[iterates.len() - 1];
-        let block = delta_block(sys, &current.design.delta);
-        let ns = (sys.measuring_agents().max(1) as f64).sqrt();
-        let brl = GainBrl {
-            delta: &block,
-            w_gamma: ns / current.bound.g1_hinf.max(1e-300),
-            w_x: 1.0 / current.bound.g2_h2.max(1e-300),
-        };
-        let target = match step1_with(sys, stability, Some(&brl), Solver::Clarabel) {
-            Ok((c, _)) => c.l,
-            Err(e) => {
-                stop = format!("gain step failed: {e}");
-                break;
-            }
-        };
-        let l0 = &current.design.l;
-        let mut candidates: Vec<(f64, DMatrix<f64>)> = (0..7)
-            .filter_map(|j| {
-                let l = l0 + (&target - l0) * 0.5f64.powi(j);
-                let design = Design {
-                    l: l.clone(),
-                    delta: current.design.delta.clone(),
-                };
-                let b = analyse(sys, &design).ok()?;
-                (b.bound.is_finite() && b.bound < current.bound.bound).then_some((b.bound, l))
-            })
-            .collect();
-        candidates.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let accepted = candidates
-            .into_iter()
-            .find_map(|(_, l)| certify_gains(sys, &l, stability).ok().map(|m| (l, m)));
-        let Some((l, margins)) = accepted else {
-            stop = "no certified gain lowers the bound at the current Δ".into();
-            break;
-        };
-        let next = threshold_iterate(sys, l, j_max, margins)?;
-        let change = next
-            .design
-            .delta
-            .iter()
-            .zip(&current.design.delta)
-            .map(|(a, b)| (a - b).norm())
-            .sum::<f64>()
-            / current.design.delta.iter().map(|d| d.norm()).sum::<f64>();
-        iterates.push(next);
-        if change < 1e-4 {
-            stop = format!("relative change of Δ {change:.2e} < 1e-4");
-            break;
-        }
-    }
-    Ok(Alternation { iterates, stop })
-}
-
-/// Step 2 on the exact H2 budget J_max − ‖G_2(L)‖_2 for gains `l`, and its certified bound.
-fn threshold_iterate(
-    sys: &System,
-    l: DMatrix<f64>,
-    j_max: f64,
-    stability_margins: Vec<(String, f64)>,
-) -> Result<Iterate, EventEstError> {
-    let h2 = full_communication_cost(sys, &l)?;
-    let unit = step2_unit(sys, &l, 1.0)?;
-    let delta = thresholds(sys, &unit, h2, j_max)?;
-    let design = Design { l, delta };
-    let bound = analyse(sys, &design)?;
-    if bound.bound > j_max * (1.0 + 1e-3) {
-        return Err(EventEstError::Verification {
-            condition: "certified bound ≤ J_max (alternation)".into(),
-            margin: bound.bound - j_max,
-        });
-    }
-    Ok(Iterate {
-        trace_delta: design.delta.iter().map(|d| d.trace()).sum(),
-        design,
-        bound,
-        stability_margins,
-    })
 }

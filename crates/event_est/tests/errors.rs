@@ -11,65 +11,45 @@ fn eye(n: usize) -> DMatrix<f64> {
     DMatrix::identity(n, n)
 }
 
-#[test]
-fn wrong_dimensions_are_named() {
-    let err = System::new(
-        eye(2),
-        DMatrix::zeros(3, 1),
+/// Two states, one input of agent 1 (F = 0, so A + BF = A), C = I, V^½ = I; the varied parts
+/// are A, the rows of B, the output blocks and W.
+fn two_state(
+    a: DMatrix<f64>,
+    b_rows: usize,
+    outputs: Vec<usize>,
+    w: DMatrix<f64>,
+) -> Result<System, EventEstError> {
+    System::new(
+        a,
+        DMatrix::zeros(b_rows, 1),
         eye(2),
         DMatrix::zeros(1, 2),
-        vec![1, 1],
+        outputs,
         vec![1, 0],
-        eye(2),
+        w,
         eye(2),
     )
-    .unwrap_err();
+}
+
+#[test]
+fn wrong_dimensions_are_named() {
+    let err = two_state(eye(2), 3, vec![1, 1], eye(2)).unwrap_err();
     assert!(
         matches!(err, EventEstError::Dimension { name: "B", .. }),
         "{err}"
     );
-    let err = System::new(
-        eye(2) * 0.5,
-        DMatrix::zeros(2, 1),
-        eye(2),
-        DMatrix::zeros(1, 2),
-        vec![1, 2],
-        vec![1, 0],
-        eye(2),
-        eye(2),
-    )
-    .unwrap_err();
+    let err = two_state(eye(2) * 0.5, 2, vec![1, 2], eye(2)).unwrap_err();
     assert!(matches!(err, EventEstError::BlockSizes { .. }), "{err}");
 }
 
 #[test]
 fn unstable_feedback_and_bad_covariance_are_named() {
-    let err = System::new(
-        eye(2) * 1.5,
-        DMatrix::zeros(2, 1),
-        eye(2),
-        DMatrix::zeros(1, 2),
-        vec![1, 1],
-        vec![1, 0],
-        eye(2),
-        eye(2),
-    )
-    .unwrap_err();
+    let err = two_state(eye(2) * 1.5, 2, vec![1, 1], eye(2)).unwrap_err();
     assert!(
         matches!(err, EventEstError::UnstableFeedback { rho } if (rho - 1.5).abs() < 1e-12),
         "{err}"
     );
-    let err = System::new(
-        eye(2) * 0.5,
-        DMatrix::zeros(2, 1),
-        eye(2),
-        DMatrix::zeros(1, 2),
-        vec![1, 1],
-        vec![1, 0],
-        -eye(2),
-        eye(2),
-    )
-    .unwrap_err();
+    let err = two_state(eye(2) * 0.5, 2, vec![1, 1], -eye(2)).unwrap_err();
     assert_eq!(err, EventEstError::NotPositiveDefinite { name: "W" });
 }
 

@@ -3,7 +3,8 @@ Trimpe, LMI-based synthesis).
 
 Every agent estimates the full state, reconstructs the plant input from its own estimate and
 broadcasts its measurement only when the innovation exceeds its threshold. ``synthesize``
-designs the gains L and thresholds delta by two LMI steps on Clarabel; ``simulate`` runs the
+designs the gains L and thresholds delta by two LMI steps on Clarabel (or, with
+``objective="general"``, by alternating gain and threshold steps); ``simulate`` runs the
 networked closed loop and returns communication rates and error power.
 
 >>> from stabilis import event_est
@@ -33,20 +34,39 @@ def _f64(m):
     return np.asarray(m, dtype=np.float64)
 
 
-def synthesize(model, j_max=None, condition="cor12"):
+_MATRICES = ("A", "B", "C", "F", "W", "V_sqrt")
+
+
+def _model(model):
+    """The model dict with float64 matrices and integer block sizes (missing W, V_sqrt allowed
+    for simulation)."""
+    native = {k: _f64(model[k]) for k in _MATRICES if k in model}
+    native["outputs"] = [int(v) for v in model["outputs"]]
+    native["inputs"] = [int(v) for v in model["inputs"]]
+    return native
+
+
+def synthesize(model, j_max=None, condition="cor12", objective="kalman", relax=None,
+               max_iter=20):
     """Gains and thresholds for ``model`` (a dict as returned by :func:`platoon`).
 
     ``j_max``: bound on the error power (default 37 times the full-communication cost c*);
     ``condition``: inter-agent stability condition, "thm11", "cor12", "cor13" or "none".
-    Returns a dict with L, delta (list of per-agent matrices), delta_unit, c_star, true_h2,
-    kalman_cost, bound (certified), g1_hinf, status, solve_time, stability_lmis.
-    Raises ValueError on bad shapes and stabilis.Error when the LMIs are infeasible.
+    ``objective``: "kalman" runs Step 1 (gains) and Step 2 (thresholds); "general" then
+    alternates gain steps (thresholds fixed) and threshold steps (gains fixed) to maximise
+    sum(tr delta_i) at the same certified bound, for at most ``max_iter`` iterations.
+    ``relax``: weight of the decay bound lambda_bar in the relaxed Step 1 (objective "kalman").
+
+    Returns a dict with L, delta (list of per-agent matrices), j_max, bound (certified),
+    g1_hinf, g2_h2 and, for "kalman": delta_unit, c_star, true_h2, kalman_cost, lambda_bar,
+    status, solve_time, stability_lmis; for "general": trace_delta (per iterate, the first is
+    Step 1 + Step 2), gain_step_bound (bound after each gain step), stop,
+    stability_certificate.
+    Raises ValueError on bad shapes or options and stabilis.Error when the LMIs are infeasible.
     """
     return _native.synthesize(
-        _f64(model["A"]), _f64(model["B"]), _f64(model["C"]), _f64(model["F"]),
-        [int(v) for v in model["outputs"]], [int(v) for v in model["inputs"]],
-        _f64(model["W"]), _f64(model["V_sqrt"]),
-        None if j_max is None else float(j_max), str(condition),
+        _model(model), None if j_max is None else float(j_max), str(condition), str(objective),
+        None if relax is None else float(relax), int(max_iter),
     )
 
 
@@ -61,10 +81,8 @@ def simulate(model, design, steps, loss=0.1, x0=None, seed=0, local_update=False
     no = model.get("noise_output") if noise else None
     ni = model.get("noise_input") if noise else None
     return _native.simulate(
-        _f64(model["A"]), _f64(model["B"]), _f64(model["C"]), _f64(model["F"]),
-        [int(v) for v in model["outputs"]], [int(v) for v in model["inputs"]],
-        _f64(design["L"]), [_f64(np.atleast_2d(d)) for d in design["delta"]], int(steps),
-        float(loss), None if x0 is None else [float(v) for v in x0],
+        _model(model), _f64(design["L"]), [_f64(np.atleast_2d(d)) for d in design["delta"]],
+        int(steps), float(loss), None if x0 is None else [float(v) for v in x0],
         None if no is None else [float(v) for v in no], None if ni is None else [float(v) for v in ni],
         int(seed), bool(local_update), bool(communicated_inputs), int(window_start),
     )

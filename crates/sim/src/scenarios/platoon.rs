@@ -5,6 +5,7 @@ use crate::error::{Result, SimError};
 use crate::log::Experiment;
 use crate::progress::Progress;
 use crate::scenarios::{Common, Recorder, Scenario};
+use event_est::alternation::alternate;
 use event_est::model::platoon;
 use event_est::runtime::LocalUpdate;
 use event_est::sim::{simulate_with, Design, SimConfig};
@@ -46,6 +47,19 @@ pub struct Args {
     /// Agents also use their own measurement when they do not transmit.
     #[arg(long)]
     pub local_update: bool,
+    /// Synthesis: two-step (Step 1 gains, Step 2 thresholds) or general (then alternate gain
+    /// and threshold steps to enlarge the thresholds at the same certified bound).
+    #[arg(long, value_enum, default_value_t = DesignMethod::TwoStep)]
+    pub design: DesignMethod,
+}
+
+/// How the gains and thresholds are synthesised.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum DesignMethod {
+    /// Step 1 (gains, min tr X) then Step 2 (thresholds, max tr Δ).
+    TwoStep,
+    /// The alternation of gain and threshold steps (at most 20 iterations).
+    General,
 }
 
 impl Scenario for Args {
@@ -76,7 +90,22 @@ impl Scenario for Args {
         let s1 = step1(&sys, stability).map_err(domain("Step 1 (gains)"))?;
         let j_max = self.j_max.unwrap_or(37.0 * s1.c_star);
         let c_star = s1.c_star;
-        let synthesis = complete(&sys, s1, j_max).map_err(domain("Step 2 (thresholds)"))?;
+        let (synthesized, bound, trace_history) = match self.design {
+            DesignMethod::TwoStep => {
+                let syn = complete(&sys, s1, j_max).map_err(domain("Step 2 (thresholds)"))?;
+                let trace = syn.design.delta.iter().map(|d| d.trace()).sum::<f64>();
+                (syn.design, syn.bound.bound, vec![trace])
+            }
+            DesignMethod::General => {
+                let alt = alternate(&sys, stability, j_max, 20)
+                    .map_err(domain("alternation (--design general)"))?;
+                let history: Vec<f64> = alt.iterates.iter().map(|it| it.trace_delta).collect();
+                let last = alt.iterates.into_iter().last().ok_or_else(|| {
+                    SimError::invalid("design", "general", "the alternation returned no iterate")
+                })?;
+                (last.design, last.bound.bound, history)
+            }
+        };
         let synthesis_s = started.elapsed().as_secs_f64();
         let design = match &self.thresholds {
             Some(t) if t.len() != m => {
@@ -86,8 +115,8 @@ impl Scenario for Args {
                     format!("need one per vehicle ({m})"),
                 ))
             }
-            Some(t) => Design::scalar(synthesis.design.l.clone(), t),
-            None => synthesis.design.clone(),
+            Some(t) => Design::scalar(synthesized.l.clone(), t),
+            None => synthesized,
         };
         progress.set(10);
 
@@ -111,6 +140,7 @@ impl Scenario for Args {
             ("seed", self.common.seed.to_string()),
             ("loss", self.loss.to_string()),
             ("condition", format!("{stability:?}")),
+            ("design", format!("{:?}", self.design)),
             ("j_max", j_max.to_string()),
             ("c_star", c_star.to_string()),
             ("thresholds", join(&delta)),
@@ -160,7 +190,9 @@ impl Scenario for Args {
         recorder.summarize("condition", format!("{stability:?}"));
         recorder.summarize("c_star", c_star);
         recorder.summarize("j_max", j_max);
-        recorder.summarize("certified_bound", synthesis.bound.bound);
+        recorder.summarize("design", format!("{:?}", self.design));
+        recorder.summarize("certified_bound", bound);
+        recorder.summarize("trace_delta", trace_history);
         recorder.summarize("thresholds", delta);
         recorder.summarize("synthesis_s", synthesis_s);
         recorder.summarize("rates", result.rates.clone());
@@ -217,6 +249,38 @@ mod tests {
     }
 
     #[test]
+    fn general_design_has_larger_thresholds_within_the_same_bound() {
+        let summary = |design: &str| {
+            let args = ["--duration", "20", "--design", design];
+            let system = SimSystem::parse_args("platoon", args).unwrap();
+            run(system.scenario(), &mut Progress::hidden())
+                .unwrap()
+                .summary
+        };
+        let two = summary("two-step");
+        let general = summary("general");
+        let trace = |s: &serde_json::Map<String, serde_json::Value>| -> Vec<f64> {
+            s["trace_delta"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap())
+                .collect()
+        };
+        let (t2, tg) = (trace(&two), trace(&general));
+        assert_eq!(t2.len(), 1);
+        // The alternation starts from Step 1 + Step 2 on the exact H2 budget (slightly larger
+        // than the two-step design's c* budget) and enlarges Σ tr Δ_i by > 10 %.
+        assert!(
+            tg[0] >= t2[0] && tg[tg.len() - 1] > 1.1 * t2[0],
+            "{t2:?} {tg:?}"
+        );
+        let j_max = general["j_max"].as_f64().unwrap();
+        assert!(general["certified_bound"].as_f64().unwrap() <= j_max * (1.0 + 1e-3));
+        assert_eq!(general["design"].as_str(), Some("General"));
+    }
+
+    #[test]
     fn bad_options_are_named() {
         let bad = SimSystem::parse_args("platoon", ["--vehicles", "3", "--thresholds", "0.1,0.1"])
             .unwrap();
@@ -225,5 +289,11 @@ mod tests {
         let one = SimSystem::parse_args("platoon", ["--vehicles", "1"]).unwrap();
         let err = run(one.scenario(), &mut Progress::hidden()).unwrap_err();
         assert!(err.to_string().contains("vehicles"), "{err}");
+        assert!(SimSystem::parse_args("platoon", ["--design", "best"]).is_err());
+        let thm11 =
+            SimSystem::parse_args("platoon", ["--design", "general", "--condition", "thm11"])
+                .unwrap();
+        let err = run(thm11.scenario(), &mut Progress::hidden()).unwrap_err();
+        assert!(err.to_string().contains("alternation"), "{err}");
     }
 }
