@@ -1,10 +1,10 @@
 //! Python bindings of distributed event-based state estimation: the platoon model, the LMI
 //! synthesis of gains and thresholds, and the networked simulation with packet loss.
 
+use event_est::alternation::alternate;
 use event_est::model::{platoon, System};
 use event_est::runtime::{InputMode, LocalUpdate};
 use event_est::sim::{simulate as run_sim, Design, SimConfig};
-use event_est::alternation::alternate;
 use event_est::synth::{complete, step1, step1_relaxed, Stability};
 use event_est::EventEstError;
 use nalgebra::{DMatrix, DVector};
@@ -170,9 +170,10 @@ fn synthesize<'py>(
                     Ok::<_, EventEstError>((alternate(&sys, stability, j, max_iter)?, j))
                 })
                 .map_err(to_py_err)?;
-            let last = alt.iterates.last().ok_or_else(|| {
-                Error::new_err("the alternation returned no iterate")
-            })?;
+            let last = alt
+                .iterates
+                .last()
+                .ok_or_else(|| Error::new_err("the alternation returned no iterate"))?;
             design_items(py, &d, &last.design, j, &last.bound)?;
             let history: Vec<f64> = alt.iterates.iter().map(|it| it.trace_delta).collect();
             d.set_item("trace_delta", history)?;
@@ -180,7 +181,10 @@ fn synthesize<'py>(
                 alt.iterates.iter().map(|it| it.gain_step_bound).collect();
             d.set_item("gain_step_bound", bounds)?;
             d.set_item("stop", alt.stop.clone())?;
-            d.set_item("stability_certificate", to_numpy(py, &last.stability_certificate))?;
+            d.set_item(
+                "stability_certificate",
+                to_numpy(py, &last.stability_certificate),
+            )?;
         }
         other => {
             return Err(PyValueError::new_err(format!(
