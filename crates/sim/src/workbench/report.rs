@@ -7,9 +7,13 @@ use serde_json::{json, Value};
 
 use super::cubli::{CubliDiscovery, CubliStep, CHANNELS as CUBLI_CHANNELS};
 use super::discover::{Discovery, Step};
+use super::fit::ParamEstimate;
 use super::frf::CMatrix;
 use super::Workbench;
 use crate::error::{Result, SimError};
+
+/// Selects parameters for a named list of the summary.
+type Pick = fn(&ParamEstimate) -> bool;
 
 /// The terminal summary: one row per step with cost, reduction and fit % per output.
 pub fn table(wb: &Workbench, d: &Discovery) -> String {
@@ -64,27 +68,23 @@ pub fn table(wb: &Workbench, d: &Discovery) -> String {
                 c.effect, c.reduction_percent, c.added_parameters, c.p_value, c.delta_bic
             );
         }
-        let held: Vec<&str> = st
-            .params
-            .iter()
-            .filter(|p| p.held)
-            .map(|p| p.name.as_str())
-            .collect();
-        if !held.is_empty() {
-            let _ = writeln!(
-                s,
-                "held at documented values (not separable by the data): {}",
-                held.join(", ")
-            );
-        }
-        let poor: Vec<&str> = st
-            .params
-            .iter()
-            .filter(|p| p.poorly_determined)
-            .map(|p| p.name.as_str())
-            .collect();
-        if !poor.is_empty() {
-            let _ = writeln!(s, "poorly determined (std > |value|): {}", poor.join(", "));
+        let lists: [(&str, Pick); 2] = [
+            (
+                "held at documented values (not separable by the data)",
+                |p| p.held,
+            ),
+            ("poorly determined (std > |value|)", |p| p.poorly_determined),
+        ];
+        for (what, pick) in lists {
+            let names: Vec<&str> = st
+                .params
+                .iter()
+                .filter(|p| pick(p))
+                .map(|p| p.name.as_str())
+                .collect();
+            if !names.is_empty() {
+                let _ = writeln!(s, "{what}: {}", names.join(", "));
+            }
         }
     }
     for (name, value, why) in wb.model().structure().fixed() {
@@ -278,6 +278,12 @@ struct Series<'a> {
 struct XAxis<'a> {
     label: &'a str,
     log: bool,
+}
+
+impl<'a> XAxis<'a> {
+    fn linear(label: &'a str) -> Self {
+        Self { label, log: false }
+    }
 }
 
 const FREQUENCY: XAxis<'static> = XAxis {
@@ -543,45 +549,34 @@ fn html(wb: &Workbench, d: &Discovery) -> String {
         let meas: Vec<_> = frf.lines.iter().map(|l| entry(&l.g)).collect();
         let std: Vec<f64> = wb.cost().std.iter().map(|s| s[(o, i)]).collect();
         let db = |z: nalgebra::Complex<f64>| 20.0 * z.norm().max(1e-12).log10();
-        let mut mag = vec![Series {
-            name: "measured".into(),
-            color: "#000000",
-            points: meas.iter().zip(&f).map(|(z, x)| (*x, db(*z))).collect(),
-            markers: true,
-            band: Some(
-                meas.iter()
-                    .zip(&f)
-                    .zip(&std)
-                    .map(|((z, x), s)| {
-                        (
-                            *x,
-                            20.0 * (z.norm() - s).max(z.norm() * 0.01).log10(),
-                            20.0 * (z.norm() + s).log10(),
-                        )
-                    })
-                    .collect(),
-            ),
-        }];
-        let mut phase = vec![Series {
-            name: "measured".into(),
-            color: "#000000",
-            points: meas
+        // The measured entry with its one-standard-deviation band, as (value, low, high).
+        let measured = |val: &dyn Fn(nalgebra::Complex<f64>, f64) -> (f64, f64, f64)| {
+            let pts: Vec<(f64, (f64, f64, f64))> = meas
                 .iter()
                 .zip(&f)
-                .map(|(z, x)| (*x, z.arg().to_degrees()))
-                .collect(),
-            markers: true,
-            band: Some(
-                meas.iter()
-                    .zip(&f)
-                    .zip(&std)
-                    .map(|((z, x), s)| {
-                        let dphi = (s / z.norm().max(1e-12)).min(1.0).asin().to_degrees();
-                        (*x, z.arg().to_degrees() - dphi, z.arg().to_degrees() + dphi)
-                    })
-                    .collect(),
-            ),
-        }];
+                .zip(&std)
+                .map(|((z, x), s)| (*x, val(*z, *s)))
+                .collect();
+            Series {
+                name: "measured".into(),
+                color: "#000000",
+                points: pts.iter().map(|(x, (v, _, _))| (*x, *v)).collect(),
+                markers: true,
+                band: Some(pts.iter().map(|(x, (_, lo, hi))| (*x, *lo, *hi)).collect()),
+            }
+        };
+        let mut mag = vec![measured(&|z, s| {
+            (
+                db(z),
+                20.0 * (z.norm() - s).max(z.norm() * 0.01).log10(),
+                20.0 * (z.norm() + s).log10(),
+            )
+        })];
+        let mut phase = vec![measured(&|z, s| {
+            let dphi = (s / z.norm().max(1e-12)).min(1.0).asin().to_degrees();
+            let deg = z.arg().to_degrees();
+            (deg, deg - dphi, deg + dphi)
+        })];
         for (k, st) in d.steps.iter().enumerate() {
             let label = st.added.clone().unwrap_or_else(|| "start".into());
             let color = COLORS[k % COLORS.len()];
@@ -703,10 +698,7 @@ fn cubli_html(d: &CubliDiscovery) -> String {
             .map(|(c, v)| ((c + 1) as f64, *v))
             .collect()
     });
-    let channel_axis = XAxis {
-        label: "channel (1-3 p_w, 4-6 p_h, 7-9 g)",
-        log: false,
-    };
+    let channel_axis = XAxis::linear("channel (1-3 p_w, 4-6 p_h, 7-9 g)");
     let _ = write!(
         body,
         "<h2>Residuals</h2><p>RMS window residual over the estimated noise standard deviation per channel (1 = noise level).</p>{}",
@@ -730,10 +722,7 @@ fn cubli_html(d: &CubliDiscovery) -> String {
             .map(|((_, _, t), v)| (*t, *v))
             .collect()
     });
-    let time_axis = XAxis {
-        label: "time (s), experiment 1",
-        log: false,
-    };
+    let time_axis = XAxis::linear("time (s), experiment 1");
     let _ = write!(
         body,
         "<p>Residual of channel {} (largest misfit of the starting model) over the windows of the first experiment, in noise standard deviations.</p>{}",
