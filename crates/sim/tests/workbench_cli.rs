@@ -288,6 +288,16 @@ fn cubli_compare_fit_discover_and_report() {
         stderr.contains("ground_effect") && stderr.contains("wheel_coulomb_friction"),
         "{stderr}"
     );
+    let stderr = refused(&[
+        "compare",
+        "--system",
+        "cubli",
+        "--estimator",
+        "iv",
+        "--data",
+        data,
+    ]);
+    assert!(stderr.contains("no FRF estimator"), "{stderr}");
 }
 
 /// Writes one Cubli run as CSV with `t`, the inputs and the outputs, changed by `edit`.

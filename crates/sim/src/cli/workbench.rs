@@ -116,6 +116,13 @@ impl Common {
 impl Common {
     /// The Cubli workbench on `--data` (required: there is no embedded Cubli dataset).
     fn cubli(&self) -> Result<CubliBench> {
+        if self.estimator != EstimatorArg::Auto {
+            return Err(SimError::invalid(
+                "estimator",
+                format!("{:?}", self.estimator).to_lowercase(),
+                "the Cubli workbench fits in the time domain and has no FRF estimator",
+            ));
+        }
         if self.data.is_empty() {
             return Err(SimError::invalid(
                 "data",
