@@ -14,6 +14,12 @@
 //!
 //! Each LMI is normalised by the congruence P = R P̃ R with R = P_k^{1/2}, so that the current
 //! point is P̃ = I whatever the scale of the slow error dynamics.
+//!
+//! The performance output is the estimation error (z = e): the thresholds enter the bound
+//! through G_1 = (zI − Â)^{-1}LΔ. The spec's Δ-dependent example z = q (normalised innovation)
+//! is not used: its bound falls monotonically as Δ is scaled up (G_1 is scale invariant, G_2
+//! falls as 1/t), so maximising Σ tr Δ_i under it is unbounded or infeasible (test
+//! `innovation_output_bound_is_monotone_in_the_threshold_scale`).
 
 use crate::error::EventEstError;
 use crate::linalg::{self, hinf_norm, kalman, max_eigenvalue, min_eigenvalue, spectral_radius};
