@@ -79,7 +79,7 @@ impl WeightedCost {
     }
 
     /// The cost with each line's noise covariance `S` of `Cov = M ⊗ S` replaced by `noise[k]`
-    /// (the weighting re-estimated from a model's residual, [`super::welch::model_noise`]).
+    /// (the weighting re-estimated from a model's residual, [`super::frf::model_noise`]).
     pub fn with_noise(frf: &FrfEstimate, noise: &[CMatrix]) -> Result<Self> {
         if noise.len() != frf.lines.len() {
             return Err(SimError::invalid(

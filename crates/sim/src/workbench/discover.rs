@@ -37,7 +37,8 @@ pub struct CandidateScore {
     /// Change of BIC = V/s + p ln n.
     pub delta_bic: f64,
     /// Passes the F test at the Bonferroni-corrected level, with and without its best line,
-    /// and lowers BIC.
+    /// and lowers BIC; on FRF data its cost reduction also exceeds the noise (one standard
+    /// deviation of the noise-only cost).
     pub significant: bool,
 }
 
@@ -181,10 +182,13 @@ impl Workbench {
     }
 
     /// Whether the weighting's noise is re-estimated from each model's residual: for the
-    /// Welch instrumental variable, whose estimate-based noise is distorted at the lowest
-    /// lines of a closed loop ([`super::welch::model_noise`]).
+    /// instrumental variables, whose estimate-based noise is distorted at the lowest lines of
+    /// a closed loop ([`super::frf::model_noise`]).
     fn reweights(&self) -> bool {
-        self.frf.estimator == Estimator::H1WelchInstrumental
+        matches!(
+            self.frf.estimator,
+            Estimator::InstrumentalVariable | Estimator::H1WelchInstrumental
+        )
     }
 
     /// The weighting of `step`'s cost.
@@ -220,7 +224,7 @@ impl Workbench {
 
     /// The cost weighted with the noise estimated from the residual of the model FRF `g`.
     fn noise_weighting(&self, g: &[super::frf::CMatrix]) -> Result<WeightedCost> {
-        WeightedCost::with_noise(&self.frf, &super::welch::model_noise(&self.frf, g)?)
+        WeightedCost::with_noise(&self.frf, &super::frf::model_noise(&self.frf, g)?)
     }
 
     fn step_from(
@@ -274,12 +278,7 @@ impl Workbench {
     pub fn noise_p_value(&self, step: &Step) -> f64 {
         let free = step.params.iter().filter(|p| !p.held).count();
         let (mean, _) = self.noise.fitted_level(free);
-        let sd = {
-            let t = &self.noise.total;
-            let m = t.iter().sum::<f64>() / t.len() as f64;
-            (t.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (t.len() as f64 - 1.0)).sqrt()
-        };
-        matched_sf(step.cost, mean, sd)
+        matched_sf(step.cost, mean, self.noise.sd())
     }
 
     /// Start vector for `model` from an earlier fit: shared parameters keep their values.
@@ -380,7 +379,14 @@ impl Workbench {
         let delta_aic = -dv / s + 2.0 * q as f64;
         let delta_bic = -dv / s + q as f64 * n.ln();
         let alpha = LEVEL / n_candidates.max(1) as f64;
-        let significant = q > 0 && p_value < alpha && robust_p < alpha && delta_bic < 0.0;
+        // The F test is exact only for a model class that contains the truth; with thousands of
+        // residuals it also finds model-class mismatch far below the noise (on clean
+        // simulated logs momentum drag's six parameters take 1-2% of a noise-level cost,
+        // F p ~ 1e-6). An effect is claimed only when it also changes the cost by more than
+        // noise alone varies it: one standard deviation of the Monte-Carlo reference.
+        let exceeds_noise = dv > self.noise.sd();
+        let significant =
+            q > 0 && p_value < alpha && robust_p < alpha && delta_bic < 0.0 && exceeds_noise;
         let score = CandidateScore {
             effect: effect.to_string(),
             cost: r.cost,
@@ -424,6 +430,35 @@ impl Workbench {
         }
     }
 
+    /// With re-weighting, each step was fitted and its candidates tested under the noise of its
+    /// own model's residual; a misspecified model's residual carries its model error, which
+    /// makes its own cost small and its fit poor where that error is large. For the report
+    /// every earlier step's model is refitted (from its estimate) under one weighting, the
+    /// last step's (the best model's noise estimate), as the paper compares models under one
+    /// FRF variance: costs, reductions, parameters and diagnosis are those of these fits; the
+    /// candidates keep the scores of the step's own tests.
+    fn common_weighting(&self, steps: &mut [Step]) -> Result<()> {
+        let Some(w) = steps.last().and_then(|s| s.weighting.clone()) else {
+            return Ok(());
+        };
+        let last = steps.len() - 1;
+        let mut model = self.model.clone();
+        for s in steps[..last].iter_mut() {
+            if let Some(name) = &s.added {
+                model = model.with_effect(name)?;
+            }
+            let r = fit(&model, &w, Some(&s.theta), &self.fit_options())?;
+            let mut refitted = self.step_from(&model, s.added.clone(), r, Some(w.clone()), None)?;
+            refitted.candidates = std::mem::take(&mut s.candidates);
+            *s = refitted;
+        }
+        let base = steps[0].cost;
+        for s in steps.iter_mut() {
+            s.reduction_percent = 100.0 * (1.0 - s.cost / base);
+        }
+        Ok(())
+    }
+
     /// Runs the discovery loop from the current model.
     pub fn discover(&self) -> Result<Discovery> {
         self.discover_with(&mut |_: &str| {})
@@ -451,11 +486,10 @@ impl Workbench {
                 }
             }
             current.candidates = scores;
-            // A cost already consistent with noise alone gets nothing added, however a
-            // targeted test scores a candidate (the candidates are still reported).
-            let at_noise_level = self.noise_p_value(&current) >= LEVEL;
-            let chosen =
-                best.filter(|(_, _, i)| !at_noise_level && current.candidates[*i].significant);
+            // Candidates are tested whether or not the total cost is at the noise level: an
+            // effect confined to a few lines and entries (gyroscopic coupling) can stand far
+            // above the noise there and still hide in the total over all residuals.
+            let chosen = best.filter(|(_, _, i)| current.candidates[*i].significant);
             match chosen {
                 Some((with, r, i)) => {
                     let name = current.candidates[i].effect.clone();
@@ -473,6 +507,7 @@ impl Workbench {
         }
         let verdict = self.verdict(&current);
         steps.push(current);
+        self.common_weighting(&mut steps)?;
         Ok(Discovery {
             steps,
             found,

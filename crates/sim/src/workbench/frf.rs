@@ -74,6 +74,9 @@ pub struct FrfLine {
     pub coherence: Option<Vec<f64>>,
     /// When the covariance is `M ⊗ S` (noise pooled over experiments): `(M, S)`.
     pub kronecker: Option<(CMatrix, CMatrix)>,
+    /// Periodic estimates: per experiment the spectra of every period, `(U, Y)` (channels x
+    /// periods), from which [`model_noise`] re-estimates `S` with a model; empty for Welch.
+    pub period_spectra: Vec<(CMatrix, CMatrix)>,
 }
 
 /// A non-parametric FRF over the excited lines.
@@ -246,13 +249,11 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
             u.adjoint() * invert(&(&u * u.adjoint()), "U U^H", freq_hz)?
         };
         let g = &y * &weights;
-        // Pooled per-period covariance of y - G u, with the correlation between neighbouring
-        // periods (leakage of slow noise makes it positive at the lowest lines).
-        let residuals: Vec<CMatrix> = spectra
+        let period_spectra: Vec<(CMatrix, CMatrix)> = spectra
             .iter()
-            .map(|sp| &sp.y[bi] - &g * &sp.u[bi])
+            .map(|sp| (sp.u[bi].clone(), sp.y[bi].clone()))
             .collect();
-        let s = period_covariance(&residuals, noise_dof);
+        let s = period_noise(&period_spectra, &g, noise_dof);
         // Pooled noise: Cov(vec Ĝ) = Σ_e (w_e w_e^H / P_e) ⊗ S = M ⊗ S.
         let mut m = CMatrix::zeros(nu, nu);
         for (e, &p) in periods.iter().enumerate() {
@@ -270,6 +271,7 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
             y_mean: y,
             coherence: None,
             kronecker: Some((m, s)),
+            period_spectra,
         });
     }
     Ok(FrfEstimate {
@@ -309,14 +311,46 @@ pub(crate) fn uses_instrumental_variable(data: &Dataset, choice: EstimatorChoice
     }
 }
 
-fn period_covariance(residuals: &[CMatrix], dof: usize) -> CMatrix {
-    let ny = residuals.first().map_or(0, |r| r.nrows());
+/// Pooled per-period noise covariance of `y - G u` at one line: per experiment the
+/// deviations of each period's residual from the experiment's mean, summed and divided by
+/// `dof`. At the true `G` these are the noise's period-to-period deviations, independent of
+/// the period means that make the estimate's error. With the estimate itself for `G` they
+/// also carry `(Ĝ - G)(u_p - ū)`: its own error times the period-to-period variation of the
+/// input, which in closed loop is feedback of noise; where that dominates the input (low
+/// lines, small excitation) it distorts the weighting several-fold.
+fn period_noise(period_spectra: &[(CMatrix, CMatrix)], g: &CMatrix, dof: usize) -> CMatrix {
+    let ny = g.nrows();
     let mut s = CMatrix::zeros(ny, ny);
-    for res in residuals {
-        let d = deviations(res);
+    for (u, y) in period_spectra {
+        let d = deviations(&(y - g * u));
         s += &d * d.adjoint();
     }
     s / C64::from(dof as f64)
+}
+
+/// Noise covariance `S` of every line re-estimated from the residual of the model FRF
+/// `model` (one matrix per line): for periodic estimates the period-to-period deviations of
+/// `y - G u` ([`period_noise`]), for Welch estimates the segment residual projected away
+/// from the weights ([`super::welch::model_noise`]). This is what the instrumental-variable
+/// cost is weighted with in discovery: at the true model its distribution is the Monte-Carlo
+/// reference's.
+pub fn model_noise(frf: &FrfEstimate, model: &[CMatrix]) -> Result<Vec<CMatrix>> {
+    if model.len() != frf.lines.len() {
+        return Err(SimError::invalid(
+            "model FRF",
+            format!("{} lines", model.len()),
+            format!("need one per FRF line ({})", frf.lines.len()),
+        ));
+    }
+    if frf.welch.is_some() {
+        return super::welch::model_noise(frf, model);
+    }
+    Ok(frf
+        .lines
+        .iter()
+        .zip(model)
+        .map(|(line, g)| period_noise(&line.period_spectra, g, frf.noise_dof))
+        .collect())
 }
 
 /// Each column minus the row means.

@@ -206,6 +206,14 @@ impl NoiseReference {
         self.mean() / self.n_residuals as f64
     }
 
+    /// Standard deviation of the total cost at the true parameters.
+    pub fn sd(&self) -> f64 {
+        let t = &self.total;
+        let n = t.len() as f64;
+        let m = t.iter().sum::<f64>() / n;
+        (t.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
+    }
+
     /// Quantile `q` of the total cost at the true parameters.
     pub fn quantile(&self, q: f64) -> f64 {
         let n = self.total.len();
