@@ -71,6 +71,8 @@ const TOL: f64 = 1e-8;
 const TOL_ALMOST: f64 = 1e-6;
 /// Passes of the equilibration.
 const EQUILIBRATION_PASSES: usize = 4;
+/// |A(X)|/|⟨C, X⟩| below which X certifies infeasibility.
+const INFEASIBILITY_TOL: f64 = 1e-8;
 /// Weight of the primal residual in the `AlmostSolved` test.
 const PRIMAL_WEIGHT: f64 = 1e-2;
 /// Iterations without a smaller residual before the iteration stops.
@@ -280,6 +282,20 @@ fn equilibrate(blocks: &mut [Block], m: usize) -> Vec<f64> {
     d
 }
 
+/// Names of the LMIs whose block of the Farkas certificate X has weight above 1e-6 of the
+/// largest: these conditions cannot hold together.
+fn certificate_support(prob: &Problem, x: &[DMatrix<f64>]) -> String {
+    let max = x.iter().map(|xl| xl.norm()).fold(0.0, f64::max);
+    let names: Vec<&str> = prob
+        .lmis
+        .iter()
+        .zip(x)
+        .filter(|(_, xl)| xl.norm() > 1e-6 * max)
+        .map(|(l, _)| l.name.as_str())
+        .collect();
+    format!("no solution satisfies together: {}", names.join("; "))
+}
+
 /// Largest α ≤ `cap` with S + α dS ⪰ 0 (S ≻ 0).
 fn step_to_boundary(s: &DMatrix<f64>, ds: &DMatrix<f64>, cap: f64) -> f64 {
     let Some(ch) = s.clone().cholesky() else {
@@ -445,6 +461,16 @@ pub(crate) fn solve(
             rd.push(&bl.c - &it.z[l] - bl.adjoint(&it.y));
             xz += dot(&it.x[l], &it.z[l]);
             pobj += dot(&bl.c, &it.x[l]);
+        }
+        // Farkas certificate of an infeasible LMI: X ⪰ 0 with A(X) ≈ 0 and ⟨C, X⟩ < 0, so that
+        // ⟨C − A*(y), X⟩ < 0 (no Z ⪰ 0) for every y with |y| < |⟨C, X⟩|/|A(X)|.
+        let ax_norm = ax.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if pobj < 0.0 && ax_norm < INFEASIBILITY_TOL * -pobj {
+            return Err(EventEstError::Infeasible {
+                problem,
+                status: format!("Schur IPM Farkas certificate, iteration {iter}"),
+                condition: certificate_support(prob, &it.x),
+            });
         }
         let rp: Vec<f64> = b.iter().zip(&ax).map(|(bi, a)| bi - a).collect();
         let dobj: f64 = b.iter().zip(&it.y).map(|(bi, yi)| bi * yi).sum();
