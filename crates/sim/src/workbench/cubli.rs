@@ -1011,6 +1011,77 @@ mod tests {
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
 
+    /// Random rows over the nine channels with three probe columns each.
+    fn random_rows(seed: u64, n: usize) -> Rows {
+        let mut rng = StdRng::seed_from_u64(seed);
+        let mut next = || rng.random::<f64>() - 0.5;
+        let mut rows = Rows {
+            r: Vec::new(),
+            x: Vec::new(),
+            probes: Vec::new(),
+            channel: Vec::new(),
+            window: Vec::new(),
+            bias_basis: [Vector3::x(), Vector3::y()],
+        };
+        for i in 0..n {
+            rows.x.push(std::array::from_fn(|_| next()));
+            rows.r.push(next());
+            rows.probes.push(vec![1.0, next(), next()]);
+            rows.channel.push(i % 9);
+            rows.window.push((0, i as f64));
+        }
+        rows
+    }
+
+    proptest! {
+        /// Frisch-Waugh-Lovell: least squares on the rows with the probes projected out gives
+        /// the candidate coefficients and residual sum of squares of the full least squares
+        /// with nine channel-specific probe blocks as extra columns (solved directly by SVD).
+        #[test]
+        fn projecting_out_probes_equals_fitting_them(seed in 0u64..1000) {
+            let rows = random_rows(seed, 180);
+            let bases = probe_bases(&rows);
+            let (perp, rank) = without_probes(&rows, &bases);
+            prop_assert_eq!(rank, 27);
+            let cols: Vec<usize> = (0..NCOL).collect();
+            let (theta, rss, _) = wls(&perp, &[1.0; 9], &cols).unwrap();
+            let n = rows.r.len();
+            let full = DMatrix::from_fn(n, NCOL + 27, |i, j| {
+                if j < NCOL {
+                    rows.x[i][j]
+                } else {
+                    let (ch, k) = ((j - NCOL) / 3, (j - NCOL) % 3);
+                    if rows.channel[i] == ch { rows.probes[i][k] } else { 0.0 }
+                }
+            });
+            let y = DVector::from_column_slice(&rows.r);
+            let beta = full.clone().svd(true, true).solve(&y, 1e-12).unwrap();
+            for (a, b) in theta.iter().zip(beta.iter()) {
+                prop_assert!((a - b).abs() < 1e-7, "{a} vs {b}");
+            }
+            let rss_full = (&y - &full * &beta).norm_squared();
+            prop_assert!((rss - rss_full).abs() < 1e-7 * rss_full.max(1.0), "{rss} vs {rss_full}");
+        }
+
+        /// A residual that a channel's probes partly explain is flagged on that channel with
+        /// a p-value near 0.
+        #[test]
+        fn probe_test_flags_a_residual_the_probes_explain(seed in 0u64..1000) {
+            let rows = random_rows(seed, 900);
+            let bases = probe_bases(&rows);
+            let mut rng = StdRng::seed_from_u64(seed + 1);
+            let resid: Vec<f64> = (0..rows.r.len())
+                .map(|i| {
+                    let noise = rng.random::<f64>() - 0.5;
+                    if rows.channel[i] == 4 { noise + 2.0 * rows.probes[i][1] } else { noise }
+                })
+                .collect();
+            let p = probe_p_values(&bases, &resid);
+            prop_assert!(p[4] < 1e-9, "{:?}", p);
+            prop_assert!(flagged(&p).contains(&"p_hy".to_string()), "{:?}", p);
+        }
+    }
+
     proptest! {
         /// Noise-free rows generated from known parameters are fitted back exactly, whatever
         /// the channel weights.
