@@ -483,6 +483,17 @@ impl Scaled<'_> {
 ///
 /// Iterate 0 is Step 1 + Step 2 (exact H2 budget). Stops after `max_iter` accepted iterations,
 /// when the relative change of Δ is below 1e−4, or when no gain step lowers the bound.
+///
+/// ```no_run
+/// use event_est::alternation::alternate;
+/// use event_est::model::platoon;
+/// use event_est::synth::Stability;
+/// let sys = platoon(3)?.0;
+/// let alt = alternate(&sys, Stability::Cor12, 0.38, 20)?;
+/// let (first, last) = (&alt.iterates[0], &alt.iterates[alt.iterates.len() - 1]);
+/// assert!(last.trace_delta > first.trace_delta && last.bound.bound <= 0.38 * (1.0 + 1e-3));
+/// # Ok::<(), event_est::EventEstError>(())
+/// ```
 pub fn alternate(
     sys: &System,
     stability: Stability,
@@ -584,4 +595,66 @@ fn threshold_iterate(
         stability_certificate,
         stability_margins,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn spd(v: &[f64], n: usize, shift: f64) -> DMatrix<f64> {
+        let m = DMatrix::from_column_slice(n, n, &v[..n * n]);
+        &m * m.transpose() + DMatrix::identity(n, n) * shift
+    }
+
+    proptest! {
+        /// The tangent 2P_k^{-1} − P_k^{-1} P P_k^{-1} never exceeds P^{-1} (the inner
+        /// approximation is conservative) and touches it at P = P_k.
+        #[test]
+        fn tangent_of_the_inverse_is_a_lower_bound(
+            v in proptest::collection::vec(-2.0f64..2.0, 32), shift in 0.05f64..2.0,
+        ) {
+            let n = 4;
+            let p = spd(&v, n, shift);
+            let pk = spd(&v[16..], n, shift);
+            let pk_inv = pk.clone().try_inverse().unwrap();
+            let tangent = &pk_inv * 2.0 - &pk_inv * &p * &pk_inv;
+            let gap = p.clone().try_inverse().unwrap() - tangent;
+            prop_assert!(min_eigenvalue(&sym(gap)) >= -1e-9 * pk_inv.norm().powi(2) * p.norm());
+            let at = &pk_inv * 2.0 - &pk_inv * &pk * &pk_inv;
+            prop_assert!((at - &pk_inv).norm() <= 1e-9 * pk_inv.norm());
+        }
+
+        /// R = P^{1/2}: R R = P and R R^{-1} = I.
+        #[test]
+        fn symmetric_square_root(v in proptest::collection::vec(-2.0f64..2.0, 16), shift in 0.01f64..1.0) {
+            let p = spd(&v, 4, shift);
+            let (r, r_inv) = sqrt_and_inverse(&p, "P").unwrap();
+            prop_assert!((&r * &r - &p).norm() <= 1e-9 * p.norm());
+            prop_assert!((&r * &r_inv - DMatrix::identity(4, 4)).norm() <= 1e-8);
+        }
+
+        /// The policy-iteration certificate satisfies the bounded-real inequality
+        /// P − ÂᵀPÂ − Q − ÂᵀPB(γI − BᵀPB)^{-1}BᵀPÂ ⪰ 0 with γI − BᵀPB ≻ 0, for γ above ‖G‖²_∞.
+        #[test]
+        fn bounded_real_certificate_holds(
+            v in proptest::collection::vec(-1.0f64..1.0, 15), rho in 0.2f64..0.95,
+        ) {
+            let a0 = DMatrix::from_column_slice(3, 3, &v[..9]);
+            let r0 = spectral_radius(&a0);
+            prop_assume!(r0 > 1e-3);
+            let a = a0 * (rho / r0);
+            let b = DMatrix::from_column_slice(3, 2, &v[9..15]);
+            let q = DMatrix::identity(3, 3);
+            let g = hinf_norm(&a, &b, &q);
+            let gamma = 1.05 * g * g + 1e-6;
+            let p = brl_certificate(&a, &b, &q, gamma).unwrap();
+            let s = DMatrix::identity(2, 2) * gamma - b.transpose() * &p * &b;
+            prop_assert!(min_eigenvalue(&sym(s.clone())) > 0.0);
+            let pb = &p * &b;
+            let riccati = &p - a.transpose() * &p * &a - &q
+                - a.transpose() * &pb * s.try_inverse().unwrap() * pb.transpose() * &a;
+            prop_assert!(min_eigenvalue(&sym(riccati)) >= -1e-8 * p.norm());
+        }
+    }
 }
