@@ -27,8 +27,8 @@ use crate::lmi::{Problem, Vars};
 use crate::model::System;
 use crate::sim::Design;
 use crate::synth::{
-    analyse, delta_block, full_communication_cost, step1, step2_unit, subset_name, thresholds,
-    Bound, Stability,
+    analyse, certified_thresholds, delta_block, full_communication_cost, step1, subset_name, Bound,
+    Stability,
 };
 use nalgebra::DMatrix;
 
@@ -576,16 +576,7 @@ fn threshold_iterate(
     let sys = sc.sys;
     let (stability_certificate, stability_margins) = stability_certificate(sys, &l, &sc.pats)?;
     let h2 = full_communication_cost(sys, &l)?;
-    let unit = step2_unit(sys, &l, 1.0)?;
-    let delta = thresholds(sys, &unit, h2, j_max)?;
-    let design = Design { l, delta };
-    let bound = analyse(sys, &design)?;
-    if bound.bound > j_max * (1.0 + 1e-3) {
-        return Err(EventEstError::Verification {
-            condition: "certified bound ≤ J_max (alternation)".into(),
-            margin: bound.bound - j_max,
-        });
-    }
+    let (_, design, bound) = certified_thresholds(sys, l, h2, j_max)?;
     Ok(Iterate {
         trace_delta: design.delta.iter().map(|d| d.trace()).sum(),
         design,

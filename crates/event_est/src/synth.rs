@@ -748,20 +748,7 @@ pub fn complete_with(
         BudgetBase::Step1Bound => step1.c_star,
         BudgetBase::ExactH2 => step1.true_h2,
     };
-    budget_gamma(sys, spent, j_max)?;
-    let unit = step2_unit(sys, &step1.l, 1.0)?;
-    let delta = thresholds(sys, &unit, spent, j_max)?;
-    let design = Design {
-        l: step1.l.clone(),
-        delta,
-    };
-    let bound = analyse(sys, &design)?;
-    if bound.bound > j_max * (1.0 + 1e-3) {
-        return Err(EventEstError::Verification {
-            condition: "certified bound ≤ J_max".into(),
-            margin: bound.bound - j_max,
-        });
-    }
+    let (unit, design, bound) = certified_thresholds(sys, step1.l.clone(), spent, j_max)?;
     Ok(Synthesis {
         step1,
         unit,
@@ -769,6 +756,28 @@ pub fn complete_with(
         j_max,
         bound,
     })
+}
+
+/// Step 2 for gains `l` on the budget J_max − `spent`, and the certified bound of the design
+/// (an error if it exceeds J_max by more than the solver tolerance 1e−3).
+pub(crate) fn certified_thresholds(
+    sys: &System,
+    l: DMatrix<f64>,
+    spent: f64,
+    j_max: f64,
+) -> Result<(UnitThresholds, Design, Bound), EventEstError> {
+    budget_gamma(sys, spent, j_max)?;
+    let unit = step2_unit(sys, &l, 1.0)?;
+    let delta = thresholds(sys, &unit, spent, j_max)?;
+    let design = Design { l, delta };
+    let bound = analyse(sys, &design)?;
+    if bound.bound > j_max * (1.0 + 1e-3) {
+        return Err(EventEstError::Verification {
+            condition: "certified bound ≤ J_max".into(),
+            margin: bound.bound - j_max,
+        });
+    }
+    Ok((unit, design, bound))
 }
 
 /// Periodic estimator resets of App. E for a certificate (P_1, P_2) that may only satisfy the
