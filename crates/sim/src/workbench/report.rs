@@ -371,7 +371,7 @@ fn chart(title: &str, x_axis: XAxis<'_>, y_label: &str, series: &[Series<'_>]) -
             r#"<text x="{}" y="{:.1}" text-anchor="end">{}</text>"#,
             l - 4.0,
             py(y) + 4.0,
-            fmt_num(y)
+            fmt_tick(y, (ymax - ymin) / 4.0)
         );
     }
     let ticks: Vec<f64> = if x_axis.log {
@@ -385,15 +385,17 @@ fn chart(title: &str, x_axis: XAxis<'_>, y_label: &str, series: &[Series<'_>]) -
             .collect()
     };
     for x in ticks {
-        {
-            let _ = write!(
-                s,
-                r#"<text x="{:.1}" y="{}" text-anchor="middle">{}</text>"#,
-                px(x),
-                h - b + 14.0,
-                fmt_num(x)
-            );
-        }
+        let label = if x_axis.log {
+            fmt_num(x)
+        } else {
+            fmt_tick(x, (xmax - xmin) / 4.0)
+        };
+        let _ = write!(
+            s,
+            r#"<text x="{:.1}" y="{}" text-anchor="middle">{label}</text>"#,
+            px(x),
+            h - b + 14.0,
+        );
     }
     let _ = write!(
         s,
@@ -464,6 +466,15 @@ fn chart(title: &str, x_axis: XAxis<'_>, y_label: &str, series: &[Series<'_>]) -
     }
     s.push_str("</svg>");
     s
+}
+
+/// A tick label with enough decimals to tell ticks `step` apart.
+fn fmt_tick(v: f64, step: f64) -> String {
+    if v.abs() >= 1e4 || (v != 0.0 && v.abs() < 1e-2) || step.is_nan() || step <= 0.0 {
+        return fmt_num(v);
+    }
+    let decimals = (1.0 - step.log10().floor()).clamp(0.0, 6.0) as usize;
+    format!("{v:.decimals$}")
 }
 
 fn fmt_num(v: f64) -> String {
