@@ -11,7 +11,7 @@ use super::residual::{residual_tests, ResidualTests, DEFAULT_LAGS};
 use super::stats::f_sf;
 use super::timedomain::{time_fit, TimeFit, DEFAULT_HORIZON, DEFAULT_WINDOW};
 use super::Workbench;
-use crate::error::Result;
+use crate::error::{Result, SimError};
 
 /// Score of one candidate effect at one step.
 #[derive(Debug, Clone, Serialize)]
@@ -71,10 +71,17 @@ pub struct Step {
     /// Model FRF on the lines.
     #[serde(skip)]
     pub model_frf: Vec<super::frf::CMatrix>,
-    /// The step's own weighting when the noise is re-estimated from the model's residual
-    /// (Welch instrumental variable); `None`: the workbench's.
-    #[serde(skip)]
-    pub(crate) weighting: Option<WeightedCost>,
+}
+
+/// A fitted model of the discovery loop before its record is built.
+struct Fitted {
+    model: Model,
+    added: Option<String>,
+    r: FitResult,
+    /// Its own weighting when the noise is re-estimated from the model's residual; `None`:
+    /// the workbench's.
+    weighting: Option<WeightedCost>,
+    candidates: Vec<CandidateScore>,
 }
 
 /// Final verdict on the data.
@@ -145,7 +152,7 @@ pub struct Discovery {
 }
 
 /// Re-estimations of the noise after the first re-weighted fit (see `fit_reweighted`).
-const REWEIGHTINGS: usize = 2;
+const REWEIGHTINGS: usize = 1;
 
 /// Values tried for a new parameter: 17 points over its bounds (logarithmic for a positive
 /// range spanning decades), plus zero and the documented value when inside.
@@ -177,8 +184,25 @@ impl Workbench {
         start: Option<&[f64]>,
         base_cost: Option<f64>,
     ) -> Result<Step> {
+        let fitted = self.fitted(model, added, start)?;
+        self.step_from(fitted, base_cost)
+    }
+
+    /// Fits `model` from `start` (see [`Workbench::fit_reweighted`]).
+    fn fitted(
+        &self,
+        model: &Model,
+        added: Option<String>,
+        start: Option<&[f64]>,
+    ) -> Result<Fitted> {
         let (r, weighting) = self.fit_reweighted(model, start)?;
-        self.step_from(model, added, r, weighting, base_cost)
+        Ok(Fitted {
+            model: model.clone(),
+            added,
+            r,
+            weighting,
+            candidates: Vec::new(),
+        })
     }
 
     /// Whether the weighting's noise is re-estimated from each model's residual: for the
@@ -191,9 +215,9 @@ impl Workbench {
         )
     }
 
-    /// The weighting of `step`'s cost.
-    fn weighting<'a>(&'a self, step: &'a Step) -> &'a WeightedCost {
-        step.weighting.as_ref().unwrap_or(&self.cost)
+    /// The weighting of a fitted model's cost.
+    fn weighting<'a>(&'a self, fitted: &'a Fitted) -> &'a WeightedCost {
+        fitted.weighting.as_ref().unwrap_or(&self.cost)
     }
 
     /// Fits `model` from `start`; when the workbench re-weights, by iterated re-weighting:
@@ -227,14 +251,22 @@ impl Workbench {
         WeightedCost::with_noise(&self.frf, &super::frf::model_noise(&self.frf, g)?)
     }
 
-    fn step_from(
-        &self,
-        model: &Model,
-        added: Option<String>,
-        r: FitResult,
-        weighting: Option<WeightedCost>,
-        base_cost: Option<f64>,
-    ) -> Result<Step> {
+    /// The record of a fitted model: diagnosis, time-domain fit and residual tests.
+    fn step_from(&self, fitted: Fitted, base_cost: Option<f64>) -> Result<Step> {
+        let diagnosis = diagnose(
+            &self.frf,
+            self.weighting(&fitted),
+            &self.noise,
+            &fitted.r.model_frf,
+            fitted.r.free,
+        );
+        let Fitted {
+            model,
+            added,
+            r,
+            candidates,
+            ..
+        } = fitted;
         let ss = model.state_space(&r.theta)?;
         let (time_fit, runs) = time_fit(&self.data, &ss, DEFAULT_HORIZON, DEFAULT_WINDOW)?;
         let residuals: Vec<_> = runs.iter().map(|(e, _, _)| e).collect();
@@ -248,13 +280,6 @@ impl Workbench {
             &self.data.inputs,
             DEFAULT_LAGS,
         );
-        let diagnosis = diagnose(
-            &self.frf,
-            weighting.as_ref().unwrap_or(&self.cost),
-            &self.noise,
-            &r.model_frf,
-            r.free,
-        );
         let (expected, _) = self.noise.fitted_level(r.free);
         let base = base_cost.unwrap_or(r.cost);
         Ok(Step {
@@ -267,10 +292,9 @@ impl Workbench {
             diagnosis,
             time_fit,
             residual_tests,
-            candidates: Vec::new(),
+            candidates,
             theta: r.theta,
             model_frf: r.model_frf,
-            weighting,
         })
     }
 
@@ -299,12 +323,12 @@ impl Workbench {
     fn score(
         &self,
         model: &Model,
-        current: &Step,
+        current: &Fitted,
         effect: &str,
         n_candidates: usize,
     ) -> Result<(Model, FitResult, CandidateScore)> {
         let with = model.with_effect(effect)?;
-        let start = self.carry_over(model, &current.theta, &with)?;
+        let start = self.carry_over(model, &current.r.theta, &with)?;
         // Candidates are fitted and compared under the current step's weighting.
         let cost = self.weighting(current);
         // Two starts: the current estimate with the new parameters at their documented values,
@@ -340,11 +364,11 @@ impl Workbench {
         let b = fit(&with, cost, Some(&scanned), &self.fit_options())?;
         let r = if b.cost < a.cost { b } else { a };
         let n = cost.n_residuals() as f64;
-        let p0 = current.params.iter().filter(|p| !p.held).count();
+        let p0 = current.r.free;
         let p1 = r.free;
         let q = p1.saturating_sub(p0);
         let s = self.noise.per_residual();
-        let dv = current.cost - r.cost;
+        let dv = current.r.cost - r.cost;
         let (f_statistic, p_value) = if q > 0 && r.cost > 0.0 {
             let f = (dv / q as f64) / (r.cost / (n - p1 as f64));
             (f, f_sf(f, q as f64, n - p1 as f64))
@@ -358,7 +382,7 @@ impl Workbench {
         let per_line = |g: &[super::frf::CMatrix]| -> Vec<f64> {
             (0..g.len()).map(|k| cost.line_cost(k, &g[k])).collect()
         };
-        let (before, after) = (per_line(&current.model_frf), per_line(&r.model_frf));
+        let (before, after) = (per_line(&current.r.model_frf), per_line(&r.model_frf));
         let (kmax, gain_max) = before
             .iter()
             .zip(&after)
@@ -390,7 +414,7 @@ impl Workbench {
         let score = CandidateScore {
             effect: effect.to_string(),
             cost: r.cost,
-            reduction_percent: 100.0 * dv / current.cost,
+            reduction_percent: 100.0 * dv / current.r.cost,
             added_parameters: q,
             f_statistic,
             p_value,
@@ -433,30 +457,46 @@ impl Workbench {
     /// With re-weighting, each step was fitted and its candidates tested under the noise of its
     /// own model's residual; a misspecified model's residual carries its model error, which
     /// makes its own cost small and its fit poor where that error is large. For the report
-    /// every earlier step's model is refitted (from its estimate) under one weighting, the
-    /// last step's (the best model's noise estimate), as the paper compares models under one
-    /// FRF variance: costs, reductions, parameters and diagnosis are those of these fits; the
+    /// every earlier model is refitted (from its estimate) under one weighting, the last
+    /// one's (the best model's noise estimate), as the paper compares models under one FRF
+    /// variance: costs, reductions, parameters and diagnosis are those of these fits; the
     /// candidates keep the scores of the step's own tests.
-    fn common_weighting(&self, steps: &mut [Step]) -> Result<()> {
-        let Some(w) = steps.last().and_then(|s| s.weighting.clone()) else {
+    fn common_weighting(&self, fitted: &mut [Fitted]) -> Result<()> {
+        let Some((last, earlier)) = fitted.split_last_mut() else {
             return Ok(());
         };
-        let last = steps.len() - 1;
-        let mut model = self.model.clone();
-        for s in steps[..last].iter_mut() {
-            if let Some(name) = &s.added {
-                model = model.with_effect(name)?;
-            }
-            let r = fit(&model, &w, Some(&s.theta), &self.fit_options())?;
-            let mut refitted = self.step_from(&model, s.added.clone(), r, Some(w.clone()), None)?;
-            refitted.candidates = std::mem::take(&mut s.candidates);
-            *s = refitted;
-        }
-        let base = steps[0].cost;
-        for s in steps.iter_mut() {
-            s.reduction_percent = 100.0 * (1.0 - s.cost / base);
+        let Some(w) = last.weighting.clone() else {
+            return Ok(());
+        };
+        for f in earlier {
+            f.r = fit(&f.model, &w, Some(&f.r.theta), &self.fit_options())?;
+            f.weighting = Some(w.clone());
         }
         Ok(())
+    }
+
+    /// Records of the fitted models, built in parallel (the time-domain evaluation of each
+    /// is independent and the most expensive part of a record).
+    fn records(&self, fitted: Vec<Fitted>) -> Result<Vec<Step>> {
+        let base = fitted.first().map(|f| f.r.cost);
+        std::thread::scope(|scope| {
+            let handles: Vec<_> = fitted
+                .into_iter()
+                .map(|f| scope.spawn(move || self.step_from(f, base)))
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| {
+                    h.join().unwrap_or_else(|_| {
+                        Err(SimError::invalid(
+                            "discovery step record",
+                            "panicked",
+                            "the time-domain evaluation of a step failed",
+                        ))
+                    })
+                })
+                .collect()
+        })
     }
 
     /// Runs the discovery loop from the current model.
@@ -468,9 +508,8 @@ impl Workbench {
     pub fn discover_with(&self, progress: &mut dyn FnMut(&str)) -> Result<Discovery> {
         let mut model = self.model.clone();
         progress("fitting the starting model");
-        let mut current = self.step(&model, None, None, None)?;
-        let base_cost = current.cost;
-        let mut steps = Vec::new();
+        let mut current = self.fitted(&model, None, None)?;
+        let mut done = Vec::new();
         let mut found = Vec::new();
         loop {
             let candidates = model.candidates();
@@ -495,19 +534,30 @@ impl Workbench {
                     let name = current.candidates[i].effect.clone();
                     found.push(name.clone());
                     let next = if self.reweights() {
-                        self.step(&with, Some(name), Some(&r.theta), Some(base_cost))?
+                        self.fitted(&with, Some(name), Some(&r.theta))?
                     } else {
-                        self.step_from(&with, Some(name), r, None, Some(base_cost))?
+                        Fitted {
+                            model: with.clone(),
+                            added: Some(name),
+                            r,
+                            weighting: None,
+                            candidates: Vec::new(),
+                        }
                     };
-                    steps.push(std::mem::replace(&mut current, next));
+                    done.push(std::mem::replace(&mut current, next));
                     model = with;
                 }
                 None => break,
             }
         }
-        let verdict = self.verdict(&current);
-        steps.push(current);
-        self.common_weighting(&mut steps)?;
+        done.push(current);
+        self.common_weighting(&mut done)?;
+        progress("time-domain fit and residual tests of every step");
+        let steps = self.records(done)?;
+        let last = steps
+            .last()
+            .ok_or_else(|| SimError::invalid("discovery", "no step", "nothing was fitted"))?;
+        let verdict = self.verdict(last);
         Ok(Discovery {
             steps,
             found,
