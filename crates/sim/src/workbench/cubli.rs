@@ -1091,23 +1091,10 @@ mod tests {
             seed in 0u64..1000,
             w in proptest::array::uniform9(0.1f64..10.0),
         ) {
-            let mut rng = StdRng::seed_from_u64(seed);
-            let mut next = || rng.random::<f64>() - 0.5;
-            let mut rows = Rows {
-                r: Vec::new(),
-                x: Vec::new(),
-                probes: Vec::new(),
-                channel: Vec::new(),
-                window: Vec::new(),
-                bias_basis: [Vector3::x(), Vector3::y()],
-            };
-            for i in 0..60 {
-                let x: [f64; NCOL] = std::array::from_fn(|_| next());
-                rows.r.push(x.iter().zip(&theta).map(|(a, b)| a * b).sum());
-                rows.x.push(x);
-                rows.channel.push(i % 9);
-                rows.window.push((0, i as f64));
-                rows.probes.push(vec![1.0]);
+            // Noise-free residuals: r = X theta.
+            let mut rows = random_rows(seed, 60);
+            for (r, x) in rows.r.iter_mut().zip(&rows.x) {
+                *r = x.iter().zip(&theta).map(|(a, b)| a * b).sum();
             }
             let cols: Vec<usize> = (0..NCOL).collect();
             let (est, rss, _) = wls(&rows, &w, &cols).unwrap();
