@@ -203,45 +203,62 @@ impl Block {
     /// Adds this block's part of the Schur complement M_ij = ⟨A_i, X A_j Z^{-1}⟩ (upper triangle).
     fn schur(&self, x: &DMatrix<f64>, zi: &DMatrix<f64>, m: &mut Mat<f64>) {
         let k = self.dim;
+        let nv = self.coeffs.len();
         let mut g = DMatrix::<f64>::zeros(k, k);
         let mut xw = DVector::<f64>::zeros(k);
         let mut ziw = DVector::<f64>::zeros(k);
-        for (j, cj) in self.coeffs.iter().enumerate() {
-            g.fill(0.0);
-            for (e, w) in &cj.groups {
-                xw.fill(0.0);
-                ziw.fill(0.0);
-                for &(r, v) in w {
-                    xw.axpy(v, &x.column(r), 1.0);
-                    ziw.axpy(v, &zi.column(r), 1.0);
+        // G_j = X A_j Z^{-1} for a chunk of SCHUR_CHUNK columns j, stored by upper-triangle
+        // position p(a, b) (row p holds G_ab + G_ba, or G_aa on the diagonal, for every j of the
+        // chunk), so that ⟨A_i, G_j⟩ for the whole chunk is one contiguous axpy per entry of A_i.
+        let mut buf = vec![0.0; k * (k + 1) / 2 * SCHUR_CHUNK];
+        let mut acc = [0.0; SCHUR_CHUNK];
+        for j0 in (0..nv).step_by(SCHUR_CHUNK) {
+            let jn = (nv - j0).min(SCHUR_CHUNK);
+            for (t, cj) in self.coeffs[j0..j0 + jn].iter().enumerate() {
+                g.fill(0.0);
+                for (e, w) in &cj.groups {
+                    xw.fill(0.0);
+                    ziw.fill(0.0);
+                    for &(r, v) in w {
+                        xw.axpy(v, &x.column(r), 1.0);
+                        ziw.axpy(v, &zi.column(r), 1.0);
+                    }
+                    // X (e wᵀ + w eᵀ) Z^{-1} = (X e)(Z^{-1} w)ᵀ + (X w)(Z^{-1} e)ᵀ.
+                    g.ger(1.0, &x.column(*e), &ziw, 1.0);
+                    g.ger(1.0, &xw, &zi.column(*e), 1.0);
                 }
-                // X (e wᵀ + w eᵀ) Z^{-1} = (X e)(Z^{-1} w)ᵀ + (X w)(Z^{-1} e)ᵀ.
-                g.ger(1.0, &x.column(*e), &ziw, 1.0);
-                g.ger(1.0, &xw, &zi.column(*e), 1.0);
+                for b in 0..k {
+                    for a in 0..b {
+                        buf[position(a, b) * SCHUR_CHUNK + t] = g[(a, b)] + g[(b, a)];
+                    }
+                    buf[position(b, b) * SCHUR_CHUNK + t] = g[(b, b)];
+                }
             }
-            // ⟨A_i, G⟩ = ⟨A_i, (G + Gᵀ)/2⟩.
-            let gs = &g + g.transpose();
-            for ci in &self.coeffs[..=j] {
-                let v: f64 = ci
-                    .entries
-                    .iter()
-                    .map(|&(a, b, v)| {
-                        if a == b {
-                            0.5 * v * gs[(a, a)]
-                        } else {
-                            v * gs[(a, b)]
-                        }
-                    })
-                    .sum();
-                let (r, c) = if ci.var <= cj.var {
-                    (ci.var, cj.var)
-                } else {
-                    (cj.var, ci.var)
-                };
-                m[(r, c)] += v;
+            // ⟨A_i, G_j⟩ for i ≤ j (each unordered pair once; local order is variable order).
+            for (i, ci) in self.coeffs[..j0 + jn].iter().enumerate() {
+                acc.fill(0.0);
+                for &(a, b, v) in &ci.entries {
+                    let row = &buf[position(a, b) * SCHUR_CHUNK..][..SCHUR_CHUNK];
+                    for (s, r) in acc.iter_mut().zip(row) {
+                        *s += v * r;
+                    }
+                }
+                for (t, cj) in self.coeffs[j0..j0 + jn].iter().enumerate() {
+                    if i <= j0 + t {
+                        m[(ci.var, cj.var)] += acc[t];
+                    }
+                }
             }
         }
     }
+}
+
+/// Columns of the Schur complement formed together (the chunk of G_j stays in cache).
+const SCHUR_CHUNK: usize = 32;
+
+/// Index of the upper-triangle entry (a, b), a ≤ b, in column-major order.
+fn position(a: usize, b: usize) -> usize {
+    b * (b + 1) / 2 + a
 }
 
 /// Ruiz equilibration: variables y_i = d_i ỹ_i and blocks scaled by s_l > 0 (neither changes
