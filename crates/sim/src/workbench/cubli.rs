@@ -123,6 +123,19 @@ struct Rows {
     bias_basis: [Vector3<f64>; 2],
 }
 
+impl Rows {
+    fn empty(bias_basis: [Vector3<f64>; 2]) -> Self {
+        Self {
+            r: Vec::new(),
+            x: Vec::new(),
+            probes: Vec::new(),
+            channel: Vec::new(),
+            window: Vec::new(),
+            bias_basis,
+        }
+    }
+}
+
 fn smooth_sign(w: f64) -> f64 {
     (w / COULOMB_SMOOTHING).tanh()
 }
@@ -163,14 +176,7 @@ fn build_rows(data: &Dataset, opts: &CubliOptions) -> Result<Rows> {
     let e1 = (a - gm * gm.dot(&a)).normalize();
     let e2 = gm.cross(&e1);
     let basis = [e1, e2];
-    let mut rows = Rows {
-        r: Vec::new(),
-        x: Vec::new(),
-        probes: Vec::new(),
-        channel: Vec::new(),
-        window: Vec::new(),
-        bias_basis: basis,
-    };
+    let mut rows = Rows::empty(basis);
     for (ei, e) in data.experiments.iter().enumerate() {
         let n = e.y.nrows();
         let start = e
@@ -1015,14 +1021,7 @@ mod tests {
     fn random_rows(seed: u64, n: usize) -> Rows {
         let mut rng = StdRng::seed_from_u64(seed);
         let mut next = || rng.random::<f64>() - 0.5;
-        let mut rows = Rows {
-            r: Vec::new(),
-            x: Vec::new(),
-            probes: Vec::new(),
-            channel: Vec::new(),
-            window: Vec::new(),
-            bias_basis: [Vector3::x(), Vector3::y()],
-        };
+        let mut rows = Rows::empty([Vector3::x(), Vector3::y()]);
         for i in 0..n {
             rows.x.push(std::array::from_fn(|_| next()));
             rows.r.push(next());
