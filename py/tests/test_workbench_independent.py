@@ -230,3 +230,29 @@ def test_nan_in_csv_is_refused_by_name(small_campaign, tmp_path):
     code, err, _ = discover(tmp_path / "data", tmp=tmp_path)
     assert code == 2
     assert '"wx"' in err and "e3.csv" in err and "line 52" in err and "not a finite number" in err
+
+
+def with_position_topic(topics):
+    t = topics["/flying_platform/output"][0]
+    return {**topics, "/flying_platform/position": (t, ["x", "y", "z"], np.zeros((len(t), 3)))}
+
+
+def test_extra_topics_are_ignored(small_campaign, tmp_path):
+    # DESIGN.md names the topics the workbench reads; others (here a position topic in one
+    # experiment) may be present.
+    cfg, runs = small_campaign
+    write_with(cfg, runs, tmp_path / "data", with_position_topic)
+    code, err, doc = discover(tmp_path / "data", tmp=tmp_path)
+    assert code == 0, err
+    assert len(doc["frequencies_hz"]) == 20
+
+
+def test_too_little_data_is_refused_by_name(tmp_path):
+    cfg = ip.Config(periods=2, experiments=(1, 2, 3, 4, 5), seed=10, phase_draws=10)
+    ip.write_runs(cfg, ip.simulate(cfg), tmp_path / "five")
+    code, err, _ = discover(tmp_path / "five", tmp=tmp_path)
+    assert code == 2 and "at least 9 experiments" in err, err
+    cfg = ip.Config(periods=1, experiments=tuple(range(1, 10)), seed=10, phase_draws=10)
+    ip.write_runs(cfg, ip.simulate(cfg), tmp_path / "one")
+    code, err, _ = discover(tmp_path / "one", tmp=tmp_path)
+    assert code == 2 and "at least 2 periods" in err, err
