@@ -56,6 +56,20 @@ def test_controller_stabilises_every_truth_and_excitation_is_the_orthogonal_desi
     assert np.allclose(ip.trim(ip.Vehicle()), np.tile([0.0, -0.05 * np.sqrt(3) / 0.2, 26.16], 3))
 
 
+def test_noise_free_frf_is_the_truths_exact_sampled_frf(tmp_path):
+    # Drag, gyroscopic torque and a fractional in-loop delay, no noise, a long transient:
+    # the workbench's closed-loop FRF estimate must be the plant's sampled FRF (spec AT-16).
+    quiet = dict(accel_noise=0.0, angular_noise=0.0, position_sigma=0.0, velocity_sigma=0.0,
+                 attitude_sigma=0.0, gyro_sigma=0.0)
+    cfg = ip.Config(drag=DRAG, c_omega_t0=0.05, delay_s=0.012, periods=2, transient_samples=1000,
+                    phase_draws=10, seed=5, **quiet)
+    ip.write_runs(cfg, ip.simulate(cfg), tmp_path / "data")
+    frf = stabilis.Workbench("flying_platform", data=[str(tmp_path / "data")]).frf()
+    truth = ip.sampled_frf(cfg, frf["freqs_hz"])
+    error = np.linalg.norm(frf["G"] - truth, axis=(1, 2)) / np.linalg.norm(truth, axis=(1, 2))
+    assert error.max() < 1e-6
+
+
 def test_low_complexity_truth_finds_nothing(tmp_path):
     campaign(tmp_path / "data", periods=4, seed=1)
     code, err, doc = discover(tmp_path / "data", tmp=tmp_path)
