@@ -2,6 +2,7 @@
 //! `compare`, `diagnose`, `discover`, `add`, `fit`, `report` (flying platform: FRF-based, plus
 //! the measured FRF as numpy; Cubli: time-domain prediction error), and `stabilis.Effect`, a
 //! user-defined effect whose Python callable returns the extra terms of the state-space model.
+use std::collections::HashMap;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
@@ -49,8 +50,8 @@ impl Effect {
         name: String,
         params: &Bound<'_, PyDict>,
         func: Py<PyAny>,
-        bounds: Option<std::collections::HashMap<String, (f64, f64)>>,
-        units: Option<std::collections::HashMap<String, String>>,
+        bounds: Option<HashMap<String, (f64, f64)>>,
+        units: Option<HashMap<String, String>>,
         description: &str,
     ) -> PyResult<Self> {
         let params: Vec<(String, f64)> = params
@@ -449,7 +450,26 @@ impl Workbench {
     /// `actuator_lag`, `input_delay`; Cubli: `wheel_viscous_friction`,
     /// `wheel_coulomb_friction`, `gyro_bias`, `torque_constant`) or a [`Effect`] (flying
     /// platform), which is evaluated once at its documented values to catch errors now.
-    fn add(&mut self, py: Python<'_>, effect: &Bound<'_, PyAny>) -> PyResult<()> {
+    ///
+    /// A bare callable is wrapped as `Effect(name or func.__name__, params, func, bounds,
+    /// units)`.
+    #[pyo3(signature = (effect, params = None, bounds = None, units = None, name = None))]
+    fn add(
+        &mut self,
+        py: Python<'_>,
+        effect: &Bound<'_, PyAny>,
+        params: Option<&Bound<'_, PyDict>>,
+        bounds: Option<HashMap<String, (f64, f64)>>,
+        units: Option<HashMap<String, String>>,
+        name: Option<String>,
+    ) -> PyResult<()> {
+        let extras = params.is_some() || bounds.is_some() || units.is_some() || name.is_some();
+        let is_effect = effect.cast::<Effect>().is_ok();
+        if extras && (is_effect || !effect.is_callable()) {
+            return Err(PyTypeError::new_err(
+                "params, bounds, units and name go with a callable, not with an effect name or a stabilis.Effect",
+            ));
+        }
         if let Ok(name) = effect.extract::<String>() {
             return match &mut self.inner {
                 Inner::Frf { wb, .. } => wb.add(&name),
@@ -457,9 +477,21 @@ impl Workbench {
             }
             .map_err(to_py_err);
         }
-        let Ok(user) = effect.cast::<Effect>() else {
+        let user: Bound<'_, Effect> = if let Ok(user) = effect.cast::<Effect>() {
+            user.clone()
+        } else if effect.is_callable() {
+            let params = params.ok_or_else(|| {
+                PyTypeError::new_err("add(func) needs params={name: documented value}")
+            })?;
+            let name = match name {
+                Some(n) => n,
+                None => effect.getattr("__name__")?.extract()?,
+            };
+            let built = Effect::new(py, name, params, effect.clone().unbind(), bounds, units, "")?;
+            Bound::new(py, built)?
+        } else {
             return Err(PyTypeError::new_err(
-                "add() takes an effect name or a stabilis.Effect",
+                "add() takes an effect name, a stabilis.Effect or a callable with params",
             ));
         };
         let Inner::Frf { wb, .. } = &self.inner else {
