@@ -221,8 +221,9 @@ impl Workbench {
     }
 
     /// Fits `model` from `start`; when the workbench re-weights, by iterated re-weighting:
-    /// the noise of the weighting from the residual of the start (documented values if none),
-    /// fit, then [`REWEIGHTINGS`] times the noise from the fitted model's residual and refit.
+    /// the noise of the weighting from the residual of the start, fit, and when the start was
+    /// not itself a fit (documented values, `start = None`) [`REWEIGHTINGS`] more times the
+    /// noise from the fitted model's residual and a refit.
     fn fit_reweighted(
         &self,
         model: &Model,
@@ -232,14 +233,17 @@ impl Workbench {
         if !self.reweights() {
             return Ok((fit(model, &self.cost, start, &opts)?, None));
         }
-        let theta: Vec<f64> = match start {
-            Some(t) => t.to_vec(),
-            None => model.parameters()?.iter().map(|p| p.value).collect(),
+        let (theta, again): (Vec<f64>, usize) = match start {
+            Some(t) => (t.to_vec(), 0),
+            None => (
+                model.parameters()?.iter().map(|p| p.value).collect(),
+                REWEIGHTINGS,
+            ),
         };
         let g = model.frf(&theta, &self.cost.freqs_hz, opts.hold)?;
         let mut cost = self.noise_weighting(&g)?;
         let mut r = fit(model, &cost, Some(&theta), &opts)?;
-        for _ in 0..REWEIGHTINGS {
+        for _ in 0..again {
             cost = self.noise_weighting(&r.model_frf)?;
             r = fit(model, &cost, Some(&r.theta), &opts)?;
         }
