@@ -58,6 +58,7 @@ class Config:
     drag: Drag | None = None
     c_omega_t0: float = 0.0  # fan angular momentum per fan, kg m^2/s (0: no gyroscopic torque)
     delay_s: float = 0.0  # in-loop input delay, below one sample
+    actuator_tau: float = 0.0  # first-order lag of every thrust channel, s (0: none)
     sample_rate_hz: float = 50.0
     period_samples: int = 250
     periods: int = 10
@@ -121,6 +122,16 @@ def state_matrix(v: Vehicle, drag: Drag | None, c_omega_t0: float) -> np.ndarray
     a[9, 10] += -3 * c_omega_t0 / v.i1
     a[10, 9] += 3 * c_omega_t0 / v.i1
     return a
+
+
+def plant(cfg: Config) -> tuple[np.ndarray, np.ndarray]:
+    """The truth (A, B): the 12 hover states, then 9 thrust states when actuators lag."""
+    a = state_matrix(cfg.vehicle, cfg.drag, cfg.c_omega_t0)
+    b = input_matrix(cfg.vehicle)
+    if cfg.actuator_tau <= 0.0:
+        return a, b
+    lag = np.eye(9) / cfg.actuator_tau
+    return np.block([[a, b], [np.zeros((9, 12)), -lag]]), np.vstack([np.zeros((12, 9)), lag])
 
 
 def _integral_expm(a: np.ndarray, b: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -229,19 +240,23 @@ def simulate(cfg: Config) -> list[Run]:
     """Closed-loop runs of the configured experiments, each a fresh hover start."""
     ts = 1.0 / cfg.sample_rate_hz
     rng = np.random.default_rng(cfg.seed)
-    a = state_matrix(cfg.vehicle, cfg.drag, cfg.c_omega_t0)
-    b = input_matrix(cfg.vehicle)
+    a, b = plant(cfg)
+    nx = a.shape[0]
     phi, g1, g0 = discretise(a, b, ts, cfg.delay_s)
-    k = controller_gain(cfg)
+    # The controller sees the 12 hover states (with sensor noise) and its previous command.
+    k = np.zeros((9, nx + 9))
+    k_design = controller_gain(cfg)
+    k[:, :12] = k_design[:, :12]
+    k[:, nx:] = k_design[:, 12:]
     # Closed loop on z = (x, previous input deviation): du = -K (z + sensor noise) + r.
-    a_z = np.block([[phi, g1], [np.zeros((9, 21))]])
+    a_z = np.block([[phi, g1], [np.zeros((9, nx + 9))]])
     b_z = np.vstack([g0, np.eye(9)])
     closed = a_z - b_z @ k
     radius = np.abs(np.linalg.eigvals(closed)).max()
     if radius >= 1.0:
         raise ValueError(f"the controller does not stabilise this truth (spectral radius {radius:.4f})")
     qd = process_noise_cov(a, np.r_[np.zeros(3), np.full(3, cfg.accel_noise**2), np.zeros(3),
-                                    np.full(3, cfg.angular_noise**2)], ts)
+                                    np.full(3, cfg.angular_noise**2), np.zeros(nx - 12)], ts)
     eigval, eigvec = np.linalg.eigh(qd)
     w_root = eigvec * np.sqrt(np.clip(eigval, 0.0, None))
     sigma = np.r_[np.full(3, cfg.position_sigma), np.full(3, cfg.velocity_sigma),
@@ -254,11 +269,11 @@ def simulate(cfg: Config) -> list[Run]:
     runs = []
     for e in cfg.experiments:
         r = excitation(cfg, e, s1, s2, n)
-        noise = np.zeros((samples, 21))
+        noise = np.zeros((samples, nx + 9))
         noise[:, :12] = rng.standard_normal((samples, 12)) * sigma
         drive = (r - noise @ k.T) @ b_z.T
-        drive[:, :12] += rng.standard_normal((samples, 12)) @ w_root.T
-        z = np.zeros((samples, 21))  # fresh hover start
+        drive[:, :nx] += rng.standard_normal((samples, nx)) @ w_root.T
+        z = np.zeros((samples, nx + 9))  # fresh hover start
         for i in range(samples - 1):
             z[i + 1] = closed @ z[i] + drive[i]
         du = r - (z + noise) @ k.T
@@ -270,14 +285,14 @@ def simulate(cfg: Config) -> list[Run]:
 def sampled_frf(cfg: Config, freqs_hz: np.ndarray) -> np.ndarray:
     """The truth's exact sampled FRF (lines, 6 outputs vx..wz, 9 inputs), delay included."""
     ts = 1.0 / cfg.sample_rate_hz
-    phi, g1, g0 = discretise(state_matrix(cfg.vehicle, cfg.drag, cfg.c_omega_t0),
-                             input_matrix(cfg.vehicle), ts, cfg.delay_s)
-    c = np.zeros((6, 12))
+    a, b = plant(cfg)
+    phi, g1, g0 = discretise(a, b, ts, cfg.delay_s)
+    c = np.zeros((6, a.shape[0]))
     c[range(6), [3, 4, 5, 9, 10, 11]] = 1.0
     out = []
     for f in freqs_hz:
         z = np.exp(2j * np.pi * f * ts)
-        out.append(c @ np.linalg.solve(z * np.eye(12) - phi, g0 + g1 / z))
+        out.append(c @ np.linalg.solve(z * np.eye(a.shape[0]) - phi, g0 + g1 / z))
     return np.stack(out)
 
 

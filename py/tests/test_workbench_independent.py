@@ -57,12 +57,13 @@ def test_controller_stabilises_every_truth_and_excitation_is_the_orthogonal_desi
 
 
 def test_noise_free_frf_is_the_truths_exact_sampled_frf(tmp_path):
-    # Drag, gyroscopic torque and a fractional in-loop delay, no noise, a long transient:
-    # the workbench's closed-loop FRF estimate must be the plant's sampled FRF (spec AT-16).
+    # Drag, gyroscopic torque, actuator lag and a fractional in-loop delay, no noise, a long
+    # transient: the workbench's closed-loop FRF estimate must be the plant's sampled FRF
+    # (spec AT-16).
     quiet = dict(accel_noise=0.0, angular_noise=0.0, position_sigma=0.0, velocity_sigma=0.0,
                  attitude_sigma=0.0, gyro_sigma=0.0)
-    cfg = ip.Config(drag=DRAG, c_omega_t0=0.05, delay_s=0.012, periods=2, transient_samples=1000,
-                    phase_draws=10, seed=5, **quiet)
+    cfg = ip.Config(drag=DRAG, c_omega_t0=0.05, delay_s=0.012, actuator_tau=0.02, periods=2,
+                    transient_samples=1000, phase_draws=10, seed=5, **quiet)
     ip.write_runs(cfg, ip.simulate(cfg), tmp_path / "data")
     frf = stabilis.Workbench("flying_platform", data=[str(tmp_path / "data")]).frf()
     truth = ip.sampled_frf(cfg, frf["freqs_hz"])
@@ -131,6 +132,21 @@ def test_delay_alone_is_found_as_input_delay(tmp_path):
     assert code == 0, err
     assert doc["found"] == ["input_delay"]
     assert doc["steps"][-1]["params"]["td"] == pytest.approx(0.01, abs=0.002)
+
+
+@pytest.mark.parametrize("drag, found", [(None, ["actuator_lag"]),
+                                         (DRAG, ["momentum_drag", "actuator_lag"])])
+def test_actuator_lag_is_found_with_its_time_constant(tmp_path, drag, found):
+    campaign(tmp_path / "data", drag=drag, actuator_tau=0.03, periods=4, seed=81)
+    code, err, doc = discover(tmp_path / "data", tmp=tmp_path)
+    assert code == 0, err
+    assert doc["found"] == found
+    assert doc["unexplained"] is False
+    params = doc["steps"][-1]["params"]
+    assert params["tau"] == pytest.approx(0.03, rel=0.05)
+    if drag is not None:
+        err = relative_errors(params, DRAG_TRUTH)
+        assert abs(err["c_alpha1"]) < 0.10 and abs(err["c_alpha2"]) < 0.10, err
 
 
 def test_other_sample_rate_nine_experiments_three_periods(tmp_path):
