@@ -164,6 +164,14 @@ fn infeasible_problem_names_the_conflicting_condition() {
 }
 
 #[test]
+fn solver_names_parse_and_unknown_names_are_errors() {
+    assert_eq!(Solver::parse("schur").unwrap(), Solver::SchurIpm);
+    assert_eq!(Solver::parse("Clarabel").unwrap(), Solver::Clarabel);
+    let err = Solver::parse("sdpt3").unwrap_err();
+    assert!(err.to_string().contains("solver"), "{err}");
+}
+
+#[test]
 fn empty_problem_is_named() {
     let prob = Problem::new(Vars::default());
     let err = prob.solve_with(Solver::SchurIpm, "empty", 0.0).unwrap_err();
