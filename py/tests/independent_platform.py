@@ -358,8 +358,11 @@ def write_runs(cfg: Config, runs: list[Run], directory: Path) -> list[Path]:
     return paths
 
 
-def write_csv(run: Run, path: Path) -> None:
-    """DESIGN.md CSV: a header row, `t` in seconds, the input and output field names."""
-    header = ["t", *INPUTS, *OUTPUTS]
+def write_csv(run: Run, path: Path, reverse: bool = False) -> None:
+    """DESIGN.md CSV: a header row, `t` in seconds, the input and output field names (in
+    reverse order, `t` last, when `reverse`: DESIGN.md fixes no column order)."""
+    header = np.array(["t", *INPUTS, *OUTPUTS])
     table = np.column_stack([run.t, run.u, run.y])
-    np.savetxt(path, table, delimiter=",", header=",".join(header), comments="", fmt="%.10g")
+    order = np.arange(len(header))[::-1] if reverse else np.arange(len(header))
+    np.savetxt(path, table[:, order], delimiter=",", header=",".join(header[order]), comments="",
+               fmt="%.10g")

@@ -176,7 +176,7 @@ def test_design_csv_of_a_drag_truth_finds_momentum_drag(tmp_path):
     cfg = ip.Config(drag=DRAG, periods=4, seed=7)
     (tmp_path / "data").mkdir()
     for run in ip.simulate(cfg):
-        ip.write_csv(run, tmp_path / "data" / f"e{run.index:02d}.csv")
+        ip.write_csv(run, tmp_path / "data" / f"e{run.index:02d}.csv", reverse=run.index % 2 == 0)
     code, err, doc = discover(tmp_path / "data", tmp=tmp_path)
     assert code == 0, err
     assert doc["found"][0] == "momentum_drag"
