@@ -483,24 +483,11 @@ impl Workbench {
     /// is independent and the most expensive part of a record).
     fn records(&self, fitted: Vec<Fitted>) -> Result<Vec<Step>> {
         let base = fitted.first().map(|f| f.r.cost);
-        std::thread::scope(|scope| {
-            let handles: Vec<_> = fitted
-                .into_iter()
-                .map(|f| scope.spawn(move || self.step_from(f, base)))
-                .collect();
-            handles
-                .into_iter()
-                .map(|h| {
-                    h.join().unwrap_or_else(|_| {
-                        Err(SimError::invalid(
-                            "discovery step record",
-                            "panicked",
-                            "the time-domain evaluation of a step failed",
-                        ))
-                    })
-                })
-                .collect()
-        })
+        let jobs: Vec<_> = fitted
+            .into_iter()
+            .map(|f| move || self.step_from(f, base))
+            .collect();
+        in_parallel(jobs, "discovery step record")
     }
 
     /// Runs the discovery loop from the current model.
@@ -519,9 +506,17 @@ impl Workbench {
             let candidates = model.candidates();
             let mut best: Option<(Model, FitResult, usize)> = None;
             let mut scores = Vec::with_capacity(candidates.len());
-            for name in &candidates {
-                progress(&format!("trying {name}"));
-                let (with, r, score) = self.score(&model, &current, name, candidates.len())?;
+            // Candidates are fitted independently, in parallel.
+            let n = candidates.len();
+            let jobs: Vec<_> = candidates
+                .iter()
+                .map(|name| {
+                    let (model, current) = (&model, &current);
+                    move || self.score(model, current, name, n)
+                })
+                .collect();
+            for (with, r, score) in in_parallel(jobs, "candidate fit")? {
+                progress(&format!("tried {}", score.effect));
                 let better = best.as_ref().is_none_or(|(_, b, _)| r.cost < b.cost);
                 scores.push(score);
                 if better {
@@ -556,7 +551,6 @@ impl Workbench {
         }
         done.push(current);
         self.common_weighting(&mut done)?;
-        progress("time-domain fit and residual tests of every step");
         let steps = self.records(done)?;
         let last = steps
             .last()
@@ -570,4 +564,28 @@ impl Workbench {
             level: LEVEL,
         })
     }
+}
+
+/// Runs independent jobs on scoped threads and returns their results in order (a job that
+/// panics is reported as an error naming `what`).
+fn in_parallel<T, F>(jobs: Vec<F>, what: &str) -> Result<Vec<T>>
+where
+    T: Send,
+    F: FnOnce() -> Result<T> + Send,
+{
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = jobs.into_iter().map(|f| scope.spawn(f)).collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                h.join().unwrap_or_else(|_| {
+                    Err(SimError::invalid(
+                        what,
+                        "panicked",
+                        "a worker thread failed",
+                    ))
+                })
+            })
+            .collect()
+    })
 }
