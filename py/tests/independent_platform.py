@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 from mcap.writer import Writer
 from scipy.linalg import expm, solve_discrete_are
+from scipy.signal import lfilter
 
 G0 = 9.81
 INPUTS = ["F1x", "F1y", "F1z", "F2x", "F2y", "F2z", "F3x", "F3y", "F3z"]
@@ -59,6 +60,7 @@ class Config:
     c_omega_t0: float = 0.0  # fan angular momentum per fan, kg m^2/s (0: no gyroscopic torque)
     delay_s: float = 0.0  # in-loop input delay, below one sample
     actuator_tau: float = 0.0  # first-order lag of every thrust channel, s (0: none)
+    velocity_log_tau: float = 0.0  # first-order filter on the logged vx, vy, vz only, s
     sample_rate_hz: float = 50.0
     period_samples: int = 250
     periods: int = 10
@@ -278,6 +280,9 @@ def simulate(cfg: Config) -> list[Run]:
             z[i + 1] = closed @ z[i] + drive[i]
         du = r - (z + noise) @ k.T
         y = (z[:, :12] + noise[:, :12])[:, measured]
+        if cfg.velocity_log_tau > 0.0:
+            pole = math.exp(-ts / cfg.velocity_log_tau)
+            y[:, :3] = lfilter([1.0 - pole], [1.0, -pole], y[:, :3], axis=0)
         runs.append(Run(e, n * ts, u_trim + du, r, y))
     return runs
 

@@ -149,6 +149,18 @@ def test_actuator_lag_is_found_with_its_time_constant(tmp_path, drag, found):
         assert abs(err["c_alpha1"]) < 0.10 and abs(err["c_alpha2"]) < 0.10, err
 
 
+def test_velocity_log_filter_is_named_as_unexplained_misfit_in_the_velocity_rows(tmp_path):
+    # Drag truth whose logged velocities pass a 30 ms filter (no candidate models it): drag is
+    # found, and the rest is reported as a structured misfit in the velocity rows only.
+    campaign(tmp_path / "data", drag=DRAG, velocity_log_tau=0.03, periods=4, seed=92)
+    code, err, doc = discover(tmp_path / "data", tmp=tmp_path)
+    assert code == 0, err
+    assert doc["found"] == ["momentum_drag"]
+    assert doc["unexplained"] is True
+    assert doc["verdict"]["kind"] == "unexplained_structured_misfit"
+    assert doc["verdict"]["outputs"] and set(doc["verdict"]["outputs"]) <= {"vx", "vy", "vz"}
+
+
 def test_other_sample_rate_nine_experiments_three_periods(tmp_path):
     # 100 Hz with 500-sample periods (still 0.2 Hz lines), only the nine S1 experiments.
     campaign(tmp_path / "data", drag=DRAG, sample_rate_hz=100.0, period_samples=500,
