@@ -161,6 +161,33 @@ def test_velocity_log_filter_is_named_as_unexplained_misfit_in_the_velocity_rows
     assert doc["verdict"]["outputs"] and set(doc["verdict"]["outputs"]) <= {"vx", "vy", "vz"}
 
 
+HEAVY = ip.Vehicle(mass=10.0, i1=0.09, i3=0.15, l3=0.12)
+
+
+def test_other_vehicle_low_complexity_finds_nothing(tmp_path):
+    # The workbench holds m = 8 kg and I1 = 0.07 kg m^2; another vehicle must still fit through
+    # the identifiable ratios.
+    campaign(tmp_path / "data", vehicle=HEAVY, periods=4, seed=101)
+    code, err, doc = discover(tmp_path / "data", tmp=tmp_path)
+    assert code == 0, err
+    assert doc["found"] == []
+
+
+def test_other_vehicle_drag_and_gyroscopic_through_identifiable_ratios(tmp_path):
+    campaign(tmp_path / "data", vehicle=HEAVY, drag=DRAG, c_omega_t0=0.1, periods=4, seed=103)
+    code, err, doc = discover(tmp_path / "data", tmp=tmp_path)
+    assert code == 0, err
+    assert doc["found"] == ["momentum_drag", "fan_gyroscopic"]
+    p = doc["steps"][-1]["params"]
+    m0, i1_0 = 8.0, 0.07  # the workbench's documented values
+    # 3 C omega_T0 / I1 (roll-pitch rate coupling), 3 c_alpha2 / m (vz pole),
+    # 3 l_alpha2 c_alpha1 / I1 (velocity -> moment).
+    assert 3 * p["c_omega_t0"] / i1_0 == pytest.approx(3 * 0.1 / HEAVY.i1, rel=0.05)
+    assert 3 * p["c_alpha2"] / m0 == pytest.approx(3 * DRAG.c_alpha2 / HEAVY.mass, rel=0.10)
+    assert p["l_alpha2"] * p["c_alpha1"] / i1_0 == pytest.approx(
+        DRAG.l_alpha2 * DRAG.c_alpha1 / HEAVY.i1, rel=0.10)
+
+
 def test_other_sample_rate_nine_experiments_three_periods(tmp_path):
     # 100 Hz with 500-sample periods (still 0.2 Hz lines), only the nine S1 experiments.
     campaign(tmp_path / "data", drag=DRAG, sample_rate_hz=100.0, period_samples=500,
