@@ -2,11 +2,13 @@
 
 Written from spec/flying_platform.md and DESIGN.md only (numpy, scipy and the official `mcap`
 writer), so that the workbench is checked on data it did not produce itself. The truth is the
-hover-linear model (spec §3.6) with optional momentum drag and fan gyroscopic torque (§6.7);
-a discrete LQR of its own (designed on the nominal low-complexity model, 50 Hz, zero-order
-hold, with the in-loop delay as extra states) holds hover; the 18 orthogonal random-phase
-multisine experiments of §6.2 are added to the controller output; process and sensor noise
-follow §9.2 items 9-10. Logs are written as DESIGN.md specifies.
+hover-linear model (spec §3.6) with optional momentum drag and fan gyroscopic torque (§6.7),
+a fractional in-loop input delay, first-order actuator lag and a filter on the logged
+velocities (§12.3); a discrete LQR of its own (designed on the nominal low-complexity model at
+the sample rate, zero-order hold, the delayed input as extra states) holds hover; the 18
+orthogonal random-phase multisine experiments of §6.2 (or a subset) are added to the controller
+output; process and sensor noise follow §9.2 items 9-10. Logs are written as DESIGN.md
+specifies: MCAP (json messages, jsonschema schemas, the `experiment` metadata) or CSV.
 """
 from __future__ import annotations
 
