@@ -8,7 +8,7 @@ use flying_platform::{
     PlatformParams, SimConfig, Tuning,
 };
 use sim::workbench::flying_platform::{dataset_from_experiments, FlyingPlatform};
-use sim::workbench::{Dataset, EstimatorChoice, Verdict, Workbench};
+use sim::workbench::{Dataset, Estimator, EstimatorChoice, Verdict, Workbench};
 
 fn data(effects: &[(Effect, &[(&str, f64)])], seed: u64) -> (Dataset, Model) {
     data_tuned(
@@ -311,5 +311,48 @@ fn within_limits_low_complexity_truth_finds_nothing() {
         let d = workbench_discover(data);
         assert!(d.found.is_empty(), "seed {seed}: found {:?}", d.found);
         explained(&d);
+    }
+}
+
+/// Logs without the excitation: least squares on the periodic records, and H1 Welch on the
+/// same records without their periodic layout (a DESIGN.md CSV), use the input as their own
+/// instrument, which the loop's feedback of noise biases at the lowest lines. On a clean
+/// closed loop the effects the discovery adds to absorb that bias are reported as tentative
+/// with the reason, never as found.
+#[test]
+fn clean_closed_loop_without_excitation_finds_nothing() {
+    let (mut periodic, _) = data(&[], 2);
+    for e in &mut periodic.experiments {
+        e.r = None;
+    }
+    let mut welch = periodic.clone();
+    for e in &mut welch.experiments {
+        e.periodic = None;
+    }
+    for (data, estimator) in [
+        (periodic, Estimator::LeastSquares),
+        (welch, Estimator::H1Welch),
+    ] {
+        let wb = Workbench::new(
+            Arc::new(FlyingPlatform::default()),
+            data,
+            EstimatorChoice::Auto,
+        )
+        .unwrap();
+        assert_eq!(wb.frf().estimator, estimator);
+        let d = wb.discover().unwrap();
+        assert!(d.found.is_empty(), "{estimator:?}: found {:?}", d.found);
+        // Before this rule both listed drag under `found` (least squares: momentum_drag;
+        // H1 Welch: momentum_drag, actuator_lag), with a structured misfit remaining.
+        assert_eq!(
+            d.tentative.first().map(String::as_str),
+            Some("momentum_drag"),
+            "{estimator:?}"
+        );
+        let why = d.tentative_sentence().unwrap();
+        assert!(
+            why.contains("biased under feedback") && why.contains("/flying_platform/excitation"),
+            "{why}"
+        );
     }
 }

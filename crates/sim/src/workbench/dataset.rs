@@ -116,6 +116,15 @@ impl Dataset {
         self.experiments.iter().all(|e| e.r.is_some())
     }
 
+    /// True when every experiment logs its excitation and the input equals it (to 1e-9 of
+    /// its size): no feedback, so an estimator that uses the input as its instrument is unbiased.
+    pub fn is_open_loop(&self) -> bool {
+        self.experiments.iter().all(|e| {
+            e.r.as_ref()
+                .is_some_and(|r| (r - &e.u).norm() <= 1e-9 * e.u.norm().max(f64::MIN_POSITIVE))
+        })
+    }
+
     /// True when every experiment is periodic.
     pub fn is_periodic(&self) -> bool {
         self.experiments.iter().all(|e| e.periodic.is_some())
@@ -181,6 +190,18 @@ mod tests {
     #[test]
     fn accepts_consistent_data() {
         assert!(small().validate().is_ok());
+    }
+
+    #[test]
+    fn open_loop_only_when_every_input_is_its_logged_excitation() {
+        let mut d = small();
+        assert!(!d.is_open_loop(), "no excitation logged");
+        d.experiments[0].u = DMatrix::from_fn(20, 1, |i, _| (i as f64).sin());
+        d.experiments[0].r = Some(d.experiments[0].u.clone());
+        assert!(d.is_open_loop());
+        // Feedback of a small output term makes the input differ from the excitation.
+        d.experiments[0].u[(5, 0)] += 1e-6;
+        assert!(!d.is_open_loop());
     }
 
     #[test]

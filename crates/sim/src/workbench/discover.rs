@@ -141,14 +141,35 @@ impl Verdict {
 pub struct Discovery {
     /// Steps, starting with the base model.
     pub steps: Vec<Step>,
-    /// Effects in the order added.
+    /// Effects in the order added, when they are confirmed: the FRF estimator is unbiased
+    /// under feedback and the final model leaves no structured misfit.
     pub found: Vec<String>,
+    /// Effects the loop added that are not confirmed (see [`Discovery::caveats`]): they lower
+    /// the cost, but the tests that accepted them take the rest for noise, which a biased
+    /// estimate or a remaining structured misfit refutes (they may be absorbing either).
+    pub tentative: Vec<String>,
+    /// Why the added effects are tentative, one sentence per reason (empty when confirmed).
+    pub caveats: Vec<String>,
     /// True when a significant misfit remains.
     pub unexplained: bool,
     /// The verdict.
     pub verdict: Verdict,
     /// Significance level of the tests.
     pub level: f64,
+}
+
+impl Discovery {
+    /// A sentence for the summary naming the tentative effects and why; `None` when the
+    /// loop added nothing or everything it added is confirmed.
+    pub fn tentative_sentence(&self) -> Option<String> {
+        (!self.tentative.is_empty()).then(|| {
+            format!(
+                "[{}] lower the cost but are tentative, not found: {}",
+                self.tentative.join(", "),
+                self.caveats.join("; ")
+            )
+        })
+    }
 }
 
 /// Re-estimations of the noise after the first re-weighted fit (see `fit_reweighted`).
@@ -437,10 +458,43 @@ impl Workbench {
         Discovery {
             steps: vec![step],
             found: Vec::new(),
+            tentative: Vec::new(),
+            caveats: Vec::new(),
             unexplained: matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. }),
             verdict,
             level: LEVEL,
         }
+    }
+
+    /// Reasons not to confirm the effects a discovery added: an FRF estimator biased under
+    /// feedback on data not known to be open loop (least squares or H1 Welch without the
+    /// logged excitation: on a clean closed loop its low-frequency bias is "explained" by
+    /// drag), and a structured misfit left by the final model (the F tests assumed the rest
+    /// was noise; an effect may be absorbing part of that misfit), as for the Cubli.
+    fn caveats(&self, verdict: &Verdict) -> Vec<String> {
+        let mut why = Vec::new();
+        if self.frf.estimator.biased_under_feedback() && !self.data.is_open_loop() {
+            let fix = if self.data.has_excitation() {
+                "use the instrumental variable (`--estimator auto`): the excitation is logged"
+                    .to_string()
+            } else {
+                format!(
+                    "log the excitation (MCAP topic `/{}/excitation`, CSV columns `r_<input>`) for the instrumental variable",
+                    self.model.structure().system()
+                )
+            };
+            why.push(format!(
+                "the FRF estimator is {} and the data are not known to be open loop; {fix}",
+                self.frf.estimator.describe()
+            ));
+        }
+        if matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. }) {
+            why.push(
+                "the final model leaves a structured misfit, which the tests that added them took for noise"
+                    .to_string(),
+            );
+        }
+        why
     }
 
     fn verdict(&self, step: &Step) -> Verdict {
@@ -556,9 +610,17 @@ impl Workbench {
             .last()
             .ok_or_else(|| SimError::invalid("discovery", "no step", "nothing was fitted"))?;
         let verdict = self.verdict(last);
+        let caveats = self.caveats(&verdict);
+        let (found, tentative, caveats) = if caveats.is_empty() || found.is_empty() {
+            (found, Vec::new(), Vec::new())
+        } else {
+            (Vec::new(), found, caveats)
+        };
         Ok(Discovery {
             steps,
             found,
+            tentative,
+            caveats,
             unexplained: matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. }),
             verdict,
             level: LEVEL,

@@ -40,6 +40,12 @@ impl Estimator {
             Self::H1WelchInstrumental => "Welch instrumental variable S_yr S_ur^-1",
         }
     }
+
+    /// True for the estimators that use the measured input as their own instrument (least
+    /// squares, H1 Welch): in closed loop the input carries fed-back noise, so they are biased.
+    pub fn biased_under_feedback(self) -> bool {
+        matches!(self, Self::LeastSquares | Self::H1Welch)
+    }
 }
 
 /// Which estimator to use for periodic data.

@@ -91,6 +91,9 @@ pub fn table(wb: &Workbench, d: &Discovery) -> String {
         let _ = writeln!(s, "fixed {name} = {value} ({why})");
     }
     let _ = writeln!(s, "found: [{}]", d.found.join(", "));
+    if let Some(t) = d.tentative_sentence() {
+        let _ = writeln!(s, "tentative: {t}");
+    }
     let _ = writeln!(s, "verdict: {}", d.verdict.sentence());
     s
 }
@@ -204,6 +207,8 @@ pub fn json(wb: &Workbench, d: &Discovery) -> Value {
         "residuals": wb.noise().n_residuals,
         "steps": steps,
         "found": d.found,
+        "tentative": d.tentative,
+        "tentative_why": d.caveats,
         "unexplained": d.unexplained,
         "verdict": d.verdict,
         "verdict_text": d.verdict.sentence(),
