@@ -1,10 +1,13 @@
 //! Reads an MCAP log into one [`Table`] per topic plus its metadata records. The file is read
 //! front to back, so a log whose writer was killed before the summary still yields every
 //! complete chunk; [`Log::complete`] says whether the data section ended properly.
+use std::borrow::Cow;
 use std::collections::{BTreeMap, HashMap};
+use std::fmt;
 use std::path::{Path, PathBuf};
 
-use serde_json::{Map, Value};
+use serde::de::{self, Deserialize, Deserializer, MapAccess, Visitor};
+use serde_json::Value;
 
 use super::Table;
 use crate::error::{Result, SimError};
@@ -185,6 +188,75 @@ fn schema_fields(data: &[u8]) -> Option<Vec<String>> {
     Some(fields)
 }
 
+/// A field name of a message, borrowed from the message bytes unless it holds escapes.
+struct Key<'a>(Cow<'a, str>);
+
+impl<'de> Deserialize<'de> for Key<'de> {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> std::result::Result<Self, D::Error> {
+        struct KeyVisitor;
+        impl<'de> Visitor<'de> for KeyVisitor {
+            type Value = Key<'de>;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a field name")
+            }
+            fn visit_borrowed_str<E: de::Error>(
+                self,
+                v: &'de str,
+            ) -> std::result::Result<Key<'de>, E> {
+                Ok(Key(Cow::Borrowed(v)))
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> std::result::Result<Key<'de>, E> {
+                Ok(Key(Cow::Owned(v.to_owned())))
+            }
+        }
+        deserializer.deserialize_str(KeyVisitor)
+    }
+}
+
+/// The entries of a message's JSON object in message order. Read without building a map
+/// (logs hold one message per sample and topic, so this is most of the loading time).
+struct Entries<'a>(Vec<(Cow<'a, str>, Value)>);
+
+impl<'de> Deserialize<'de> for Entries<'de> {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> std::result::Result<Self, D::Error> {
+        struct EntriesVisitor;
+        impl<'de> Visitor<'de> for EntriesVisitor {
+            type Value = Entries<'de>;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a JSON object")
+            }
+            fn visit_map<A: MapAccess<'de>>(
+                self,
+                mut map: A,
+            ) -> std::result::Result<Entries<'de>, A::Error> {
+                let mut entries = Vec::with_capacity(map.size_hint().unwrap_or(16));
+                while let Some((Key(k), v)) = map.next_entry::<Key, Value>()? {
+                    entries.push((k, v));
+                }
+                Ok(Entries(entries))
+            }
+        }
+        deserializer.deserialize_map(EntriesVisitor)
+    }
+}
+
+impl Entries<'_> {
+    /// The value of `name` (the last one when a name repeats, as a JSON map keeps it).
+    fn get(&self, name: &str) -> Option<&Value> {
+        self.0.iter().rev().find(|(k, _)| k == name).map(|(_, v)| v)
+    }
+
+    /// The entries by name, sorted, a repeated name holding its last value.
+    fn by_name(&self) -> BTreeMap<&str, &Value> {
+        self.0.iter().map(|(k, v)| (k.as_ref(), v)).collect()
+    }
+
+    /// The field names, sorted.
+    fn names(&self) -> Vec<String> {
+        self.by_name().into_keys().map(String::from).collect()
+    }
+}
+
 fn add_message(
     topics: &mut BTreeMap<String, Table>,
     channel: &mut Channel,
@@ -192,50 +264,56 @@ fn add_message(
 ) -> Result<()> {
     let index = topics.get(&channel.topic).map_or(0, Table::len);
     let context = || format!("{} message {index}", channel.topic);
-    let object: Map<String, Value> =
-        serde_json::from_slice(data).map_err(|e| SimError::BadMessage {
-            context: context(),
-            reason: format!("not a JSON object: {e}"),
-        })?;
+    let object: Entries = serde_json::from_slice(data).map_err(|e| SimError::BadMessage {
+        context: context(),
+        reason: format!("not a JSON object: {e}"),
+    })?;
     let t = match object.get("t") {
-        Some(value) => number(value, &context(), "t")?,
+        Some(value) => number(value, context, "t")?,
         None => {
             return Err(SimError::MissingField {
                 context: context(),
                 field: "t".into(),
-                available: object.keys().cloned().collect(),
+                available: object.names(),
             })
         }
     };
     let fields = channel.fields.get_or_insert_with(|| {
         object
-            .iter()
+            .by_name()
+            .into_iter()
             .filter(|(name, value)| *name != "t" && value.is_number())
-            .map(|(name, _)| name.clone())
+            .map(|(name, _)| name.to_string())
             .collect()
     });
-    let table = topics
-        .entry(channel.topic.clone())
-        .or_insert_with(|| Table::new(channel.topic.clone(), fields.clone()));
-    let context = format!("{} at t = {t}", channel.topic);
+    let context = || format!("{} at t = {t}", channel.topic);
     let mut values = Vec::with_capacity(fields.len());
     for field in fields.iter() {
         let value = object.get(field).ok_or_else(|| SimError::MissingField {
-            context: context.clone(),
+            context: context(),
             field: field.clone(),
-            available: object.keys().cloned().collect(),
+            available: object.names(),
         })?;
-        values.push(number(value, &context, field)?);
+        values.push(number(value, context, field)?);
     }
-    table.push(t, &values)
+    match topics.get_mut(&channel.topic) {
+        Some(table) => table.push(t, &values),
+        None => {
+            let mut table = Table::new(channel.topic.clone(), fields.clone());
+            table.push(t, &values)?;
+            topics.insert(channel.topic.clone(), table);
+            Ok(())
+        }
+    }
 }
 
 /// A finite number, or a named error (JSON writers turn NaN into `null`).
-fn number(value: &Value, context: &str, field: &str) -> Result<f64> {
+/// `context` is only formatted on error.
+fn number(value: &Value, context: impl Fn() -> String, field: &str) -> Result<f64> {
     match value.as_f64() {
         Some(x) if x.is_finite() => Ok(x),
         _ => Err(SimError::NotFinite {
-            context: context.to_string(),
+            context: context(),
             field: field.to_string(),
             value: value.to_string(),
         }),

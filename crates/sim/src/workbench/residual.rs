@@ -18,13 +18,39 @@ pub const Z99: f64 = 2.575_829_303_548_901;
 /// Default number of lags tested.
 pub const DEFAULT_LAGS: usize = 25;
 
+/// `Σ_t x_t y_t` over the common length, in eight independent partial sums (so the
+/// compiler can keep them in vector registers; the lagged products are most of the cost of
+/// the residual tests).
+fn dot(x: &[f64], y: &[f64]) -> f64 {
+    let n = x.len().min(y.len());
+    let (x, y) = (&x[..n], &y[..n]);
+    let mut acc = [0.0; 8];
+    let (xc, yc) = (x.chunks_exact(8), y.chunks_exact(8));
+    let tail: f64 = xc
+        .remainder()
+        .iter()
+        .zip(yc.remainder())
+        .map(|(a, b)| a * b)
+        .sum();
+    for (a, b) in xc.zip(yc) {
+        for l in 0..8 {
+            acc[l] += a[l] * b[l];
+        }
+    }
+    acc.iter().sum::<f64>() + tail
+}
+
 /// Sums over several records of the products needed for normalised correlations.
-fn lagged_sum(a: &[&[f64]], b: &[&[f64]], lag: usize) -> f64 {
+fn lagged_sum(a: &[Vec<f64>], b: &[Vec<f64>], lag: usize) -> f64 {
     a.iter()
         .zip(b)
         .map(|(x, y)| {
             let n = x.len().min(y.len());
-            (lag..n).map(|t| x[t] * y[t - lag]).sum::<f64>()
+            if lag < n {
+                dot(&x[lag..n], &y[..n - lag])
+            } else {
+                0.0
+            }
         })
         .sum()
 }
@@ -39,13 +65,16 @@ fn centred(x: &[f64]) -> Vec<f64> {
 pub fn correlation(a: &[Vec<f64>], b: &[Vec<f64>], lags: usize) -> Vec<f64> {
     let a: Vec<Vec<f64>> = a.iter().map(|x| centred(x)).collect();
     let b: Vec<Vec<f64>> = b.iter().map(|x| centred(x)).collect();
-    let ar: Vec<&[f64]> = a.iter().map(|v| v.as_slice()).collect();
-    let br: Vec<&[f64]> = b.iter().map(|v| v.as_slice()).collect();
-    let norm = (lagged_sum(&ar, &ar, 0) * lagged_sum(&br, &br, 0)).sqrt();
+    centred_correlation(&a, &b, lags)
+}
+
+/// [`correlation`] of records already centred.
+fn centred_correlation(a: &[Vec<f64>], b: &[Vec<f64>], lags: usize) -> Vec<f64> {
+    let norm = (lagged_sum(a, a, 0) * lagged_sum(b, b, 0)).sqrt();
     (0..=lags)
         .map(|l| {
             if norm > 0.0 {
-                lagged_sum(&ar, &br, l) / norm
+                lagged_sum(a, b, l) / norm
             } else {
                 0.0
             }
@@ -130,8 +159,12 @@ pub struct ResidualTests {
     pub channels: Vec<ChannelResidual>,
 }
 
-fn column(m: &DMatrix<f64>, j: usize) -> Vec<f64> {
-    m.column(j).iter().cloned().collect()
+/// Column `j` of every record, each centred on its own mean.
+fn centred_column(records: &[&DMatrix<f64>], j: usize) -> Vec<Vec<f64>> {
+    records
+        .iter()
+        .map(|m| centred(m.column(j).as_slice()))
+        .collect()
 }
 
 fn strongest<K>(items: impl Iterator<Item = (K, f64)>) -> Option<(K, f64)> {
@@ -153,37 +186,43 @@ pub fn residual_tests(
 ) -> ResidualTests {
     let samples: usize = residuals.iter().map(|r| r.nrows()).sum();
     let nx = states.first().map_or(0, |s| s.ncols());
+    let inputs: Vec<Vec<Vec<f64>>> = (0..input_names.len())
+        .map(|j| centred_column(inputs, j))
+        .collect();
+    let states: Vec<Vec<Vec<f64>>> = (0..nx).map(|s| centred_column(states, s)).collect();
     let channels = output_names
         .iter()
         .enumerate()
         .map(|(i, name)| {
-            let e: Vec<Vec<f64>> = residuals.iter().map(|r| column(r, i)).collect();
-            let whiteness = BandTest::new(&correlation(&e, &e, lags), 1, samples);
+            let e = centred_column(residuals, i);
+            let whiteness = BandTest::new(&centred_correlation(&e, &e, lags), 1, samples);
             let not_white = whiteness.fails;
+            let input_r: Vec<Vec<f64>> = inputs
+                .iter()
+                .map(|u| centred_correlation(&e, u, lags))
+                .collect();
             let input_tests: Vec<(String, BandTest)> = input_names
                 .iter()
-                .enumerate()
-                .map(|(j, iname)| {
-                    let u: Vec<Vec<f64>> = inputs.iter().map(|m| column(m, j)).collect();
-                    (
-                        iname.clone(),
-                        BandTest::new(&correlation(&e, &u, lags), 0, samples),
-                    )
-                })
+                .zip(&input_r)
+                .map(|(iname, r)| (iname.clone(), BandTest::new(r, 0, samples)))
                 .collect();
             let correlated_inputs = input_tests
                 .iter()
                 .filter(|(_, t)| t.fails)
                 .map(|(n, _)| n.clone())
                 .collect();
-            let input_correlation = strongest(input_names.iter().enumerate().map(|(j, n)| {
-                let u: Vec<Vec<f64>> = inputs.iter().map(|m| column(m, j)).collect();
-                (n.clone(), correlation(&e, &u, 0)[0])
-            }));
-            let state_correlation = strongest((0..nx).map(|s| {
-                let x: Vec<Vec<f64>> = states.iter().map(|m| column(m, s)).collect();
-                (s, correlation(&e, &x, 0)[0])
-            }));
+            let input_correlation = strongest(
+                input_names
+                    .iter()
+                    .zip(&input_r)
+                    .map(|(n, r)| (n.clone(), r[0])),
+            );
+            let state_correlation = strongest(
+                states
+                    .iter()
+                    .enumerate()
+                    .map(|(s, x)| (s, centred_correlation(&e, x, 0)[0])),
+            );
             ChannelResidual {
                 output: name.clone(),
                 whiteness,

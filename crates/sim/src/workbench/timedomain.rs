@@ -89,11 +89,35 @@ pub const DEFAULT_WINDOW: usize = 25;
 /// Γ1 u_{i-whole-1}` is the input's effect on the state (linear in the data, so the gains are
 /// computed once). Unobservable directions (the yaw of a hovering vehicle, say) are set to
 /// zero by the minimum-norm solution.
+///
+/// Every record is processed as a whole: samples are rows, and each gain multiplies a block
+/// of shifted rows in one matrix product, instead of one small product per sample.
 struct Runner<'a> {
     disc: &'a Discrete,
     m: usize,
-    p: Vec<DMatrix<f64>>,
-    q: Vec<DMatrix<f64>>,
+    /// `P_j^T` (outputs x states).
+    p_t: Vec<DMatrix<f64>>,
+    /// `Q_i^T` (states x states).
+    q_t: Vec<DMatrix<f64>>,
+}
+
+/// One record run through the estimator: the input's effect on the state `v` (samples x
+/// states), the feed-through `D u` (samples x outputs) and the window estimates `x̂_s`
+/// (row `s - m`, for `s = m .. n`).
+struct Prepared {
+    v: DMatrix<f64>,
+    feed: DMatrix<f64>,
+    estimates: DMatrix<f64>,
+}
+
+/// `out` (samples x columns of `g_t`) `= beta out + S u g_t`, where `S u` is `u` delayed by
+/// `lag` rows (zero before the record starts).
+fn add_delayed(out: &mut DMatrix<f64>, u: &DMatrix<f64>, g_t: &DMatrix<f64>, lag: usize) {
+    let n = u.nrows();
+    if lag < n {
+        out.rows_mut(lag, n - lag)
+            .gemm(1.0, &u.rows(0, n - lag), g_t, 1.0);
+    }
 }
 
 impl<'a> Runner<'a> {
@@ -117,60 +141,104 @@ impl<'a> Runner<'a> {
         let p: Vec<DMatrix<f64>> = (0..=m)
             .map(|j| pm.columns(j * ny, ny).into_owned())
             .collect();
-        let q = (0..m)
+        let q_t = (0..m)
             .map(|i| {
                 let mut qi = powers[m - 1 - i].clone();
                 for (j, pj) in p.iter().enumerate().skip(i + 1) {
                     qi -= pj * &disc.c * &powers[j - 1 - i];
                 }
-                qi
+                qi.transpose()
             })
             .collect();
-        Ok(Self { disc, m, p, q })
+        let p_t = p.iter().map(|pj| pj.transpose()).collect();
+        Ok(Self { disc, m, p_t, q_t })
     }
 
-    /// Input row `k` of `u` (zero before the record starts).
-    fn input(u: &DMatrix<f64>, k: isize) -> DVector<f64> {
-        if k < 0 {
-            DVector::zeros(u.ncols())
-        } else {
-            u.row(k as usize).transpose()
+    /// The input's effect on the state between samples `k` and `k + 1`, row `k`.
+    fn drive(&self, u: &DMatrix<f64>) -> DMatrix<f64> {
+        let d = self.disc;
+        let mut v = DMatrix::zeros(u.nrows(), d.phi.nrows());
+        add_delayed(&mut v, u, &d.gamma0.transpose(), d.whole);
+        add_delayed(&mut v, u, &d.gamma1.transpose(), d.whole + 1);
+        v
+    }
+
+    /// The feed-through `D u_{k - d_shift}`, row `k`.
+    fn feed(&self, u: &DMatrix<f64>) -> DMatrix<f64> {
+        let mut f = DMatrix::zeros(u.nrows(), self.disc.c.nrows());
+        add_delayed(&mut f, u, &self.disc.d.transpose(), self.disc.d_shift);
+        f
+    }
+
+    /// The inputs' effects and the states at samples `s >= m` fitted to the outputs
+    /// `y_{s-m} .. y_s` (row `s - m`; none when the record has `m` samples or fewer).
+    fn prepare(&self, u: &DMatrix<f64>, y: &DMatrix<f64>) -> Prepared {
+        let (v, feed) = (self.drive(u), self.feed(u));
+        let n = u.nrows();
+        let rows = n.saturating_sub(self.m);
+        let mut estimates = DMatrix::zeros(rows, self.disc.phi.nrows());
+        if rows > 0 {
+            let z = y - &feed;
+            for (j, pj) in self.p_t.iter().enumerate() {
+                estimates.gemm(1.0, &z.rows(j, rows), pj, 1.0);
+            }
+            for (i, qi) in self.q_t.iter().enumerate() {
+                estimates.gemm(1.0, &v.rows(i, rows), qi, 1.0);
+            }
         }
+        Prepared { v, feed, estimates }
     }
 
-    /// The input's effect on the state between samples `k` and `k + 1`.
-    fn drive(&self, u: &DMatrix<f64>, k: usize) -> DVector<f64> {
-        let k = k as isize - self.disc.whole as isize;
-        &self.disc.gamma0 * Self::input(u, k) + &self.disc.gamma1 * Self::input(u, k - 1)
+    /// Outputs `C x + D u` of the states `xs` (rows `from ..`) written into `yhat`.
+    fn outputs(&self, pre: &Prepared, xs: &DMatrix<f64>, yhat: &mut DMatrix<f64>, from: usize) {
+        let rows = xs.nrows() - from;
+        let mut out = yhat.rows_mut(from, rows);
+        out.copy_from(&pre.feed.rows(from, rows));
+        out.gemm(1.0, &xs.rows(from, rows), &self.disc.c.transpose(), 1.0);
     }
 
-    fn feed(&self, u: &DMatrix<f64>, k: usize) -> DVector<f64> {
-        &self.disc.d * Self::input(u, k as isize - self.disc.d_shift as isize)
-    }
-
-    /// The output at sample `k` from state `x`.
-    fn output(&self, x: &DVector<f64>, u: &DMatrix<f64>, k: usize) -> DVector<f64> {
-        &self.disc.c * x + self.feed(u, k)
-    }
-
-    /// The state at sample `s >= m` fitted to the outputs `y_{s-m} .. y_s`.
-    fn estimate(
-        &self,
-        v: &[DVector<f64>],
-        u: &DMatrix<f64>,
-        y: &DMatrix<f64>,
-        s: usize,
-    ) -> DVector<f64> {
-        let base = s - self.m;
-        let mut x = DVector::zeros(self.disc.phi.nrows());
-        for (j, pj) in self.p.iter().enumerate() {
-            let k = base + j;
-            x += pj * (y.row(k).transpose() - self.feed(u, k));
+    /// Free run from the first window estimate (see [`Discrete::simulate`]).
+    fn simulate(&self, pre: &Prepared, y: &DMatrix<f64>) -> (DMatrix<f64>, DMatrix<f64>) {
+        let (n, nx, m) = (y.nrows(), self.disc.phi.nrows(), self.m);
+        let mut yhat = y.clone();
+        let mut xs = DMatrix::zeros(n, nx);
+        if n <= m {
+            return (yhat, xs);
         }
-        for (i, qi) in self.q.iter().enumerate() {
-            x += qi * &v[base + i];
+        let mut x = pre.estimates.row(0).transpose();
+        let mut next = DVector::zeros(nx);
+        for k in m..n {
+            xs.row_mut(k).tr_copy_from(&x);
+            next.tr_copy_from(&pre.v.row(k));
+            next.gemv(1.0, &self.disc.phi, &x, 1.0);
+            std::mem::swap(&mut x, &mut next);
         }
-        x
+        self.outputs(pre, &xs, &mut yhat, m);
+        (yhat, xs)
+    }
+
+    /// `k`-step-ahead predictions (see [`Discrete::predict`]): all window estimates are run
+    /// forward together, one step at a time.
+    fn predict(&self, pre: &Prepared, y: &DMatrix<f64>, k: usize) -> (DMatrix<f64>, DMatrix<f64>) {
+        let (n, nx, m) = (y.nrows(), self.disc.phi.nrows(), self.m);
+        let mut yhat = y.clone();
+        let mut xs = DMatrix::zeros(n, nx);
+        let rows = n.saturating_sub(m + k);
+        if rows == 0 {
+            return (yhat, xs);
+        }
+        let phi_t = self.disc.phi.transpose();
+        // Row r holds the prediction of sample t = m + k + r from the estimate at t - k.
+        let mut x = pre.estimates.rows(0, rows).into_owned();
+        let mut next = DMatrix::zeros(rows, nx);
+        for i in 0..k {
+            next.copy_from(&pre.v.rows(m + i, rows));
+            next.gemm(1.0, &x, &phi_t, 1.0);
+            std::mem::swap(&mut x, &mut next);
+        }
+        xs.rows_mut(m + k, rows).copy_from(&x);
+        self.outputs(pre, &xs, &mut yhat, m + k);
+        (yhat, xs)
     }
 }
 
@@ -193,20 +261,7 @@ impl Discrete {
         m: usize,
     ) -> Result<(DMatrix<f64>, DMatrix<f64>)> {
         let r = Runner::new(self, m)?;
-        let n = u.nrows();
-        let mut yhat = y.clone();
-        let mut xs = DMatrix::zeros(n, self.phi.nrows());
-        if n <= m {
-            return Ok((yhat, xs));
-        }
-        let v: Vec<DVector<f64>> = (0..n).map(|k| r.drive(u, k)).collect();
-        let mut x = r.estimate(&v, u, y, m);
-        for (k, vk) in v.iter().enumerate().skip(m) {
-            yhat.row_mut(k).copy_from(&r.output(&x, u, k).transpose());
-            xs.row_mut(k).copy_from(&x.transpose());
-            x = &self.phi * x + vk;
-        }
-        Ok((yhat, xs))
+        Ok(r.simulate(&r.prepare(u, y), y))
     }
 
     /// k-step-ahead predictions for each horizon in `ks`: for every sample `t >= m + k` the
@@ -221,25 +276,8 @@ impl Discrete {
         m: usize,
     ) -> Result<Vec<(DMatrix<f64>, DMatrix<f64>)>> {
         let r = Runner::new(self, m)?;
-        let n = u.nrows();
-        let v: Vec<DVector<f64>> = (0..n).map(|k| r.drive(u, k)).collect();
-        let filtered: Vec<DVector<f64>> = (m..n).map(|s| r.estimate(&v, u, y, s)).collect();
-        Ok(ks
-            .iter()
-            .map(|&k| {
-                let mut yhat = y.clone();
-                let mut xs = DMatrix::zeros(n, self.phi.nrows());
-                for t in (m + k)..n {
-                    let mut x = filtered[t - k - m].clone();
-                    for vs in &v[t - k..t] {
-                        x = &self.phi * x + vs;
-                    }
-                    yhat.row_mut(t).copy_from(&r.output(&x, u, t).transpose());
-                    xs.row_mut(t).copy_from(&x.transpose());
-                }
-                (yhat, xs)
-            })
-            .collect())
+        let pre = r.prepare(u, y);
+        Ok(ks.iter().map(|&k| r.predict(&pre, y, k)).collect())
     }
 }
 
@@ -393,18 +431,18 @@ pub fn time_fit(
         FitAccumulator::new(ny),
         FitAccumulator::new(ny),
     );
+    let runner = Runner::new(&disc, m)?;
     let mut records = Vec::with_capacity(data.experiments.len());
     for e in &data.experiments {
         let (u, y) = (demeaned(&e.u), demeaned(&e.y));
+        let pre = runner.prepare(&u, &y);
         if stable {
-            let (ys, _) = disc.simulate(&u, &y, m)?;
+            let (ys, _) = runner.simulate(&pre, &y);
             sim.add(&y, &ys, m);
         }
-        let mut p = disc.predict(&u, &y, &[k, 1], m)?;
-        let (y1, x1) = p.pop().unwrap_or_else(|| (y.clone(), DMatrix::zeros(0, 0)));
-        if let Some((yk, _)) = p.pop() {
-            pred.add(&y, &yk, m + k);
-        }
+        let (yk, _) = runner.predict(&pre, &y, k);
+        pred.add(&y, &yk, m + k);
+        let (y1, x1) = runner.predict(&pre, &y, 1);
         one.add(&y, &y1, m + 1);
         let from = m + 1;
         let rows = y.nrows() - from;
