@@ -323,6 +323,21 @@ fn reports_structured_misfit_that_no_candidate_explains() {
     .unwrap();
     let d = wb.discover().unwrap();
     assert!(d.unexplained, "{}", d.verdict.sentence());
+    // The loop adds `lag` (not in the truth) to absorb part of the output delay next to the
+    // true coupling; with the misfit remaining neither is confirmed (the Cubli rule).
+    assert!(d.found.is_empty(), "found {:?}", d.found);
+    assert!(
+        d.tentative.iter().any(|e| e == "lag"),
+        "tentative {:?}",
+        d.tentative
+    );
+    assert!(
+        d.tentative_sentence()
+            .unwrap()
+            .contains("structured misfit"),
+        "{:?}",
+        d.caveats
+    );
     match &d.verdict {
         Verdict::UnexplainedStructuredMisfit {
             outputs, band_hz, ..
