@@ -151,11 +151,13 @@ def test_actuator_lag_is_found_with_its_time_constant(tmp_path, drag, found):
 
 def test_velocity_log_filter_is_named_as_unexplained_misfit_in_the_velocity_rows(tmp_path):
     # Drag truth whose logged velocities pass a 30 ms filter (no candidate models it): drag is
-    # found, and the rest is reported as a structured misfit in the velocity rows only.
+    # added but only as tentative (a structured misfit remains next to it), and the rest is
+    # reported as a structured misfit in the velocity rows only.
     campaign(tmp_path / "data", drag=DRAG, velocity_log_tau=0.03, periods=4, seed=92)
     code, err, doc = discover(tmp_path / "data", tmp=tmp_path)
     assert code == 0, err
-    assert doc["found"] == ["momentum_drag"]
+    assert doc["found"] == []
+    assert doc["tentative"] == ["momentum_drag"]
     assert doc["unexplained"] is True
     assert doc["verdict"]["kind"] == "unexplained_structured_misfit"
     assert doc["verdict"]["outputs"] and set(doc["verdict"]["outputs"]) <= {"vx", "vy", "vz"}
@@ -211,17 +213,20 @@ def test_other_period_and_files_given_one_by_one(tmp_path):
     assert abs(err["c_alpha1"]) < 0.10 and abs(err["c_alpha2"]) < 0.10, err
 
 
-def test_design_csv_of_a_drag_truth_finds_momentum_drag(tmp_path):
+def test_design_csv_of_a_drag_truth_proposes_momentum_drag_as_tentative(tmp_path):
+    # A DESIGN.md CSV carries no excitation: the closed-loop FRF estimate is biased under
+    # feedback, so what discovery adds is tentative, never found.
     cfg = ip.Config(drag=DRAG, periods=4, seed=7)
     (tmp_path / "data").mkdir()
     for run in ip.simulate(cfg):
         ip.write_csv(run, tmp_path / "data" / f"e{run.index:02d}.csv", reverse=run.index % 2 == 0)
     code, err, doc = discover(tmp_path / "data", tmp=tmp_path)
     assert code == 0, err
-    assert doc["found"][0] == "momentum_drag"
+    assert doc["found"] == []
+    assert doc["tentative"][0] == "momentum_drag"
 
 
-def test_metadata_without_periods_goes_through_welch_and_finds_drag(tmp_path):
+def test_metadata_without_periods_goes_through_welch_and_proposes_drag(tmp_path):
     # DESIGN.md: the period fields are only for periodic excitation; here only the rate is given.
     cfg = ip.Config(drag=DRAG, periods=4, seed=23)
     (tmp_path / "data").mkdir()
@@ -231,7 +236,10 @@ def test_metadata_without_periods_goes_through_welch_and_finds_drag(tmp_path):
     code, err, doc = discover(tmp_path / "data", tmp=tmp_path)
     assert code == 0, err
     assert doc["estimator"] == "h1_welch_instrumental"
-    assert doc["found"] == ["momentum_drag"]
+    # Welch bins between the multisine lines see the lines only through window leakage, which
+    # leaves a structured misfit near 0.3 Hz: drag is proposed, but only as tentative.
+    assert doc["found"] == []
+    assert doc["tentative"] == ["momentum_drag"]
 
 
 @pytest.fixture(scope="module")
