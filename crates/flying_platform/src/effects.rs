@@ -101,7 +101,7 @@ const FAN_GYROSCOPIC: [ParamSpec; 1] = [ParamSpec {
 const ACTUATOR_LAG: [ParamSpec; 1] = [ParamSpec {
     name: "tau",
     unit: "s",
-    lower: 1e-3,
+    lower: 1e-4,
     upper: 0.5,
     default: 0.01,
     description: "first-order time constant from thrust command to thrust, all 9 inputs",
