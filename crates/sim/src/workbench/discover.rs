@@ -630,7 +630,7 @@ impl Workbench {
 
 /// Runs independent jobs on scoped threads and returns their results in order (a job that
 /// panics is reported as an error naming `what`).
-fn in_parallel<T, F>(jobs: Vec<F>, what: &str) -> Result<Vec<T>>
+pub(crate) fn in_parallel<T, F>(jobs: Vec<F>, what: &str) -> Result<Vec<T>>
 where
     T: Send,
     F: FnOnce() -> Result<T> + Send,

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use nalgebra::DMatrix;
 
 use super::dataset::{Dataset, Experiment, Periodic};
+use super::discover::in_parallel;
 use crate::error::{Result, SimError};
 use crate::log::{read_csv, read_mcap, Experiment as Meta, Table};
 
@@ -79,6 +80,78 @@ fn sample_rate(t: &[f64], what: &Path) -> Result<f64> {
     Ok(1.0 / dt)
 }
 
+/// One experiment and its sample rate from the log `file`.
+fn experiment(
+    system: &str,
+    inputs: &[String],
+    outputs: &[String],
+    file: &Path,
+) -> Result<(Experiment, f64)> {
+    let name = file.display().to_string();
+    let is_csv = file
+        .extension()
+        .is_some_and(|x| x.eq_ignore_ascii_case("csv"));
+    Ok(if is_csv {
+        let table = read_csv(file)?;
+        let fs = sample_rate(&table.t, file)?;
+        let r = if table.fields.iter().any(|f| f.starts_with("r_")) {
+            Some(columns(&table, inputs, "r_")?)
+        } else {
+            None
+        };
+        let e = Experiment {
+            name,
+            u: columns(&table, inputs, "")?,
+            y: columns(&table, outputs, "")?,
+            r,
+            periodic: None,
+        };
+        (e, fs)
+    } else {
+        let log = read_mcap(file)?;
+        let input = log.topic(&format!("/{system}/input"))?;
+        let output = log.topic(&format!("/{system}/output"))?;
+        if input.len() != output.len() {
+            return Err(SimError::LengthMismatch {
+                what: format!(
+                    "messages of /{system}/output in {name} (one output per input sample)"
+                ),
+                expected: input.len(),
+                found: output.len(),
+            });
+        }
+        let r = match log.topics.get(&format!("/{system}/excitation")) {
+            Some(t) if t.len() == input.len() => Some(columns(t, inputs, "")?),
+            Some(t) => {
+                return Err(SimError::LengthMismatch {
+                    what: format!("messages of /{system}/excitation in {name}"),
+                    expected: input.len(),
+                    found: t.len(),
+                })
+            }
+            None => None,
+        };
+        let meta = log.experiment().map(Meta::from_metadata).transpose()?;
+        let fs = match &meta {
+            Some(m) => m.sample_rate_hz,
+            None => sample_rate(&input.t, file)?,
+        };
+        let periodic = meta.and_then(|m| m.periodic).map(|p| Periodic {
+            period: p.period_samples,
+            periods: p.periods,
+            transient: p.transient_samples,
+        });
+        let e = Experiment {
+            name,
+            u: columns(input, inputs, "")?,
+            y: columns(output, outputs, "")?,
+            r,
+            periodic,
+        };
+        (e, fs)
+    })
+}
+
 /// Loads experiments of `system` with the given channel names from `paths`.
 pub fn load(
     system: &str,
@@ -89,70 +162,12 @@ pub fn load(
     let files = expand(paths)?;
     let mut experiments = Vec::with_capacity(files.len());
     let mut rate: Option<f64> = None;
-    for file in &files {
-        let name = file.display().to_string();
-        let is_csv = file
-            .extension()
-            .is_some_and(|x| x.eq_ignore_ascii_case("csv"));
-        let (exp, fs) = if is_csv {
-            let table = read_csv(file)?;
-            let fs = sample_rate(&table.t, file)?;
-            let r = if table.fields.iter().any(|f| f.starts_with("r_")) {
-                Some(columns(&table, inputs, "r_")?)
-            } else {
-                None
-            };
-            let e = Experiment {
-                name,
-                u: columns(&table, inputs, "")?,
-                y: columns(&table, outputs, "")?,
-                r,
-                periodic: None,
-            };
-            (e, fs)
-        } else {
-            let log = read_mcap(file)?;
-            let input = log.topic(&format!("/{system}/input"))?;
-            let output = log.topic(&format!("/{system}/output"))?;
-            if input.len() != output.len() {
-                return Err(SimError::LengthMismatch {
-                    what: format!(
-                        "messages of /{system}/output in {name} (one output per input sample)"
-                    ),
-                    expected: input.len(),
-                    found: output.len(),
-                });
-            }
-            let r = match log.topics.get(&format!("/{system}/excitation")) {
-                Some(t) if t.len() == input.len() => Some(columns(t, inputs, "")?),
-                Some(t) => {
-                    return Err(SimError::LengthMismatch {
-                        what: format!("messages of /{system}/excitation in {name}"),
-                        expected: input.len(),
-                        found: t.len(),
-                    })
-                }
-                None => None,
-            };
-            let meta = log.experiment().map(Meta::from_metadata).transpose()?;
-            let fs = match &meta {
-                Some(m) => m.sample_rate_hz,
-                None => sample_rate(&input.t, file)?,
-            };
-            let periodic = meta.and_then(|m| m.periodic).map(|p| Periodic {
-                period: p.period_samples,
-                periods: p.periods,
-                transient: p.transient_samples,
-            });
-            let e = Experiment {
-                name,
-                u: columns(input, inputs, "")?,
-                y: columns(output, outputs, "")?,
-                r,
-                periodic,
-            };
-            (e, fs)
-        };
+    // Files are read in parallel: parsing their messages is most of the loading time.
+    let jobs: Vec<_> = files
+        .iter()
+        .map(|file| move || experiment(system, inputs, outputs, file))
+        .collect();
+    for (exp, fs) in in_parallel(jobs, "reading a log")? {
         match rate {
             Some(r0) if (r0 - fs).abs() > 1e-6 * r0 => {
                 return Err(SimError::invalid(
