@@ -347,6 +347,17 @@ mod tests {
     }
 
     proptest! {
+        /// The eight-way partial sums equal the plain sum over the common length (chunk and
+        /// remainder both exercised).
+        #[test]
+        fn dot_is_the_plain_sum(x in proptest::collection::vec(-5.0f64..5.0, 0..40),
+                                seed in 0u64..1000) {
+            let y = white(x.len() + (seed % 3) as usize, seed);
+            let plain: f64 = x.iter().zip(&y).map(|(a, b)| a * b).sum();
+            let scale: f64 = x.iter().zip(&y).map(|(a, b)| (a * b).abs()).sum();
+            prop_assert!((dot(&x, &y) - plain).abs() <= 1e-12 * scale.max(1.0));
+        }
+
         /// A normalised correlation is bounded by one (Cauchy-Schwarz), and a record's
         /// autocorrelation at lag 0 is exactly one.
         #[test]
