@@ -123,12 +123,14 @@ fn paper_truth_finds_drag_then_gyroscopic_and_recovers_parameters() {
         "drag {drag}%, total {total}%"
     );
     // In the time domain the drag step improves the 10-step prediction of every channel; the
-    // hover model with drag is open-loop unstable, so its free run is not scored.
+    // hover model with drag is open-loop unstable and the one without has integrators, so
+    // neither free run is scored.
     let (t0, t1) = (&d.steps[0].time_fit, &d.steps[1].time_fit);
     for ((o, before), (_, after)) in t0.prediction.iter().zip(&t1.prediction) {
         assert!(after > before, "{o}: {before} -> {after}");
     }
     assert!(t1.spectral_radius > 1.0 && t1.simulation.is_none());
+    assert!((t0.spectral_radius - 1.0).abs() < 1e-9 && t0.simulation.is_none());
     // Tolerances of spec AT-23 (10% for the well-determined drag parameters).
     check_params(
         &d,

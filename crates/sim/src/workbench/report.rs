@@ -129,7 +129,7 @@ fn time_domain_table(s: &mut String, d: &Discovery) {
                 None => {
                     let _ = write!(
                         s,
-                        " not scored: unstable model (spectral radius {:.4}), the free run diverges",
+                        " not scored: model not asymptotically stable (spectral radius {:.4}), the free run drifts or diverges",
                         tf.spectral_radius
                     );
                 }

@@ -349,8 +349,9 @@ pub struct TimeFit {
     pub window_samples: usize,
     /// Spectral radius of the sampled model (above one it is unstable).
     pub spectral_radius: f64,
-    /// Free-run simulation fit % per output; `None` when the model is unstable (the free
-    /// run diverges, so only predictions compare it with closed-loop data).
+    /// Free-run simulation fit % per output; `None` unless the model is asymptotically
+    /// stable (with integrators or unstable poles the free run drifts or diverges, so only
+    /// predictions compare it with closed-loop data).
     pub simulation: Option<Vec<(String, f64)>>,
     /// k-step-ahead prediction fit % per output.
     pub prediction: Vec<(String, f64)>,
@@ -424,7 +425,9 @@ pub fn time_fit(
         });
     }
     let rho = disc.spectral_radius();
-    let stable = rho <= 1.0 + 1e-9;
+    // Integrators (spectral radius 1) drift as fast as unstable poles diverge on closed-loop
+    // data driven by noise: only an asymptotically stable model's free run is scored.
+    let stable = rho < 1.0 - 1e-9;
     let ny = data.outputs.len();
     let (mut sim, mut pred, mut one) = (
         FitAccumulator::new(ny),
