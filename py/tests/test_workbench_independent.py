@@ -226,8 +226,11 @@ def test_design_csv_of_a_drag_truth_proposes_momentum_drag_as_tentative(tmp_path
     assert doc["tentative"][0] == "momentum_drag"
 
 
-def test_metadata_without_periods_goes_through_welch_and_proposes_drag(tmp_path):
+def test_metadata_without_periods_detects_the_period_from_the_excitation_and_finds_drag(tmp_path):
     # DESIGN.md: the period fields are only for periodic excitation; here only the rate is given.
+    # The logged multisine repeats exactly every 250 samples, so the workbench detects the
+    # period from it and uses the periodic estimator (a Welch estimate would see the lines
+    # between its bins only through window leakage and leave drag tentative).
     cfg = ip.Config(drag=DRAG, periods=4, seed=23)
     (tmp_path / "data").mkdir()
     for run in ip.simulate(cfg):
@@ -235,11 +238,13 @@ def test_metadata_without_periods_goes_through_welch_and_proposes_drag(tmp_path)
                       {"sample_rate_hz": "50"})
     code, err, doc = discover(tmp_path / "data", tmp=tmp_path)
     assert code == 0, err
-    assert doc["estimator"] == "h1_welch_instrumental"
-    # Welch bins between the multisine lines see the lines only through window leakage, which
-    # leaves a structured misfit near 0.3 Hz: drag is proposed, but only as tentative.
-    assert doc["found"] == []
-    assert doc["tentative"] == ["momentum_drag"]
+    assert doc["estimator"] == "instrumental_variable"
+    assert doc["found"][0] == "momentum_drag"
+    assert doc["tentative"] == []
+    # The 200 samples before the last four whole periods are discarded as the transient: the
+    # excited lines are those of the periodic path, multiples of 50 Hz / 250 = 0.2 Hz.
+    lines = np.asarray(doc["frequencies_hz"]) / 0.2
+    assert np.allclose(lines, np.round(lines), atol=1e-9), doc["frequencies_hz"]
 
 
 @pytest.fixture(scope="module")

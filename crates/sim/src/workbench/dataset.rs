@@ -125,10 +125,100 @@ impl Dataset {
         })
     }
 
-    /// True when every experiment is periodic.
+    /// True when every experiment is periodic (see [`Dataset::periodic_layouts`]).
     pub fn is_periodic(&self) -> bool {
-        self.experiments.iter().all(|e| e.periodic.is_some())
+        self.periodic_layouts().is_some()
     }
+
+    /// The periodic layout of every experiment, from its metadata or else detected from its
+    /// logged excitation ([`detect_period`]), and the detected period when any layout was
+    /// detected. `None` when some experiment has neither, or when a detected period differs
+    /// from the others (such records go through Welch).
+    pub fn periodic_layouts(&self) -> Option<(Vec<Periodic>, Option<usize>)> {
+        let mut detected = None;
+        let layouts: Vec<Periodic> = self
+            .experiments
+            .iter()
+            .map(|e| {
+                e.periodic.or_else(|| {
+                    let p = detect_period(e.r.as_ref()?)?;
+                    detected = Some(p.period);
+                    Some(p)
+                })
+            })
+            .collect::<Option<_>>()?;
+        match detected {
+            Some(p) if layouts.iter().any(|l| l.period != p) => None,
+            _ => Some((layouts, detected)),
+        }
+    }
+}
+
+/// Largest deviation between repetitions that still counts as exact repetition, relative to
+/// the excitation's peak: logs written with single-precision (7-digit) values repeat to it.
+const REPETITION_TOLERANCE: f64 = 1e-6;
+
+/// The periodic layout of an excitation that repeats exactly (`r(t + P) = r(t)` on every
+/// channel within rounding) over at least the later half of the record and at least two
+/// periods; `None` for anything else (random excitation, a constant or absent signal).
+///
+/// The smallest such `P` is the period. Samples before the repeating part (a transient the
+/// signal shows) and the incomplete period that precedes the last whole periods are the
+/// transient; when that leaves none and three or more periods were recorded, the first period
+/// is the transient, since the response to an excitation started with the record has not
+/// settled in it.
+///
+/// ```
+/// use nalgebra::DMatrix;
+/// use sim::workbench::dataset::detect_period;
+///
+/// let r = DMatrix::from_fn(110, 1, |i, _| [0.0, 1.0, -2.0, 0.5, 3.0][i % 5]);
+/// let p = detect_period(&r).unwrap();
+/// assert_eq!((p.period, p.periods, p.transient), (5, 21, 5));
+/// let noise = DMatrix::from_fn(110, 1, |i, _| ((i * i) as f64).sin());
+/// assert!(detect_period(&noise).is_none());
+/// ```
+pub fn detect_period(r: &DMatrix<f64>) -> Option<Periodic> {
+    let n = r.nrows();
+    let tol = REPETITION_TOLERANCE * r.amax();
+    if tol == 0.0 || !tol.is_finite() {
+        return None;
+    }
+    let repeats = |t: usize, p: usize| {
+        r.row(t + p)
+            .iter()
+            .zip(r.row(t).iter())
+            .all(|(a, b)| (a - b).abs() <= tol)
+    };
+    (4..=n / 2).find_map(|period| {
+        // Start of the repeating tail: one past the last sample that does not repeat.
+        let start = (0..n - period)
+            .rev()
+            .find(|&t| !repeats(t, period))
+            .map_or(0, |t| t + 1);
+        let periods = (n - start) / period;
+        let tail = r.rows(start, n - start);
+        let varies = tail
+            .column_iter()
+            .any(|c| c.iter().any(|v| (v - c[0]).abs() > 100.0 * tol));
+        if periods < 2 || start > n / 2 || !varies {
+            return None;
+        }
+        let transient = n - periods * period;
+        Some(if transient == 0 && periods >= 3 {
+            Periodic {
+                period,
+                periods: periods - 1,
+                transient: period,
+            }
+        } else {
+            Periodic {
+                period,
+                periods,
+                transient,
+            }
+        })
+    })
 }
 
 fn check_block(
@@ -167,6 +257,99 @@ fn check_block(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    /// `lead` samples of something else, then `n` samples of `pattern` repeated on two channels.
+    fn repeated(pattern: &[f64], lead: usize, n: usize) -> DMatrix<f64> {
+        DMatrix::from_fn(lead + n, 2, |i, j| {
+            if i < lead {
+                7.0 + (i * (j + 1)) as f64
+            } else {
+                pattern[(i - lead) % pattern.len()] * (j as f64 + 1.0)
+            }
+        })
+    }
+
+    proptest! {
+        #[test]
+        fn detects_the_period_and_keeps_only_whole_periods_after_the_transient(
+            pattern in proptest::collection::vec(-5.0f64..5.0, 4..40),
+            periods in 2usize..8,
+            extra in 0usize..40,
+            lead in 0usize..20,
+        ) {
+            let p = pattern.len();
+            let n = periods * p + extra % p;
+            let r = repeated(&pattern, lead, n);
+            let smallest = (1..=p).find(|&q| p % q == 0 && (0..p).all(|i| pattern[i] == pattern[(i + q) % p])).unwrap_or(p);
+            prop_assume!(smallest == p && lead <= n);
+            let l = detect_period(&r).unwrap();
+            prop_assert_eq!(l.period, p);
+            prop_assert!(l.transient >= lead);
+            prop_assert_eq!(l.transient + l.periods * l.period, r.nrows());
+            prop_assert!(l.periods >= 2);
+            // Every kept period repeats the last one.
+            for k in 0..l.periods {
+                for i in 0..p {
+                    prop_assert_eq!(r[(l.transient + k * p + i, 1)], r[(r.nrows() - p + i, 1)]);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn single_precision_rounding_still_repeats() {
+        let pattern: Vec<f64> = (0..25).map(|i| (0.37 * i as f64).sin()).collect();
+        let mut r = repeated(&pattern, 0, 100);
+        for (i, v) in r.iter_mut().enumerate() {
+            *v = (*v as f32) as f64 + if i % 2 == 0 { 1e-8 } else { -1e-8 };
+        }
+        let l = detect_period(&r).unwrap();
+        assert_eq!((l.period, l.periods, l.transient), (25, 3, 25));
+    }
+
+    #[test]
+    fn nothing_repeating_over_the_record_is_not_periodic() {
+        let pattern = [1.0, -1.0, 2.0, 0.5, -3.0];
+        // Repeats only over the last 40 % of the record: a leading part that long is not a
+        // transient but a different signal.
+        assert!(detect_period(&repeated(&pattern, 60, 40)).is_none());
+        // A constant or zero tail repeats with any period but carries no excitation.
+        let mut r = repeated(&pattern, 0, 20);
+        r = r.insert_rows(20, 60, 0.0);
+        assert!(detect_period(&r).is_none());
+        assert!(detect_period(&DMatrix::zeros(100, 2)).is_none());
+        // A single period is not enough to see repetition.
+        assert!(detect_period(&repeated(&pattern, 0, 9)).is_none());
+    }
+
+    #[test]
+    fn detected_periods_must_agree_across_experiments() {
+        let mut d = small();
+        d.experiments[0].periodic = None;
+        let pattern = [1.0, -1.0, 2.0, 0.5];
+        d.experiments[0].r = Some(repeated(&pattern, 0, 20).columns(0, 1).into_owned());
+        // Metadata says 8, the excitation repeats every 4: not one periodic layout.
+        let mut other = d.experiments[0].clone();
+        other.periodic = Some(Periodic {
+            period: 8,
+            periods: 2,
+            transient: 4,
+        });
+        d.experiments.push(other);
+        assert!(d.periodic_layouts().is_none());
+        d.experiments.pop();
+        let (layouts, detected) = d.periodic_layouts().unwrap();
+        assert_eq!(detected, Some(4));
+        assert_eq!(
+            layouts,
+            [Periodic {
+                period: 4,
+                periods: 4,
+                transient: 4
+            }]
+        );
+    }
 
     fn small() -> Dataset {
         Dataset {

@@ -104,6 +104,8 @@ pub struct FrfEstimate {
     pub noise_dof: usize,
     /// Segmentation of a Welch estimate (non-periodic logs).
     pub welch: Option<super::welch::WelchLayout>,
+    /// Period found in the logged excitation of records without period metadata.
+    pub detected_period: Option<usize>,
 }
 
 impl FrfEstimate {
@@ -125,7 +127,13 @@ impl FrfEstimate {
                 w.resolution_hz,
                 w.segments
             ),
-            None => self.estimator.describe().to_string(),
+            None => match self.detected_period {
+                Some(p) => format!(
+                    "{}, period detected from the excitation: {p} samples",
+                    self.estimator.describe()
+                ),
+                None => self.estimator.describe().to_string(),
+            },
         }
     }
     /// Line frequencies in Hz.
@@ -144,19 +152,18 @@ struct ExperimentSpectra {
 /// Estimates the FRF from periodic experiments (all with the same period).
 pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstimate> {
     data.validate()?;
-    let layouts: Vec<_> = data
-        .experiments
-        .iter()
-        .map(|e| {
-            e.periodic.ok_or_else(|| {
-                SimError::invalid(
-                    format!("period_samples of {}", e.name),
-                    "absent",
-                    "periodic FRF needs every experiment to be periodic (experiment metadata period_samples, periods)",
-                )
-            })
-        })
-        .collect::<Result<_>>()?;
+    let (layouts, detected_period) = data.periodic_layouts().ok_or_else(|| {
+        let e = data
+            .experiments
+            .iter()
+            .find(|e| e.periodic.is_none())
+            .map_or("an experiment", |e| e.name.as_str());
+        SimError::invalid(
+            format!("period_samples of {e}"),
+            "absent",
+            "periodic FRF needs every experiment to be periodic (experiment metadata period_samples, periods, or a logged excitation that repeats with the period of the others)",
+        )
+    })?;
     let n = layouts[0].period;
     if let Some((e, l)) = data
         .experiments
@@ -293,6 +300,7 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
         periods,
         noise_dof,
         welch: None,
+        detected_period,
     })
 }
 

@@ -289,6 +289,7 @@ pub fn welch_frf(
             periods: vec![1; segments],
             noise_dof: dof,
             welch: Some(layout),
+            detected_period: None,
         },
         layout,
         per_experiment,
