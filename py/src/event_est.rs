@@ -5,7 +5,9 @@ use event_est::alternation::alternate;
 use event_est::model::{platoon, System};
 use event_est::runtime::{InputMode, LocalUpdate};
 use event_est::sim::{simulate as run_sim, Design, SimConfig};
-use event_est::synth::{complete, step1, step1_relaxed, Stability};
+use event_est::synth::{
+    complete_using, step1, step1_relaxed, step1_using, BudgetBase, Solver, Stability,
+};
 use event_est::EventEstError;
 use nalgebra::{DMatrix, DVector};
 use numpy::ndarray::Array2;
@@ -113,9 +115,12 @@ fn platoon_model(py: Python<'_>, vehicles: usize) -> PyResult<Bound<'_, PyDict>>
 /// Gains L and thresholds Δ_i for the bound J_max (default 37·c*): Step 1 + Step 2
 /// (`objective = "kalman"`, optionally with the relaxed Step 1 of weight `relax`) or the
 /// alternation of gain and threshold steps that maximises Σ tr Δ_i (`objective = "general"`).
+/// `solver` ("auto", "clarabel" or "schur") picks the SDP solver of the plain two-step design;
+/// "auto" takes the Schur-complement method above 10 states (large platoons).
 #[pyfunction]
 #[pyo3(signature = (model, j_max = None, condition = "cor12", objective = "kalman", relax = None,
-    max_iter = 20))]
+    max_iter = 20, solver = "auto"))]
+#[allow(clippy::too_many_arguments)] // the model and the synthesis options of the docstring
 fn synthesize<'py>(
     py: Python<'py>,
     model: &Bound<'py, PyDict>,
@@ -124,9 +129,25 @@ fn synthesize<'py>(
     objective: &str,
     relax: Option<f64>,
     max_iter: usize,
+    solver: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
     let sys = system(model, true)?;
     let stability = Stability::parse(condition).map_err(to_py_err)?;
+    let chosen = match solver {
+        "auto" => Solver::for_states(sys.n()),
+        name => Solver::parse(name).map_err(|_| {
+            PyValueError::new_err(format!(
+                "solver must be \"auto\", \"clarabel\" or \"schur\", got {name:?}"
+            ))
+        })?,
+    };
+    if solver != "auto" && chosen != Solver::Clarabel && (relax.is_some() || objective == "general")
+    {
+        return Err(PyValueError::new_err(
+            "solver applies to the plain two-step design (objective \"kalman\" without \
+             relax); the relaxed Step 1 and the alternation run on Clarabel",
+        ));
+    }
     let d = PyDict::new(py);
     match objective {
         "kalman" => {
@@ -137,10 +158,11 @@ fn synthesize<'py>(
                             let r = step1_relaxed(&sys, stability, w)?;
                             (r.step1, r.lambda_bar)
                         }
-                        None => (step1(&sys, stability)?, 0.0),
+                        None => (step1_using(&sys, stability, chosen)?, 0.0),
                     };
                     let j = j_max.unwrap_or(37.0 * s1.c_star);
-                    Ok::<_, EventEstError>((complete(&sys, s1, j)?, lambda_bar))
+                    let base = BudgetBase::Step1Bound;
+                    Ok::<_, EventEstError>((complete_using(&sys, s1, j, base, chosen)?, lambda_bar))
                 })
                 .map_err(to_py_err)?;
             design_items(py, &d, &syn.design, syn.j_max, &syn.bound)?;

@@ -108,3 +108,15 @@ def test_bad_objective_options_are_named(model):
         event_est.synthesize(model, relax=-1.0)
     with pytest.raises(ValueError, match="model has no entry W"):
         event_est.synthesize({k: v for k, v in model.items() if k != "W"})
+
+
+def test_schur_solver_gives_the_clarabel_design(model, design):
+    # Same SDPs on the Schur-complement interior-point method: c* and the thresholds agree.
+    schur = event_est.synthesize(model, j_max=design["j_max"], condition="cor12", solver="schur")
+    assert schur["c_star"] == pytest.approx(design["c_star"], rel=1e-5)
+    for a, b in zip(schur["delta"], design["delta"]):
+        assert np.allclose(a, b, rtol=1e-4)
+    with pytest.raises(ValueError, match="solver"):
+        event_est.synthesize(model, solver="mosek")
+    with pytest.raises(ValueError, match="two-step"):
+        event_est.synthesize(model, solver="schur", objective="general")

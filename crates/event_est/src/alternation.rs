@@ -28,7 +28,7 @@ use crate::model::System;
 use crate::sim::Design;
 use crate::synth::{
     analyse, certified_thresholds, delta_block, full_communication_cost, step1, subset_name, Bound,
-    Stability,
+    Solver, Stability,
 };
 use nalgebra::DMatrix;
 
@@ -576,7 +576,7 @@ fn threshold_iterate(
     let sys = sc.sys;
     let (stability_certificate, stability_margins) = stability_certificate(sys, &l, &sc.pats)?;
     let h2 = full_communication_cost(sys, &l)?;
-    let (_, design, bound) = certified_thresholds(sys, l, h2, j_max)?;
+    let (_, design, bound) = certified_thresholds(sys, l, h2, j_max, Solver::Clarabel)?;
     Ok(Iterate {
         trace_delta: design.delta.iter().map(|d| d.trace()).sum(),
         design,

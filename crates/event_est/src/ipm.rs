@@ -49,6 +49,17 @@ pub enum Solver {
 }
 
 impl Solver {
+    /// The faster solver for a system of `n` states: Clarabel up to 10 states, the
+    /// Schur-complement method above (6 or more platoon vehicles, where Clarabel's KKT blocks of
+    /// the vertex LMIs take seconds to hours; see the README's synthesis times).
+    pub fn for_states(n: usize) -> Self {
+        if n > 10 {
+            Self::SchurIpm
+        } else {
+            Self::Clarabel
+        }
+    }
+
     /// Parses "clarabel" or "schur".
     pub fn parse(s: &str) -> Result<Self, EventEstError> {
         match s.to_ascii_lowercase().as_str() {

@@ -744,11 +744,22 @@ pub fn complete_with(
     j_max: f64,
     base: BudgetBase,
 ) -> Result<Synthesis, EventEstError> {
+    complete_using(sys, step1, j_max, base, Solver::Clarabel)
+}
+
+/// [`complete_with`] with Step 2 on a chosen SDP solver.
+pub fn complete_using(
+    sys: &System,
+    step1: Step1,
+    j_max: f64,
+    base: BudgetBase,
+    solver: Solver,
+) -> Result<Synthesis, EventEstError> {
     let spent = match base {
         BudgetBase::Step1Bound => step1.c_star,
         BudgetBase::ExactH2 => step1.true_h2,
     };
-    let (unit, design, bound) = certified_thresholds(sys, step1.l.clone(), spent, j_max)?;
+    let (unit, design, bound) = certified_thresholds(sys, step1.l.clone(), spent, j_max, solver)?;
     Ok(Synthesis {
         step1,
         unit,
@@ -765,9 +776,10 @@ pub(crate) fn certified_thresholds(
     l: DMatrix<f64>,
     spent: f64,
     j_max: f64,
+    solver: Solver,
 ) -> Result<(UnitThresholds, Design, Bound), EventEstError> {
     budget_gamma(sys, spent, j_max)?;
-    let unit = step2_unit(sys, &l, 1.0)?;
+    let unit = step2_unit_using(sys, &l, 1.0, solver)?;
     let delta = thresholds(sys, &unit, spent, j_max)?;
     let design = Design { l, delta };
     let bound = analyse(sys, &design)?;

@@ -47,7 +47,7 @@ def _model(model):
 
 
 def synthesize(model, j_max=None, condition="cor12", objective="kalman", relax=None,
-               max_iter=20):
+               max_iter=20, solver="auto"):
     """Gains and thresholds for ``model`` (a dict as returned by :func:`platoon`).
 
     ``j_max``: bound on the error power (default 37 times the full-communication cost c*);
@@ -56,6 +56,9 @@ def synthesize(model, j_max=None, condition="cor12", objective="kalman", relax=N
     alternates gain steps (thresholds fixed) and threshold steps (gains fixed) to maximise
     sum(tr delta_i) at the same certified bound, for at most ``max_iter`` iterations.
     ``relax``: weight of the decay bound lambda_bar in the relaxed Step 1 (objective "kalman").
+    ``solver``: SDP solver of the two-step design, "clarabel", "schur" (Schur-complement
+    interior-point method, minutes instead of hours for a 20-vehicle platoon) or "auto" (schur
+    above 10 states).
 
     Returns a dict with L, delta (list of per-agent matrices), j_max, bound (certified),
     g1_hinf, g2_h2 and, for "kalman": delta_unit, c_star, true_h2, kalman_cost, lambda_bar,
@@ -66,7 +69,7 @@ def synthesize(model, j_max=None, condition="cor12", objective="kalman", relax=N
     """
     return _native.synthesize(
         _model(model), None if j_max is None else float(j_max), str(condition), str(objective),
-        None if relax is None else float(relax), int(max_iter),
+        None if relax is None else float(relax), int(max_iter), str(solver),
     )
 
 
