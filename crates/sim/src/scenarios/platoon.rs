@@ -259,17 +259,18 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
+    /// The summary of a platoon run with `args`.
+    fn summary(args: &[&str]) -> serde_json::Map<String, serde_json::Value> {
+        let system = SimSystem::parse_args("platoon", args.iter().copied()).unwrap();
+        run(system.scenario(), &mut Progress::hidden())
+            .unwrap()
+            .summary
+    }
+
     #[test]
     fn general_design_has_larger_thresholds_within_the_same_bound() {
-        let summary = |design: &str| {
-            let args = ["--duration", "20", "--design", design];
-            let system = SimSystem::parse_args("platoon", args).unwrap();
-            run(system.scenario(), &mut Progress::hidden())
-                .unwrap()
-                .summary
-        };
-        let two = summary("two-step");
-        let general = summary("general");
+        let two = summary(&["--duration", "20", "--design", "two-step"]);
+        let general = summary(&["--duration", "20", "--design", "general"]);
         let trace = |s: &serde_json::Map<String, serde_json::Value>| -> Vec<f64> {
             s["trace_delta"]
                 .as_array()
@@ -293,14 +294,8 @@ mod tests {
 
     #[test]
     fn both_solvers_give_the_same_design() {
-        let summary = |solver: &str| {
-            let args = ["--duration", "1", "--solver", solver];
-            let system = SimSystem::parse_args("platoon", args).unwrap();
-            run(system.scenario(), &mut Progress::hidden())
-                .unwrap()
-                .summary
-        };
-        let (clarabel, schur) = (summary("clarabel"), summary("schur"));
+        let clarabel = summary(&["--duration", "1", "--solver", "clarabel"]);
+        let schur = summary(&["--duration", "1", "--solver", "schur"]);
         assert_eq!(clarabel["solver"].as_str(), Some("Clarabel"));
         assert_eq!(schur["solver"].as_str(), Some("SchurIpm"));
         // Three vehicles, Cor 12: both reach Solved; c* and the certified bound agree to 1e-5.
