@@ -316,7 +316,7 @@ impl Workbench {
         let residuals: Vec<_> = runs.iter().map(|(e, _, _)| e).collect();
         let states: Vec<_> = runs.iter().map(|(_, x, _)| x).collect();
         let inputs: Vec<_> = runs.iter().map(|(_, _, u)| u).collect();
-        let residual_tests = residual_tests(
+        let mut residual_tests = residual_tests(
             &residuals,
             &inputs,
             &states,
@@ -324,6 +324,9 @@ impl Workbench {
             &self.data.inputs,
             DEFAULT_LAGS,
         );
+        if time_fit.kalman.is_some() {
+            residual_tests.residual = "innovations of the stationary Kalman predictor".into();
+        }
         let (expected, _) = self.noise.fitted_level(r.free);
         let base = base_cost.unwrap_or(r.cost);
         Ok(Step {
