@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 from scipy.linalg import expm, solve_discrete_are
 
-from independent_platform import periodic_signal, write_mcap
+from independent_platform import write_mcap
 
 INPUTS = ["F"]
 OUTPUTS = ["x", "theta"]
@@ -278,19 +278,23 @@ def closed_loop_radius(cfg: Config, ctrl: Controller) -> float:
 # --- excitation and runs ------------------------------------------------------------------
 
 
+def one_period(spec: np.ndarray, period: int) -> np.ndarray:
+    """sum_k |X_k| cos(2 pi k n / N + arg X_k), n = 0..N-1, lines k = 1..len(spec) < N/2."""
+    z = np.zeros(period // 2 + 1, complex)
+    z[1:len(spec) + 1] = spec * (period / 2)
+    return np.fft.irfft(z, period)
+
+
 def multisine(cfg: Config, rng: np.random.Generator) -> np.ndarray:
-    """Flat line spectrum (lines 1..lines) with the lowest-crest-factor random phases, scaled
-    to r_rms."""
-    n = np.arange(cfg.period_samples)
+    """One period of a flat multisine on lines 1..lines with the lowest-crest-factor random
+    phases of phase_draws draws, scaled to r_rms."""
     best, best_crest = None, np.inf
     for _ in range(cfg.phase_draws):
-        spec = np.exp(1j * rng.uniform(0, 2 * np.pi, cfg.lines))
-        s = periodic_signal(spec, n, cfg.period_samples)
+        s = one_period(np.exp(1j * rng.uniform(0, 2 * np.pi, cfg.lines)), cfg.period_samples)
         crest = np.abs(s).max() / np.sqrt(np.mean(s**2))
         if crest < best_crest:
-            best, best_crest = spec, crest
-    rms = np.sqrt(np.mean(periodic_signal(best, n, cfg.period_samples) ** 2))
-    return best * cfg.r_rms / rms
+            best, best_crest = s, crest
+    return best * cfg.r_rms / np.sqrt(np.mean(best**2))
 
 
 @dataclass
@@ -328,7 +332,7 @@ def simulate(cfg: Config) -> list[Run]:
     ac, bc, cc, dc = (np.asarray(m, float) for m in (ctrl.A, ctrl.B, ctrl.C, ctrl.D))
     runs = []
     for e in range(1, cfg.experiments + 1):
-        r = periodic_signal(multisine(cfg, rng), n, cfg.period_samples)
+        r = multisine(cfg, rng)[n % cfg.period_samples]
         w = rng.standard_normal(count) * cfg.force_noise
         tq = rng.standard_normal(count) * cfg.torque_noise
         noise = rng.standard_normal((count, 2)) * [cfg.x_sigma, cfg.theta_sigma]
