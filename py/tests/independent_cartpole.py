@@ -85,7 +85,7 @@ class Config:
     transient_samples: int = 300
     experiments: int = 4
     lines: int = 70  # excited lines 1..lines: 0.1 .. 7 Hz at the defaults
-    r_rms: float = 0.6  # excitation rms, N
+    r_rms: float = 0.3  # excitation rms, N (the pole stays within 0.05 rad of upright)
     phase_draws: int = 50
     force_noise: float = 0.05  # force disturbance per sample (held), N
     torque_noise: float = 0.002  # pole torque disturbance per sample (held), N m
@@ -146,15 +146,26 @@ def design_controller(cfg: Config) -> Controller:
     r = np.array([[1.0]])
     p = solve_discrete_are(ad, bd, q, r)
     k = np.linalg.solve(r + bd.T @ p @ bd, bd.T @ p @ ad)
-    # The filter's noise model: a 0.5 N force disturbance per sample (covering the excitation
-    # it does not see), ten times the sensors' noise (a slower filter, for margin).
+    # The filter's noise model (fixed, whatever a campaign's noise): a 0.5 N force disturbance
+    # per sample (covering the excitation it does not see), 2 mm and 5 mrad of sensor noise
+    # (ten times the default sensors': a slower filter, for margin).
     qn = 0.5**2 * bd @ bd.T + 1e-10 * np.eye(4)
-    rn = np.diag([cfg.x_sigma**2, cfg.theta_sigma**2]) * 100.0
+    rn = np.diag([2e-3**2, 5e-3**2])
     pp = solve_discrete_are(ad.T, c.T, qn, rn)  # prior covariance
     m = pp @ c.T @ np.linalg.inv(c @ pp @ c.T + rn)
     acl = ad - bd @ k
     imc = np.eye(4) - m @ c
     return Controller(A=acl @ imc, B=acl @ m, C=-k @ imc, D=-k @ m)
+
+
+def controller_toml(ctrl: Controller) -> str:
+    """The matrices of the model file's [controller] section (py/tests/data/cart_pole.toml
+    holds those of design_controller(Config()), printed by this)."""
+    def matrix(m: np.ndarray) -> str:
+        rows = ["[" + ", ".join(repr(float(v)) for v in row) + "]" for row in np.atleast_2d(m)]
+        return "[" + ",\n     ".join(rows) + "]"
+
+    return "".join(f"{n} = {matrix(getattr(ctrl, n))}\n" for n in "ABCD")
 
 
 # --- the nonlinear truth ------------------------------------------------------------------
@@ -268,6 +279,23 @@ def linear_closed_loop(cfg: Config, ctrl: Controller) -> tuple[np.ndarray, np.nd
     cz = np.zeros((2, nz))
     cz[:, :n] = c
     return az, bz, cz
+
+
+def sampled_frf(p: Plant, freqs_hz: np.ndarray, ts: float) -> np.ndarray:
+    """The exact sampled FRF from F to (x, theta) of the linearised truth with its delay:
+    (lines, 2 outputs)."""
+    a, b = linearised_truth(p)
+    n = a.shape[0]
+    d, phi = delay_split(p.td, ts)
+    phi_full, _ = zoh(a, b, ts)
+    e_rest, g0 = zoh(a, b, ts - phi)
+    _, g_phi = zoh(a, b, phi)
+    g1 = e_rest @ g_phi
+    c = np.zeros((2, n))
+    c[0, 0] = c[1, 2] = 1.0
+    z = np.exp(2j * np.pi * np.asarray(freqs_hz) * ts)
+    return np.array([c @ np.linalg.solve(zi * np.eye(n) - phi_full, (g0 + g1 / zi) * zi ** -d)[:, 0]
+                     for zi in z])
 
 
 def closed_loop_radius(cfg: Config, ctrl: Controller) -> float:
@@ -402,8 +430,13 @@ def campaign(directory: Path, **kw) -> tuple[Config, list[Path]]:
     return cfg, write_runs(cfg, simulate(cfg), Path(directory))
 
 
-if __name__ == "__main__":  # a campaign into DIR: python independent_cartpole.py DIR [seed]
+if __name__ == "__main__":
+    # python independent_cartpole.py DIR [seed]: a default campaign (nominal truth) into DIR;
+    # python independent_cartpole.py --controller: the model file's controller matrices.
     import sys
 
-    cfg_, paths_ = campaign(Path(sys.argv[1]), seed=int(sys.argv[2]) if len(sys.argv) > 2 else 0)
-    print("\n".join(map(str, paths_)))
+    if sys.argv[1] == "--controller":
+        print(controller_toml(design_controller(Config())), end="")
+    else:
+        seed = int(sys.argv[2]) if len(sys.argv) > 2 else 0
+        print("\n".join(map(str, campaign(Path(sys.argv[1]), seed=seed)[1])))

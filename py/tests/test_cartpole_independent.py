@@ -167,9 +167,9 @@ def test_model_file_controller_is_the_simulators_and_stabilises_every_truth():
 
 
 @pytest.mark.parametrize("case", [{}, {"td": 0.007}, {"td": TD_TRUE, "tau": TAU_TRUE, "b": 1.0},
-                                  {"td": 0.02, "flex_hz": FLEX_HZ}, {"td": 0.01}],
+                                  {"td": 0.005, "flex_hz": FLEX_HZ}, {"td": 0.01}],
                          ids=["rigid", "td-0.7-samples", "td-1.5-lag-friction",
-                              "td-2-flex", "td-1-sample"])
+                              "td-0.5-flex", "td-1-sample"])
 def test_nonlinear_loop_at_tiny_amplitude_is_the_exact_discretised_linear_loop(case):
     # RK4 sub-stepping with the delayed hold switching mid-sample against the matrix
     # exponential of the linearised truth with the delay split exactly (two ways to the same
@@ -199,7 +199,7 @@ def test_excitation_is_the_periodic_multisine_and_the_pole_stays_near_upright():
         excited = np.arange(1, cfg.lines + 1)
         assert power[np.setdiff1d(np.arange(len(power)), excited)].sum() < 1e-20 * power.sum()
         assert np.std(power[excited]) < 1e-9 * power[excited].mean()  # flat lines
-        assert np.sqrt(np.mean(r**2)) == pytest.approx(cfg.r_rms, rel=1e-9)
+        assert np.sqrt(np.mean(periods[0] ** 2)) == pytest.approx(cfg.r_rms, rel=1e-9)
         assert np.abs(run.state[:, 2]).max() < 0.1  # rad: near upright, mildly nonlinear
     # Fresh phases per experiment.
     assert not np.allclose(runs[0].r, runs[1].r)
@@ -493,3 +493,81 @@ def test_an_error_in_the_users_callable_reaches_the_caller_unchanged(campaigns):
     with pytest.raises(Sentinel, match="no matrices for M"):
         model = python_cart_pole(stabilis, matrices=broken)
         stabilis.Workbench(model=model, data=[str(campaigns("nothing", 1))]).discover()
+
+
+# --- the campaign carries the information the acceptance asks for -------------------------
+
+
+def read_log(path: Path) -> tuple[dict[str, str], dict[str, np.ndarray]]:
+    """(experiment metadata, {topic: samples x fields}) of one log, read with `mcap`."""
+    cols = {"/cart_pole/input": ["F"], "/cart_pole/output": ["x", "theta"],
+            "/cart_pole/excitation": ["F"]}
+    rows = {t: [] for t in cols}
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        for _, channel, message in reader.iter_messages(topics=list(cols)):
+            msg = json.loads(message.data)
+            rows[channel.topic].append([msg[n] for n in cols[channel.topic]])
+        meta = next(m.metadata for m in reader.iter_metadata() if m.name == "experiment")
+    return meta, {t: np.array(v) for t, v in rows.items()}
+
+
+def periodic_frf(directory: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(freqs, G, std): Y/U on the excited lines per period and experiment, averaged."""
+    ratios = []
+    for path in sorted(directory.glob("*.mcap")):
+        meta, log = read_log(path)
+        n, periods = int(meta["period_samples"]), int(meta["periods"])
+        start = int(meta["transient_samples"])
+
+        def spectrum(topic):
+            return np.fft.rfft(log[topic][start:].reshape(periods, n, -1), axis=1)
+
+        rf = np.abs(spectrum("/cart_pole/excitation")[0, :, 0])
+        excited = np.flatnonzero(rf > 1e-6 * rf.max())  # the lines the excitation carries
+        uf, yf = spectrum("/cart_pole/input"), spectrum("/cart_pole/output")
+        ratios.append(yf[:, excited] / uf[:, excited])
+    g = np.concatenate(ratios)
+    rate = float(meta["sample_rate_hz"])
+    return excited * rate / n, g.mean(0), g.std(0) / np.sqrt(len(g))
+
+
+def scipy_fit(freqs, g, std, effects):
+    """Weighted least squares of the sampled FRF over M, l, J and `effects` (scipy)."""
+    from scipy.optimize import least_squares
+
+    start = {"M": 1.0, "l": 0.3, "J": 0.006, "b": 0.5, "tau": 0.01, "td": 0.005}
+    names = ["M", "l", "J", *effects]
+    x0 = np.array([start[k] for k in names])
+
+    def residual(x):
+        p = replace(ic.documented_plant(), **dict(zip(names, x)))
+        r = (ic.sampled_frf(p, freqs, 0.01) - g) / std
+        return np.concatenate([r.real.ravel(), r.imag.ravel()])
+
+    lower = [0.1, 0.05, 0.0] + [0.0] * len(effects)
+    fit = least_squares(residual, x0, x_scale=x0, bounds=(lower, np.inf))
+    return dict(zip(names, fit.x)), float(np.mean(fit.fun**2) * 2)
+
+
+@pytest.mark.parametrize("case, effects", [("nothing", []), ("friction", ["b"]),
+                                           ("delay", ["td"])])
+def test_the_logs_identify_the_hidden_effect_with_scipy(campaigns, case, effects):
+    # An independent reference for the acceptance: the right structure fitted to the periodic
+    # FRF of the logs (read back with `mcap`) by scipy reaches the noise level (normalised cost
+    # near 1 for a complex residual counted as two reals) and recovers the hidden parameter to
+    # 3 %, where the nominal model misses by far more than the noise.
+    freqs, g, std = periodic_frf(campaigns(case, SEEDS[case][0]))
+    assert np.allclose(freqs, 0.1 * np.arange(1, 71))
+    _, nominal = scipy_fit(freqs, g, std, [])
+    params, cost = scipy_fit(freqs, g, std, effects)
+    assert cost < 1.5, cost
+    for name in effects:
+        assert abs(params[name] / CASES[case][name] - 1) < 0.03, (name, params)
+        assert nominal > 50 * cost, (nominal, cost)
+
+
+def test_lag_and_delay_cannot_explain_the_flexible_mode(campaigns):
+    freqs, g, std = periodic_frf(campaigns("flex", SEEDS["flex"][0]))
+    params, cost = scipy_fit(freqs, g, std, ["tau", "td"])
+    assert cost > 100, (cost, params)
