@@ -293,9 +293,9 @@ def sampled_frf(p: Plant, freqs_hz: np.ndarray, ts: float) -> np.ndarray:
     g1 = e_rest @ g_phi
     c = np.zeros((2, n))
     c[0, 0] = c[1, 2] = 1.0
-    z = np.exp(2j * np.pi * np.asarray(freqs_hz) * ts)
-    return np.array([c @ np.linalg.solve(zi * np.eye(n) - phi_full, (g0 + g1 / zi) * zi ** -d)[:, 0]
-                     for zi in z])
+    z = np.exp(2j * np.pi * np.asarray(freqs_hz) * ts)[:, None, None]
+    rhs = (g0 + g1 / z) * z ** -d
+    return (c @ np.linalg.solve(z * np.eye(n) - phi_full, rhs))[:, :, 0]
 
 
 def closed_loop_radius(cfg: Config, ctrl: Controller) -> float:
