@@ -9,14 +9,17 @@ Written with numpy/scipy and the official `mcap` writer only (no stabilis code):
       (M + m) x'' + m l cos(theta) theta'' - m l sin(theta) theta'^2 = F_c
       m l cos(theta) x'' + (J + m l^2) theta'' - m g l sin(theta)    = T_d
 
-  with the force on the cart F_c = F_a + w - b x' - F_coul tanh(x' / v_coul): F_a the actuator
-  force, w a force disturbance (process noise, held over each sample), b the cart's viscous
-  friction, and T_d a small torque disturbance on the pole.
+  with the force on the cart F_c = F_a + w - b x' - F_coul tanh(x' / v_coul) + F_s: F_a the
+  actuator force, w a force disturbance (process noise, held over each sample), b the cart's
+  viscous friction, and T_d a small torque disturbance on the pole.
+* A flexible mode no effect of the model file and no generic effect describes (switchable): an
+  appendage of mass m_f on the cart (a cable carrier, a sensor mast) on a lightly damped
+  spring, q its displacement relative to the cart, natural frequency wn, damping zeta:
+  F_s = m_f wn (wn q + 2 zeta q'), q'' = -x'' - F_s / m_f. Below wn it adds m_f to the cart
+  (the fitted M absorbs it); around wn it puts a resonance / antiresonance pair in the band.
 * Actuator chain from the logged command F to F_a, each link switchable: an exact transport
-  delay td (the zero-order-hold command switches at k Ts + td, integrated as two sub-intervals),
-  a first-order lag tau F_l' = F_del - F_l, and a flexible transmission (a lightly damped
-  resonance, f'' = wn^2 (F_l - f) - 2 zeta wn f', unit static gain) that no effect of the model
-  file and no generic effect describes.
+  delay td (the zero-order-hold command switches at k Ts + td, integrated as two sub-intervals)
+  and a first-order lag tau F_a' = F_del - F_a.
 * Integration: classical RK4 with sub-steps of at most Ts / substeps between samples.
 * Sensors: x and theta at 100 Hz with white noise.
 * Controller (its own): a discrete LQR on the current estimate of a Kalman filter, both designed
@@ -65,8 +68,9 @@ class Plant:
     coulomb_v: float = 0.01  # its tanh smoothing speed, m/s
     tau: float = 0.0  # actuator lag, s
     td: float = 0.0  # transport delay of the force, s (any value >= 0, fractional exactly)
-    flex_hz: float = 0.0  # flexible transmission resonance, Hz (0: rigid)
-    flex_zeta: float = 0.1
+    flex_hz: float = 0.0  # flexible appendage on the cart: natural frequency, Hz (0: none)
+    flex_zeta: float = 0.05  # its damping ratio
+    flex_mass: float = 0.05  # its mass, kg
 
 
 def documented_plant() -> Plant:
@@ -176,7 +180,7 @@ def _extra_states(p: Plant) -> int:
 
 
 def derivative(p: Plant, s: list[float], f_in: float, w: float, torque: float) -> list[float]:
-    """ds/dt of the state [x, xdot, theta, thetadot, (lag force), (flex force, its rate)]."""
+    """ds/dt of the state [x, xdot, theta, thetadot, (lag force), (appendage q, q')]."""
     x, xd, th, thd = s[0], s[1], s[2], s[3]
     out = [xd, 0.0, thd, 0.0]
     i = 4
@@ -185,12 +189,11 @@ def derivative(p: Plant, s: list[float], f_in: float, w: float, torque: float) -
         out.append((f - s[i]) / p.tau)
         f = s[i]
         i += 1
-    if p.flex_hz > 0:
-        wn = 2 * math.pi * p.flex_hz
-        out.append(s[i + 1])
-        out.append(wn * wn * (f - s[i]) - 2 * p.flex_zeta * wn * s[i + 1])
-        f = s[i]
     force = f + w - p.b * xd
+    if p.flex_hz > 0:  # the appendage's spring and damper pull on the cart
+        wn = 2 * math.pi * p.flex_hz
+        spring = p.flex_mass * wn * (wn * s[i] + 2 * p.flex_zeta * s[i + 1])
+        force += spring
     if p.coulomb > 0:
         force -= p.coulomb * math.tanh(xd / p.coulomb_v)
     ml = p.m * p.l
@@ -201,6 +204,8 @@ def derivative(p: Plant, s: list[float], f_in: float, w: float, torque: float) -
     det = a11 * a22 - a12 * a12
     out[1] = (a22 * rhs1 - a12 * rhs2) / det
     out[3] = (a11 * rhs2 - a12 * rhs1) / det
+    if p.flex_hz > 0:  # q'' = -x'' - spring / m_f (q relative to the cart)
+        out += [s[i + 1], -out[1] - spring / p.flex_mass]
     return out
 
 

@@ -38,7 +38,7 @@ TOLERANCE = 0.15  # the issue's parameter tolerance, relative
 B_TRUE = 1.2  # cart viscous friction, N s/m (the file documents 0.5)
 TAU_TRUE = 0.03  # actuator lag, s
 TD_TRUE = 0.015  # transport delay, s (1.5 samples: fractional beyond the hold)
-FLEX_HZ = 5.0  # flexible transmission resonance, 10 % damped
+FLEX_HZ = 4.0  # flexible appendage on the cart (5 % damped, 0.05 kg)
 CASES = {
     "nothing": {},
     "friction": {"b": B_TRUE},
@@ -167,9 +167,9 @@ def test_model_file_controller_is_the_simulators_and_stabilises_every_truth():
 
 
 @pytest.mark.parametrize("case", [{}, {"td": 0.007}, {"td": TD_TRUE, "tau": TAU_TRUE, "b": 1.0},
-                                  {"td": 0.005, "flex_hz": FLEX_HZ}, {"td": 0.01}],
+                                  {"td": 0.02, "flex_hz": FLEX_HZ}, {"td": 0.01}],
                          ids=["rigid", "td-0.7-samples", "td-1.5-lag-friction",
-                              "td-0.5-flex", "td-1-sample"])
+                              "td-2-flex", "td-1-sample"])
 def test_nonlinear_loop_at_tiny_amplitude_is_the_exact_discretised_linear_loop(case):
     # RK4 sub-stepping with the delayed hold switching mid-sample against the matrix
     # exponential of the linearised truth with the delay split exactly (two ways to the same
@@ -357,7 +357,7 @@ def check_flex(doc):
     assert verdict["outputs"] and set(verdict["outputs"]) <= {"x", "theta"}, verdict
     assert verdict["band_hz"] is not None, verdict
     lo, hi = verdict["band_hz"]
-    assert lo <= FLEX_HZ <= hi and hi - lo < 4.0, verdict  # the resonance, not the whole band
+    assert lo <= FLEX_HZ <= hi and hi - lo < 3.0, verdict  # the mode, not the whole band
 
 
 CHECKS = {"nothing": check_explained, "flex": check_flex}
@@ -571,7 +571,13 @@ def test_the_logs_identify_the_hidden_effect_with_scipy(campaigns, case, effects
         assert nominal > 50 * cost, (nominal, cost)
 
 
-def test_lag_and_delay_cannot_explain_the_flexible_mode(campaigns):
+def test_no_candidate_explains_the_flexible_mode_and_its_misfit_is_at_the_mode(campaigns):
+    # Friction, lag and delay fitted together leave the appendage's misfit far above the noise,
+    # and over half of it lies within 0.7 Hz of the mode: the band the verdict should name.
     freqs, g, std = periodic_frf(campaigns("flex", SEEDS["flex"][0]))
-    params, cost = scipy_fit(freqs, g, std, ["tau", "td"])
-    assert cost > 100, (cost, params)
+    params, cost = scipy_fit(freqs, g, std, ["b", "tau", "td"])
+    assert cost > 5, (cost, params)
+    fitted = ic.sampled_frf(replace(ic.documented_plant(), **params), freqs, 0.01)
+    misfit = (np.abs((fitted - g) / std) ** 2).sum(axis=1)
+    near = np.abs(freqs - FLEX_HZ) <= 0.7
+    assert misfit[near].sum() > 0.5 * misfit.sum(), misfit
