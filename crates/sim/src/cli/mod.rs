@@ -9,6 +9,7 @@ use crate::progress::Progress;
 use crate::scenarios::{self, Recording, Scenario};
 
 pub mod info;
+pub mod model;
 pub mod tilt;
 pub mod workbench;
 
@@ -43,6 +44,9 @@ pub enum Command {
     Compare(workbench::FitArgs),
     /// Fit a model with the effects given by `--with EFFECT[,EFFECT]`.
     Fit(workbench::FitArgs),
+    /// Checks a model file: matrices, eigenvalues, identifiability.
+    #[command(subcommand)]
+    Model(model::Command),
 }
 
 /// The systems `stabilis sim` can run.
@@ -133,6 +137,7 @@ impl Command {
             Self::Tilt(args) => args.run(),
             Self::Discover(args) => args.run(),
             Self::Compare(args) | Self::Fit(args) => args.run(),
+            Self::Model(cmd) => cmd.run(),
         }
     }
 }

@@ -176,17 +176,36 @@ impl Discovery {
 const REWEIGHTINGS: usize = 1;
 
 /// Values tried for a new parameter: 17 points over its bounds (logarithmic for a positive
-/// range spanning decades), plus zero and the documented value when inside.
+/// range spanning decades, or one from zero without an upper bound), plus zero and the
+/// documented value when inside. An open bound is taken 100 typical magnitudes away.
 fn scan_grid(p: &super::model::Parameter) -> Vec<f64> {
     let n = 17;
-    let mut v: Vec<f64> = if p.lower > 0.0 && p.upper / p.lower > 100.0 {
-        let (a, b) = (p.lower.ln(), p.upper.ln());
+    let reach = 100.0 * p.scale();
+    let lower = if p.lower.is_finite() {
+        p.lower
+    } else {
+        p.value - reach
+    };
+    let upper = if p.upper.is_finite() {
+        p.upper
+    } else {
+        p.value + reach
+    };
+    let log_lower = if p.lower > 0.0 {
+        p.lower
+    } else {
+        1e-3 * p.scale()
+    };
+    let decades =
+        (p.lower > 0.0 && upper / p.lower > 100.0) || (p.lower == 0.0 && !p.upper.is_finite());
+    let mut v: Vec<f64> = if decades {
+        let (a, b) = (log_lower.ln(), upper.ln());
         (0..n)
             .map(|i| (a + (b - a) * i as f64 / (n - 1) as f64).exp())
             .collect()
     } else {
         (0..n)
-            .map(|i| p.lower + (p.upper - p.lower) * i as f64 / (n - 1) as f64)
+            .map(|i| lower + (upper - lower) * i as f64 / (n - 1) as f64)
             .collect()
     };
     v.push(p.value);

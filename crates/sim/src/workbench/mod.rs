@@ -16,16 +16,22 @@ pub mod cubli;
 pub mod dataset;
 pub mod diagnose;
 pub mod discover;
+pub mod expr;
 pub mod fit;
 pub mod flying_platform;
 pub mod frf;
+pub mod generic;
+pub mod identifiability;
+pub mod kalman;
 pub mod load;
 pub mod model;
+pub mod model_file;
 pub mod noise;
 pub mod report;
 pub mod residual;
 pub mod spectra;
 pub mod stats;
+pub mod systems;
 pub mod timedomain;
 pub mod welch;
 
@@ -36,6 +42,7 @@ pub use discover::{CandidateScore, Discovery, Step, Verdict};
 pub use fit::{FitOptions, FitResult, ParamEstimate};
 pub use frf::{Estimator, EstimatorChoice, FrfEstimate};
 pub use model::{Effect, Model, ModelStructure, Parameter, StateSpace};
+pub use model_file::{Controller, ModelFile};
 
 use crate::error::{Result, SimError};
 use cost::WeightedCost;
@@ -96,8 +103,9 @@ impl Workbench {
             let noise = NoiseReference::periodic(&frf, NOISE_DRAWS, 0x5eed)?;
             (frf, noise)
         } else {
-            let segment = welch::segment_length(data.sample_rate_hz, welch::BAND_HZ.0);
-            let w = welch::welch_frf(&data, estimator, welch::BAND_HZ, segment)?;
+            let band = welch::excited_band(&data)?;
+            let segment = welch::segment_length(data.sample_rate_hz, band.0);
+            let w = welch::welch_frf(&data, estimator, band, segment)?;
             let noise = w.noise_reference(NOISE_DRAWS, 0x5eed)?;
             (w.frf, noise)
         };
@@ -139,6 +147,12 @@ impl Workbench {
     /// Enables an effect of the structure by name.
     pub fn add(&mut self, effect: &str) -> Result<()> {
         self.model = self.model.with_effect(effect)?;
+        Ok(())
+    }
+
+    /// Offers a user-defined effect to discovery as a candidate (not enabled).
+    pub fn offer(&mut self, effect: Arc<dyn Effect>) -> Result<()> {
+        self.model = self.model.with_candidate(effect)?;
         Ok(())
     }
 

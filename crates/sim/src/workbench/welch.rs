@@ -30,8 +30,98 @@ use super::noise::{complex_normal, NoiseReference};
 use super::spectra::{Dft, C64};
 use crate::error::{Result, SimError};
 
-/// Band resolved by the estimate, Hz (the flying platform's identification band).
-pub const BAND_HZ: (f64, f64) = (0.2, 4.0);
+/// Power below the peak density of the excitation that still counts as excited (20 dB).
+pub const BAND_DYNAMIC_RANGE: f64 = 100.0;
+
+/// Fewest overlapping segments per experiment the lower band edge must leave: the noise
+/// covariance of a line is estimated from the segments, and a few tens make it usable.
+pub const MIN_SEGMENTS: usize = 64;
+
+/// Frequencies at which the excitation density is evaluated to find the band.
+const BAND_GRID: usize = 96;
+
+/// The band the data excite, Hz: where the power density of the logged excitation (of the
+/// inputs when none is logged), averaged over channels and experiments, is within
+/// [`BAND_DYNAMIC_RANGE`] of its peak; no lower than the records resolve with
+/// [`MIN_SEGMENTS`] segments and no higher than 0.4 of the sample rate (aliasing).
+pub fn excited_band(data: &Dataset) -> Result<(f64, f64)> {
+    let fs = data.sample_rate_hz;
+    let shortest = data
+        .experiments
+        .iter()
+        .map(|e| e.u.nrows())
+        .min()
+        .unwrap_or(0);
+    let l = (2 * shortest / (MIN_SEGMENTS + 1)) & !1;
+    let ceiling = 0.4 * fs;
+    let floor = if l > 0 {
+        LOWER_EDGE_BIN as f64 * fs / l as f64
+    } else {
+        f64::INFINITY
+    };
+    if !(floor < ceiling) {
+        return Err(SimError::invalid(
+            "data",
+            format!("records of {shortest} samples"),
+            format!(
+                "too short for a Welch estimate: {MIN_SEGMENTS} half-overlapping segments need \
+                 at least {} samples per experiment",
+                8 * (MIN_SEGMENTS + 1) / 2
+            ),
+        ));
+    }
+    let use_r = data.experiments.iter().all(|e| e.r.is_some());
+    let window = hann(l);
+    let freqs: Vec<f64> = (0..BAND_GRID)
+        .map(|i| floor * (ceiling / floor).powf(i as f64 / (BAND_GRID - 1) as f64))
+        .collect();
+    // Windowed twiddle factors per frequency, so that the inner loop is a dot product.
+    let tables: Vec<(Vec<f64>, Vec<f64>)> = freqs
+        .iter()
+        .map(|f| {
+            let w = 2.0 * std::f64::consts::PI * f / fs;
+            (0..l)
+                .map(|n| {
+                    let (s, c) = (w * n as f64).sin_cos();
+                    (window[n] * c, window[n] * s)
+                })
+                .unzip()
+        })
+        .collect();
+    let mut density = vec![0.0; BAND_GRID];
+    for e in &data.experiments {
+        let x = match (&e.r, use_r) {
+            (Some(r), true) => r,
+            _ => &e.u,
+        };
+        for j in 0..x.ncols() {
+            let col: Vec<f64> = x.column(j).iter().copied().collect();
+            let mut start = 0;
+            while start + l <= col.len() {
+                let seg = detrended(&col[start..start + l]);
+                for (d, (cos, sin)) in density.iter_mut().zip(&tables) {
+                    let re: f64 = seg.iter().zip(cos).map(|(v, c)| v * c).sum();
+                    let im: f64 = seg.iter().zip(sin).map(|(v, s)| v * s).sum();
+                    *d += re * re + im * im;
+                }
+                start += l / 2;
+            }
+        }
+    }
+    let peak = density.iter().cloned().fold(0.0, f64::max);
+    if !(peak > 0.0) {
+        return Err(SimError::invalid(
+            "data",
+            if use_r { "excitation" } else { "inputs" },
+            "carries no power: nothing excites the plant",
+        ));
+    }
+    let excited: Vec<usize> = (0..BAND_GRID)
+        .filter(|&k| density[k] * BAND_DYNAMIC_RANGE >= peak)
+        .collect();
+    let (lo, hi) = (excited[0], excited[excited.len() - 1]);
+    Ok((freqs[lo], freqs[hi].max(freqs[lo.min(BAND_GRID - 2) + 1])))
+}
 
 /// How the records were segmented.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
