@@ -108,6 +108,9 @@ fn time_domain_table(s: &mut String, d: &Discovery) {
     if let Some(k) = &first.time_fit.kalman {
         let _ = writeln!(s, "Kalman: {}", k.policy);
     }
+    if let Some(c) = &first.time_fit.closed_loop {
+        let _ = writeln!(s, "closed loop: {}", c.policy);
+    }
     let _ = write!(s, "{:<5} {:<16}", "step", "fit % of");
     for (o, _) in &first.time_fit.prediction {
         let _ = write!(s, " {o:>7}");
@@ -123,14 +126,23 @@ fn time_domain_table(s: &mut String, d: &Discovery) {
             ("1-step pred.".to_string(), Some(&tf.one_step)),
             (format!("Kalman {k}-step"), kalman.map(|f| &f.prediction)),
             ("Kalman 1-step".to_string(), kalman.map(|f| &f.one_step)),
+            ("closed loop".to_string(), tf.closed_loop.as_ref().map(|f| &f.fit)),
         ];
+        let controller = tf.closed_loop.is_some() || tf.closed_loop_error.is_some();
         for (what, fits) in rows {
+            if what == "closed loop" && !controller {
+                continue;
+            }
             let _ = write!(s, "{i:<5} {what:<16}");
             match fits {
                 Some(fits) => {
                     for (_, f) in fits {
                         let _ = write!(s, " {f:>7.1}");
                     }
+                }
+                None if what == "closed loop" => {
+                    let why = tf.closed_loop_error.as_deref().unwrap_or("");
+                    let _ = write!(s, " not re-simulated: {why}");
                 }
                 None if what.starts_with("Kalman") => {
                     let _ = write!(
