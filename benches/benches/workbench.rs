@@ -54,7 +54,12 @@ fn workbench(c: &mut Criterion) {
 /// sensor noise.
 fn cart_pole_campaign(file: &ModelFile) -> Dataset {
     let with = vec!["cart_friction".to_string()];
-    let mut theta: Vec<f64> = file.parameters(&with).unwrap().iter().map(|p| p.value).collect();
+    let mut theta: Vec<f64> = file
+        .parameters(&with)
+        .unwrap()
+        .iter()
+        .map(|p| p.value)
+        .collect();
     *theta.last_mut().unwrap() = 0.8;
     let ss = file.state_space(&with, &theta).unwrap();
     let (phi, gamma) = rigid_body::lti::c2d_zoh(&ss.a, &ss.b, 0.01).unwrap();
@@ -66,18 +71,31 @@ fn cart_pole_campaign(file: &ModelFile) -> Dataset {
     let experiments = (0..4u64)
         .map(|seed| {
             let mut rng = StdRng::seed_from_u64(seed);
-            let phases: Vec<f64> = (0..70).map(|_| rng.random::<f64>() * std::f64::consts::TAU).collect();
+            let phases: Vec<f64> = (0..70)
+                .map(|_| rng.random::<f64>() * std::f64::consts::TAU)
+                .collect();
             let r: Vec<f64> = (0..n)
                 .map(|k| {
                     let t = (k % period) as f64 / period as f64;
-                    phases.iter().enumerate().map(|(l, ph)| (std::f64::consts::TAU * (l + 1) as f64 * t + ph).cos()).sum::<f64>() * 0.05
+                    phases
+                        .iter()
+                        .enumerate()
+                        .map(|(l, ph)| (std::f64::consts::TAU * (l + 1) as f64 * t + ph).cos())
+                        .sum::<f64>()
+                        * 0.05
                 })
                 .collect();
             let mut x = DVector::zeros(4);
             let mut xc = DVector::zeros(a.nrows());
-            let (mut u, mut y, mut rr) = (DMatrix::zeros(n, 1), DMatrix::zeros(n, 2), DMatrix::zeros(n, 1));
+            let (mut u, mut y, mut rr) = (
+                DMatrix::zeros(n, 1),
+                DMatrix::zeros(n, 2),
+                DMatrix::zeros(n, 1),
+            );
             for k in 0..n {
-                let noise = DVector::from_fn(2, |i, _| [2e-4, 5e-4][i] * rng.sample::<f64, _>(StandardNormal));
+                let noise = DVector::from_fn(2, |i, _| {
+                    [2e-4, 5e-4][i] * rng.sample::<f64, _>(StandardNormal)
+                });
                 let yk = &ss.c * &x + noise;
                 let uk = (&c * &xc + &d * &yk)[0] + r[k];
                 xc = &a * &xc + &b * &yk;
@@ -87,14 +105,30 @@ fn cart_pole_campaign(file: &ModelFile) -> Dataset {
                 rr[(k, 0)] = r[k];
                 y.row_mut(k).copy_from(&yk.transpose());
             }
-            Experiment { name: format!("experiment {seed}"), u, y, r: Some(rr), periodic: Some(Periodic { period, periods, transient }) }
+            Experiment {
+                name: format!("experiment {seed}"),
+                u,
+                y,
+                r: Some(rr),
+                periodic: Some(Periodic {
+                    period,
+                    periods,
+                    transient,
+                }),
+            }
         })
         .collect();
-    Dataset { sample_rate_hz: 100.0, inputs: file.inputs(), outputs: file.outputs(), experiments }
+    Dataset {
+        sample_rate_hz: 100.0,
+        inputs: file.inputs(),
+        outputs: file.outputs(),
+        experiments,
+    }
 }
 
 fn own_system(c: &mut Criterion) {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../py/tests/data/cart_pole.toml");
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../py/tests/data/cart_pole.toml");
     let file = Arc::new(ModelFile::from_path(&path).unwrap());
     let data = cart_pole_campaign(&file);
     let mut group = c.benchmark_group("workbench_model_file_4x8300");

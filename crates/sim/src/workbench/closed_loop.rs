@@ -25,9 +25,8 @@ pub fn closed_loop_fit(
     controller: &Controller,
 ) -> Result<ClosedLoopFit, String> {
     let rate = match controller {
-        Controller::StateFeedback { sample_rate_hz, .. } | Controller::Discrete { sample_rate_hz, .. } => {
-            *sample_rate_hz
-        }
+        Controller::StateFeedback { sample_rate_hz, .. }
+        | Controller::Discrete { sample_rate_hz, .. } => *sample_rate_hz,
     };
     if (rate - data.sample_rate_hz).abs() > 1e-9 * rate {
         return Err(format!(
@@ -40,12 +39,15 @@ pub fn closed_loop_fit(
     let mut simulated = Vec::new();
     let mut first_scored = 0;
     for e in &data.experiments {
-        let r = e
-            .r
-            .as_ref()
-            .ok_or_else(|| format!("{} has no logged excitation to drive the loop", e.name))?;
+        let r =
+            e.r.as_ref()
+                .ok_or_else(|| format!("{} has no logged excitation to drive the loop", e.name))?;
         let samples = r.nrows();
-        let from = e.periodic.as_ref().map_or(samples / 10, |p| p.transient).min(samples / 2);
+        let from = e
+            .periodic
+            .as_ref()
+            .map_or(samples / 10, |p| p.transient)
+            .min(samples / 2);
         first_scored = from;
         let mut x = DVector::zeros(n);
         let mut xc = match controller {

@@ -55,7 +55,10 @@ pub fn expand(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
 pub fn system_of(paths: &[PathBuf]) -> Result<String> {
     let files = expand(paths)?;
     let first = &files[0];
-    if first.extension().is_some_and(|x| x.eq_ignore_ascii_case("csv")) {
+    if first
+        .extension()
+        .is_some_and(|x| x.eq_ignore_ascii_case("csv"))
+    {
         return Err(SimError::invalid(
             "system name",
             first.display(),

@@ -93,7 +93,10 @@ impl Workbench {
                 return Err(SimError::invalid(
                     "band",
                     format!("{lo},{hi} Hz"),
-                    format!("must satisfy 0 < low < high < {} Hz (Nyquist)", 0.5 * data.sample_rate_hz),
+                    format!(
+                        "must satisfy 0 < low < high < {} Hz (Nyquist)",
+                        0.5 * data.sample_rate_hz
+                    ),
                 ));
             }
         }

@@ -126,7 +126,10 @@ fn time_domain_table(s: &mut String, d: &Discovery) {
             ("1-step pred.".to_string(), Some(&tf.one_step)),
             (format!("Kalman {k}-step"), kalman.map(|f| &f.prediction)),
             ("Kalman 1-step".to_string(), kalman.map(|f| &f.one_step)),
-            ("closed loop".to_string(), tf.closed_loop.as_ref().map(|f| &f.fit)),
+            (
+                "closed loop".to_string(),
+                tf.closed_loop.as_ref().map(|f| &f.fit),
+            ),
         ];
         let controller = tf.closed_loop.is_some() || tf.closed_loop_error.is_some();
         for (what, fits) in rows {

@@ -111,11 +111,10 @@ pub fn excited_band(data: &Dataset) -> Result<(f64, f64)> {
     for e in &data.experiments {
         for j in 0..nu {
             let u: Vec<f64> = e.u.column(j).iter().copied().collect();
-            let r: Option<Vec<f64>> = e
-                .r
-                .as_ref()
-                .filter(|_| use_r)
-                .map(|r| r.column(j).iter().copied().collect());
+            let r: Option<Vec<f64>> =
+                e.r.as_ref()
+                    .filter(|_| use_r)
+                    .map(|r| r.column(j).iter().copied().collect());
             let mut start = 0;
             while start + l <= u.len() {
                 let su = spectrum(&detrended(&u[start..start + l]));
