@@ -463,21 +463,19 @@ def cart_pole_matrices(p):
 
 
 def cart_friction(p, m):
-    """The file's cart_friction terms: -b xdot on the cart through the inverse mass matrix."""
-    jp = p["J"] + p["m"] * p["l"] ** 2
-    delta = (p["M"] + p["m"]) * jp - (p["m"] * p["l"]) ** 2
+    """The file's cart_friction terms: the force -b xdot enters where F does (an effect's
+    callable receives its own parameters and the model's matrices)."""
     d_a = np.zeros_like(m["A"])
-    d_a[1, 1] = -p["b"] * jp / delta
-    d_a[3, 1] = p["b"] * p["m"] * p["l"] / delta
+    d_a[:, 1] = -p["b"] * m["B"][:, 0]
     return {"A": d_a}
 
 
 def python_cart_pole(stabilis, matrices=cart_pole_matrices):
-    parameters = {k: {kk: vv for kk, vv in v.items() if kk != "unit"}
-                  for k, v in load_model()["parameters"].items()}
+    """The model file's content as a Python model (parameters as in the file's tables)."""
     effect = stabilis.Effect("cart_friction", {"b": 0.5}, cart_friction, bounds={"b": (0.0, 20.0)})
     return stabilis.Model(states=ic.STATES, inputs=ic.INPUTS, outputs=ic.OUTPUTS,
-                          parameters=parameters, matrices=matrices, effects=[effect])
+                          parameters=load_model()["parameters"], matrices=matrices,
+                          effects=[effect], name=ic.SYSTEM)
 
 
 @pytest.mark.parametrize("case", ["friction", "lag"])
@@ -585,3 +583,14 @@ def test_no_candidate_explains_the_flexible_mode_and_its_misfit_is_at_the_mode(c
     misfit = (np.abs((fitted - g) / std) ** 2).sum(axis=1)
     near = np.abs(freqs - FLEX_HZ) <= 0.7
     assert misfit[near].sum() > 0.5 * misfit.sum(), misfit
+
+
+def test_python_model_is_the_model_file():
+    # The callable and the effect above against the file's expressions (read independently).
+    doc = load_model()
+    values = plant_values(ic.Plant()) | {"b": B_TRUE}
+    a, b, c, d = cart_pole_matrices(values)
+    file = model_matrices(doc, values, ("cart_friction",))
+    d_a = cart_friction({"b": B_TRUE}, {"A": a, "B": b, "C": c, "D": d})["A"]
+    assert np.allclose(a + d_a, file["A"], rtol=1e-14, atol=1e-14)
+    assert np.allclose(b, file["B"], rtol=1e-14) and np.array_equal(c, file["C"])
