@@ -405,6 +405,18 @@ def bad_copy(tmp: Path, old: str, new: str) -> tuple[Path, str]:
     return path, path.read_text()
 
 
+def refused(path: Path, data: Path, tmp: Path) -> str:
+    """`discover --model path` on good data: exit 2, no panic, no output; its stderr, which
+    names the file."""
+    out = tmp / "out.json"
+    done = cli("discover", "--model", path, "--data", data, "--json", out)
+    require_model_option(done)
+    assert done.returncode == 2, done.stderr
+    assert path.name in done.stderr and "panicked" not in done.stderr, done.stderr
+    assert not out.exists()
+    return done.stderr
+
+
 def positions(text: str, expr: str, name: str) -> set[str]:
     """The numbers that locate `name`: its 0- or 1-based column in the expression, the file
     line holding it."""
@@ -420,19 +432,12 @@ def positions(text: str, expr: str, name: str) -> set[str]:
 def test_unknown_name_is_refused_naming_file_key_name_and_position(campaigns, tmp_path, old,
                                                                     new, key, bad):
     path, text = bad_copy(tmp_path, old, new)
-    done = cli("discover", "--model", path, "--data", campaigns("nothing", SEEDS["nothing"][0]),
-               "--json", tmp_path / "out.json")
-    require_model_option(done)
-    assert done.returncode == 2, done.stderr
-    err = done.stderr
-    assert path.name in err and key in err and bad in err, err
+    err = refused(path, campaigns("nothing", SEEDS["nothing"][0]), tmp_path)
+    assert key in err and bad in err, err
     where = positions(text, new.strip('"'), bad)
     assert any(re.search(rf"(?<!\d){n}(?!\d)", err) for n in where), (where, err)
-    assert "panicked" not in err
-    assert not (tmp_path / "out.json").exists()
-    stabilis = python_model()
-    with pytest.raises(Exception, match=re.escape(bad)):
-        stabilis.Model.from_file(str(path))
+    with pytest.raises(python_model().Error, match=re.escape(bad)):
+        python_model().Model.from_file(str(path))
 
 
 @pytest.mark.parametrize("old, new", [
@@ -441,13 +446,11 @@ def test_unknown_name_is_refused_naming_file_key_name_and_position(campaigns, tm
 ], ids=["ragged-row", "three-rows"])
 def test_non_square_a_is_refused_with_the_sizes(campaigns, tmp_path, old, new):
     path, _ = bad_copy(tmp_path, old, new)
-    done = cli("discover", "--model", path, "--data", campaigns("nothing", SEEDS["nothing"][0]),
-               "--json", tmp_path / "out.json")
-    require_model_option(done)
-    assert done.returncode == 2, done.stderr
-    err = done.stderr
-    assert path.name in err and re.search(r"\bA\b", err), err
+    err = refused(path, campaigns("nothing", SEEDS["nothing"][0]), tmp_path)
+    assert re.search(r"\bA\b", err), err
     assert re.search(r"(?<!\d)3(?!\d)", err) and re.search(r"(?<!\d)4(?!\d)", err), err
+    with pytest.raises(python_model().Error, match="linear.A"):
+        python_model().Model.from_file(str(path))
     assert "panicked" not in err
     assert not (tmp_path / "out.json").exists()
 
