@@ -372,6 +372,17 @@ def test_cli_discover_with_the_model_file(campaigns, tmp_path, case, seed):
     check(case, discover_cli(campaigns(case, seed), tmp_path))
 
 
+@pytest.mark.parametrize("seed", [71, 72])
+def test_coulomb_friction_is_no_lag_or_delay_and_stays_unexplained(tmp_path, seed):
+    # Model-class mismatch: 0.1 N of Coulomb friction (no effect describes it). The viscous
+    # friction may be proposed (it is the nearest friction), lag and delay may not, and the
+    # nonlinear remainder must not be called noise.
+    ic.campaign(tmp_path / "data", plant=replace(ic.Plant(), coulomb=0.1), seed=seed)
+    doc = discover_cli(tmp_path / "data", tmp_path)
+    assert set(doc["found"] + doc["tentative"]) <= {"cart_friction"}, doc
+    assert doc["unexplained"] is True, doc.get("verdict_text")
+
+
 @pytest.mark.parametrize("case", list(CASES))
 def test_python_discover_with_the_model_file(campaigns, tmp_path, case):
     # The first seed's data: Python must accept and conclude as the CLI does.
