@@ -279,6 +279,20 @@ struct PyStructure {
 }
 
 impl PyStructure {
+    /// The same model under another system name.
+    fn named(&self, py: Python<'_>, name: String) -> Self {
+        Self {
+            name,
+            states: self.states,
+            inputs: self.inputs.clone(),
+            outputs: self.outputs.clone(),
+            params: self.params.clone(),
+            fixed: self.fixed.clone(),
+            matrices: self.matrices.clone_ref(py),
+            error: Arc::clone(&self.error),
+        }
+    }
+
     fn call(&self, py: Python<'_>, theta: &[f64]) -> PyResult<StateSpace> {
         let params = PyDict::new(py);
         for (p, v) in self.params.iter().zip(theta) {
@@ -453,6 +467,8 @@ fn py_parameter(name: &str, spec: &Bound<'_, PyAny>) -> PyResult<(Parameter, boo
 #[derive(Debug)]
 struct Model {
     structure: Arc<dyn ModelStructure>,
+    /// A Python model given without a name, named later after the logs' topics.
+    unnamed: Option<PyStructure>,
     effects: Vec<Py<Effect>>,
     error: Arc<Mutex<Option<PyErr>>>,
 }
@@ -460,7 +476,7 @@ struct Model {
 #[pymethods]
 impl Model {
     #[new]
-    #[pyo3(signature = (states, inputs, outputs, parameters, matrices, effects = None, name = "model"))]
+    #[pyo3(signature = (states, inputs, outputs, parameters, matrices, effects = None, name = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -470,8 +486,11 @@ impl Model {
         parameters: &Bound<'_, PyDict>,
         matrices: Py<PyAny>,
         effects: Option<Vec<Py<Effect>>>,
-        name: &str,
+        name: Option<String>,
     ) -> PyResult<Self> {
+        // Without a name the system is read from the logs' topics when the workbench loads them.
+        let name = name.unwrap_or_default();
+        let name = name.as_str();
         for (what, list) in [
             ("states", &states),
             ("inputs", &inputs),
@@ -522,8 +541,10 @@ impl Model {
         };
         let theta: Vec<f64> = structure.params.iter().map(|p| p.value).collect();
         structure.call(py, &theta)?;
+        let unnamed = name.is_empty().then(|| structure.named(py, String::new()));
         Ok(Self {
             structure: Arc::new(structure),
+            unnamed,
             effects: effects.unwrap_or_default(),
             error,
         })
@@ -537,6 +558,7 @@ impl Model {
             .map_err(to_py_err)?;
         Ok(Self {
             structure: Arc::new(file),
+            unnamed: None,
             effects: Vec::new(),
             error: Arc::new(Mutex::new(None)),
         })

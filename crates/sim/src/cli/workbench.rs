@@ -11,7 +11,7 @@ use crate::workbench::cubli::{CubliBench, CubliDiscovery};
 use crate::workbench::flying_platform::embedded_dataset;
 use crate::workbench::report::{json, table, write_cubli_report, write_report};
 use crate::workbench::systems::{self, Source};
-use crate::workbench::{load, Discovery, EstimatorChoice, Workbench};
+use crate::workbench::{load, DataOptions, Discovery, EstimatorChoice, Workbench};
 
 /// Non-parametric estimator.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -39,6 +39,10 @@ pub struct Common {
     /// Non-parametric estimator.
     #[arg(long, value_enum, default_value = "auto")]
     pub estimator: EstimatorArg,
+    /// Band of a Welch estimate in Hz, LOW,HIGH, for an excitation designed for it (default:
+    /// the band the data excite).
+    #[arg(long, value_name = "LOW,HIGH", value_delimiter = ',', num_args = 1)]
+    pub band_hz: Vec<f64>,
     /// Write an HTML report with plots into this directory.
     #[arg(long)]
     pub report: Option<PathBuf>,
@@ -109,7 +113,18 @@ impl Common {
             EstimatorArg::Ls => EstimatorChoice::LeastSquares,
             EstimatorArg::Iv => EstimatorChoice::InstrumentalVariable,
         };
-        Workbench::new(structure, data, choice)
+        let band_hz = match self.band_hz.as_slice() {
+            [] => None,
+            [lo, hi] => Some((*lo, *hi)),
+            other => {
+                return Err(SimError::invalid(
+                    "--band-hz",
+                    format!("{other:?}"),
+                    "give two frequencies, LOW,HIGH",
+                ))
+            }
+        };
+        Workbench::with_options(structure, data, choice, DataOptions { band_hz })
     }
 
     fn finish(&self, wb: &Workbench, d: &Discovery) -> Result<Output> {

@@ -312,11 +312,18 @@ impl Workbench {
             ..
         } = fitted;
         let ss = model.state_space(&r.theta)?;
-        let (time_fit, runs) = time_fit(&self.data, &ss, DEFAULT_HORIZON, DEFAULT_WINDOW)?;
+        let (mut time_fit, runs) = time_fit(&self.data, &ss, DEFAULT_HORIZON, DEFAULT_WINDOW)?;
+        if let Some(controller) = model.structure().controller() {
+            let disc = ss.discretize(1.0 / self.data.sample_rate_hz)?;
+            match super::closed_loop::closed_loop_fit(&self.data, &disc, &controller) {
+                Ok(fit) => time_fit.closed_loop = Some(fit),
+                Err(why) => time_fit.closed_loop_error = Some(why),
+            }
+        }
         let residuals: Vec<_> = runs.iter().map(|(e, _, _)| e).collect();
         let states: Vec<_> = runs.iter().map(|(_, x, _)| x).collect();
         let inputs: Vec<_> = runs.iter().map(|(_, _, u)| u).collect();
-        let residual_tests = residual_tests(
+        let mut residual_tests = residual_tests(
             &residuals,
             &inputs,
             &states,
@@ -324,6 +331,9 @@ impl Workbench {
             &self.data.inputs,
             DEFAULT_LAGS,
         );
+        if time_fit.kalman.is_some() {
+            residual_tests.residual = "innovations of the stationary Kalman predictor".into();
+        }
         let (expected, _) = self.noise.fitted_level(r.free);
         let base = base_cost.unwrap_or(r.cost);
         Ok(Step {

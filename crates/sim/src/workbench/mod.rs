@@ -11,6 +11,7 @@
 //! 4. diagnosis by line and channel ([`diagnose`]), in the time domain ([`timedomain`]: fit %
 //!    of simulation and k-step prediction; [`residual`]: whiteness and input correlation) and
 //!    the discovery loop ([`discover`]).
+pub mod closed_loop;
 pub mod cost;
 pub mod cubli;
 pub mod dataset;
@@ -61,6 +62,14 @@ pub struct Workbench {
     model: Model,
 }
 
+/// Choices a user may make about the data; the defaults take everything from the data.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct DataOptions {
+    /// The band of a Welch estimate, Hz, when the experiment was designed for a known band;
+    /// `None` finds it from the data ([`welch::excited_band`]).
+    pub band_hz: Option<(f64, f64)>,
+}
+
 impl Workbench {
     /// Estimates the FRF of `data` and prepares the cost for `structure` (no effect enabled).
     pub fn new(
@@ -68,7 +77,29 @@ impl Workbench {
         data: Dataset,
         estimator: EstimatorChoice,
     ) -> Result<Self> {
+        Self::with_options(structure, data, estimator, DataOptions::default())
+    }
+
+    /// [`Workbench::new`] with the user's choices about the data.
+    pub fn with_options(
+        structure: Arc<dyn ModelStructure>,
+        data: Dataset,
+        estimator: EstimatorChoice,
+        options: DataOptions,
+    ) -> Result<Self> {
         data.validate()?;
+        if let Some((lo, hi)) = options.band_hz {
+            if !(lo > 0.0 && lo < hi && hi.is_finite() && hi < 0.5 * data.sample_rate_hz) {
+                return Err(SimError::invalid(
+                    "band",
+                    format!("{lo},{hi} Hz"),
+                    format!(
+                        "must satisfy 0 < low < high < {} Hz (Nyquist)",
+                        0.5 * data.sample_rate_hz
+                    ),
+                ));
+            }
+        }
         for (what, want, have) in [
             ("input", structure.inputs(), &data.inputs),
             ("output", structure.outputs(), &data.outputs),
@@ -103,7 +134,10 @@ impl Workbench {
             let noise = NoiseReference::periodic(&frf, NOISE_DRAWS, 0x5eed)?;
             (frf, noise)
         } else {
-            let band = welch::excited_band(&data)?;
+            let band = match options.band_hz {
+                Some(band) => band,
+                None => welch::excited_band(&data)?,
+            };
             let segment = welch::segment_length(data.sample_rate_hz, band.0);
             let w = welch::welch_frf(&data, estimator, band, segment)?;
             let noise = w.noise_reference(NOISE_DRAWS, 0x5eed)?;

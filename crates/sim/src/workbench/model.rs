@@ -263,6 +263,10 @@ pub trait ModelStructure: Send + Sync + std::fmt::Debug {
     fn parameters(&self, enabled: &[String]) -> Result<Vec<Parameter>>;
     /// State-space model for `theta` (order of [`ModelStructure::parameters`]).
     fn state_space(&self, enabled: &[String], theta: &[f64]) -> Result<StateSpace>;
+    /// The experimenter's controller, for closed-loop re-simulation, if known.
+    fn controller(&self) -> Option<super::model_file::Controller> {
+        None
+    }
 }
 
 /// A structure with some effects enabled, and a pool of further effects ([`Effect`]s: the

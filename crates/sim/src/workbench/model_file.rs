@@ -919,6 +919,10 @@ impl ModelStructure for ModelFile {
             .collect())
     }
 
+    fn controller(&self) -> Option<Controller> {
+        self.controller.clone()
+    }
+
     fn state_space(&self, enabled: &[String], theta: &[f64]) -> Result<StateSpace> {
         let want = self.parameters(enabled)?.len();
         if theta.len() != want {

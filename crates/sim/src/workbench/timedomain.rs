@@ -330,6 +330,15 @@ impl FitAccumulator {
     }
 }
 
+/// Fit % per output pooled over records `(y, first scored sample)` and their predictions.
+pub fn fit_percent_from(records: &[(DMatrix<f64>, usize)], yhat: &[DMatrix<f64>]) -> Vec<f64> {
+    let mut acc = FitAccumulator::new(records.first().map_or(0, |(y, _)| y.ncols()));
+    for ((y, from), yh) in records.iter().zip(yhat) {
+        acc.add(y, yh, *from);
+    }
+    acc.fit()
+}
+
 /// Fit % per output, `100 (1 - |y - ŷ| / |y - mean y|)`.
 pub fn fit_percent(y: &DMatrix<f64>, yhat: &DMatrix<f64>) -> Vec<f64> {
     let mut acc = FitAccumulator::new(y.ncols());
@@ -363,6 +372,10 @@ pub struct TimeFit {
     pub kalman: Option<KalmanFit>,
     /// Why there is no Kalman predictor.
     pub kalman_error: Option<String>,
+    /// Closed-loop re-simulation with the experimenter's controller, when the model gives one.
+    pub closed_loop: Option<super::closed_loop::ClosedLoopFit>,
+    /// Why the loop was not re-simulated although a controller is given.
+    pub closed_loop_error: Option<String>,
 }
 
 /// Fits of the stationary Kalman predictor ([`super::kalman`]).
@@ -530,6 +543,8 @@ pub fn time_fit(
             one_step: named(one.fit()),
             kalman,
             kalman_error,
+            closed_loop: None,
+            closed_loop_error: None,
         },
         records,
     ))

@@ -37,12 +37,16 @@ pub const BAND_DYNAMIC_RANGE: f64 = 100.0;
 /// covariance of a line is estimated from the segments, and a few tens make it usable.
 pub const MIN_SEGMENTS: usize = 64;
 
+/// Least mean coherence of input and logged excitation inside the band.
+pub const MIN_COHERENCE: f64 = 0.5;
+
 /// Frequencies at which the excitation density is evaluated to find the band.
 const BAND_GRID: usize = 96;
 
 /// The band the data excite, Hz: where the power density of the logged excitation (of the
 /// inputs when none is logged), averaged over channels and experiments, is within
-/// [`BAND_DYNAMIC_RANGE`] of its peak; no lower than the records resolve with
+/// [`BAND_DYNAMIC_RANGE`] of its peak and, with a logged excitation, the inputs' mean
+/// coherence with it is at least [`MIN_COHERENCE`]; no lower than the records resolve with
 /// [`MIN_SEGMENTS`] segments and no higher than 0.4 of the sample rate (aliasing).
 pub fn excited_band(data: &Dataset) -> Result<(f64, f64)> {
     let fs = data.sample_rate_hz;
@@ -88,26 +92,62 @@ pub fn excited_band(data: &Dataset) -> Result<(f64, f64)> {
                 .unzip()
         })
         .collect();
+    let spectrum = |seg: &[f64]| -> Vec<C64> {
+        tables
+            .iter()
+            .map(|(cos, sin)| {
+                let re: f64 = seg.iter().zip(cos).map(|(v, c)| v * c).sum();
+                let im: f64 = seg.iter().zip(sin).map(|(v, s)| -v * s).sum();
+                C64::new(re, im)
+            })
+            .collect()
+    };
     let mut density = vec![0.0; BAND_GRID];
+    // Per input channel: S_rr, S_uu and S_ur, for the coherence of input and excitation.
+    let nu = data.inputs.len();
+    let mut s_rr = vec![vec![0.0; BAND_GRID]; nu];
+    let mut s_uu = vec![vec![0.0; BAND_GRID]; nu];
+    let mut s_ur = vec![vec![C64::new(0.0, 0.0); BAND_GRID]; nu];
     for e in &data.experiments {
-        let x = match (&e.r, use_r) {
-            (Some(r), true) => r,
-            _ => &e.u,
-        };
-        for j in 0..x.ncols() {
-            let col: Vec<f64> = x.column(j).iter().copied().collect();
+        for j in 0..nu {
+            let u: Vec<f64> = e.u.column(j).iter().copied().collect();
+            let r: Option<Vec<f64>> =
+                e.r.as_ref()
+                    .filter(|_| use_r)
+                    .map(|r| r.column(j).iter().copied().collect());
             let mut start = 0;
-            while start + l <= col.len() {
-                let seg = detrended(&col[start..start + l]);
-                for (d, (cos, sin)) in density.iter_mut().zip(&tables) {
-                    let re: f64 = seg.iter().zip(cos).map(|(v, c)| v * c).sum();
-                    let im: f64 = seg.iter().zip(sin).map(|(v, s)| v * s).sum();
-                    *d += re * re + im * im;
+            while start + l <= u.len() {
+                let su = spectrum(&detrended(&u[start..start + l]));
+                match &r {
+                    Some(r) => {
+                        let sr = spectrum(&detrended(&r[start..start + l]));
+                        for k in 0..BAND_GRID {
+                            density[k] += sr[k].norm_sqr();
+                            s_rr[j][k] += sr[k].norm_sqr();
+                            s_uu[j][k] += su[k].norm_sqr();
+                            s_ur[j][k] += su[k] * sr[k].conj();
+                        }
+                    }
+                    None => {
+                        for k in 0..BAND_GRID {
+                            density[k] += su[k].norm_sqr();
+                        }
+                    }
                 }
                 start += l / 2;
             }
         }
     }
+    // Where the excitation carries less than this share of an input, feedback of noise
+    // dominates it and the instrumental-variable estimate has little to stand on.
+    let coherent = |k: usize| {
+        !use_r
+            || (0..nu)
+                .map(|j| s_ur[j][k].norm_sqr() / (s_uu[j][k] * s_rr[j][k]).max(1e-300))
+                .sum::<f64>()
+                / nu as f64
+                >= MIN_COHERENCE
+    };
     let peak = density.iter().cloned().fold(0.0, f64::max);
     if !(peak > 0.0) {
         return Err(SimError::invalid(
@@ -117,9 +157,19 @@ pub fn excited_band(data: &Dataset) -> Result<(f64, f64)> {
         ));
     }
     let excited: Vec<usize> = (0..BAND_GRID)
-        .filter(|&k| density[k] * BAND_DYNAMIC_RANGE >= peak)
+        .filter(|&k| density[k] * BAND_DYNAMIC_RANGE >= peak && coherent(k))
         .collect();
-    let (lo, hi) = (excited[0], excited[excited.len() - 1]);
+    let (Some(&lo), Some(&hi)) = (excited.first(), excited.last()) else {
+        return Err(SimError::invalid(
+            "data",
+            "excitation",
+            format!(
+                "explains less than {:.0}% of the inputs at every frequency (coherence): feedback \
+                 of noise dominates them",
+                100.0 * MIN_COHERENCE
+            ),
+        ));
+    };
     Ok((freqs[lo], freqs[hi].max(freqs[lo.min(BAND_GRID - 2) + 1])))
 }
 
@@ -519,6 +569,47 @@ impl WelchEstimate {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A sum of sines on 0.5-3 Hz: the band is found at its edges within two bins of the
+    /// density's segments (the Hann main lobe), with or without a logged excitation; without
+    /// power it is refused.
+    #[test]
+    fn excited_band_is_read_from_the_excitation() {
+        use crate::workbench::dataset::Experiment;
+        let (fs, n) = (50.0, 20_000);
+        let bin = fs / ((2 * n / (MIN_SEGMENTS + 1)) & !1) as f64;
+        let r = DMatrix::from_fn(n, 1, |k, _| {
+            (0..26)
+                .map(|i| {
+                    let f = 0.5 + 0.1 * i as f64;
+                    (std::f64::consts::TAU * f * k as f64 / fs + i as f64).sin()
+                })
+                .sum::<f64>()
+        });
+        let mut data = Dataset {
+            sample_rate_hz: fs,
+            inputs: vec!["u".into()],
+            outputs: vec!["y".into()],
+            experiments: vec![Experiment {
+                name: "e".into(),
+                u: r.clone(),
+                y: r.clone(),
+                r: Some(r.clone()),
+                periodic: None,
+            }],
+        };
+        for logged in [true, false] {
+            if !logged {
+                data.experiments[0].r = None;
+            }
+            let (lo, hi) = excited_band(&data).unwrap();
+            assert!((lo - 0.5).abs() <= 2.0 * bin, "{lo} (bin {bin})");
+            assert!((hi - 3.0).abs() <= 2.0 * bin, "{hi} (bin {bin})");
+        }
+        data.experiments[0].u.fill(0.0);
+        let msg = excited_band(&data).unwrap_err().to_string();
+        assert!(msg.contains("carries no power"), "{msg}");
+    }
     use crate::workbench::cost::WeightedCost;
     use crate::workbench::dataset::Experiment;
     use proptest::prelude::*;
