@@ -416,12 +416,16 @@ def campaign(directory: Path, **kw) -> tuple[Config, list[Path]]:
 
 
 if __name__ == "__main__":
-    # python independent_cartpole.py DIR [seed]: a default campaign (nominal truth) into DIR;
+    # python independent_cartpole.py DIR [SEED] [FIELD=VALUE ...]: a default campaign into DIR,
+    #   the truth's hidden effects as Plant fields, e.g. b=1.2 tau=0.03 td=0.015 flex_hz=4;
     # python independent_cartpole.py --controller: the model file's controller matrices.
     import sys
 
     if sys.argv[1] == "--controller":
         print(controller_toml(design_controller(Config())), end="")
     else:
-        seed = int(sys.argv[2]) if len(sys.argv) > 2 else 0
-        print("\n".join(map(str, campaign(Path(sys.argv[1]), seed=seed)[1])))
+        args = sys.argv[2:]
+        seed = int(args.pop(0)) if args and "=" not in args[0] else 0
+        hidden = {k: float(v) for k, v in (a.split("=", 1) for a in args)}
+        plant = replace(Plant(), **hidden)
+        print("\n".join(map(str, campaign(Path(sys.argv[1]), plant=plant, seed=seed)[1])))
