@@ -647,3 +647,18 @@ def test_file_controller_re_simulates_the_logged_loop(campaigns):
     without = closed_loop_fit(friction, truth)
     with_b = closed_loop_fit(friction, truth | {"b": B_TRUE}, ("cart_friction",))
     assert (with_b > without + 10).all(), (with_b, without)
+
+
+@pytest.mark.parametrize("case", ["nothing", "friction"])
+def test_workbench_closed_loop_re_simulation_matches_the_independent_one(campaigns, tmp_path,
+                                                                          case):
+    # The last step's fitted model is the truth to within the noise, so the workbench's
+    # closed-loop fit % must be the independent re-simulation's at the truth to a point.
+    data = campaigns(case, SEEDS[case][0])
+    doc = discover_cli(data, tmp_path)
+    loop = doc["steps"][-1]["time_fit"].get("closed_loop")
+    assert loop is not None, doc["steps"][-1]["time_fit"].get("closed_loop_error")
+    got = dict(loop["fit"])
+    truth = plant_values(ic.Plant()) | {"b": CASES[case].get("b", 0.0)}
+    want = closed_loop_fit(data, truth, ("cart_friction",))
+    assert abs(got["x"] - want[0]) < 1.0 and abs(got["theta"] - want[1]) < 1.0, (got, want)
