@@ -801,11 +801,15 @@ impl Workbench {
                 };
                 let m = m.get();
                 let effects: Vec<Py<Effect>> = m.effects.iter().map(|e| e.clone_ref(py)).collect();
-                (
-                    Source::Structure(Arc::clone(&m.structure)),
-                    effects,
-                    Arc::clone(&m.error),
-                )
+                let logs = data.and_then(|d| d.extract::<Vec<PathBuf>>().ok());
+                let structure: Arc<dyn ModelStructure> = match (&m.unnamed, logs) {
+                    (Some(unnamed), Some(paths)) => {
+                        let name = py.detach(|| load::system_of(&paths)).map_err(to_py_err)?;
+                        Arc::new(unnamed.named(py, name))
+                    }
+                    _ => Arc::clone(&m.structure),
+                };
+                (Source::Structure(structure), effects, Arc::clone(&m.error))
             }
         };
         let paths: Option<Vec<PathBuf>> = match data {

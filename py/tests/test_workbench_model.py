@@ -39,7 +39,7 @@ def experiments(truth, seeds=(1, 2, 3), noise=2e-3):
         period = sum(np.cos(2 * np.pi * (FS / PERIOD) * line * t + rng.uniform(0, 2 * np.pi))
                      for line in range(1, 40))
         r = np.tile(period, n // PERIOD + 2)[:n] / 4.0
-        _, y = dlsim((ad, bd, cd, dd, 1.0 / FS), r)
+        _, y, _ = dlsim((ad, bd, cd, dd, 1.0 / FS), r)
         y = y[:, :1] + noise * rng.standard_normal((n, 1))
         # The plant's start-up (time constant 2/c, about 40 samples) is cut off.
         out.append({"u": r[TRANSIENT:], "y": y[TRANSIENT:], "r": r[TRANSIENT:]})

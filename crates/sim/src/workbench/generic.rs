@@ -129,4 +129,28 @@ mod tests {
             }
         }
     }
+
+    /// A model whose own parameter is called `tau` keeps it; the generic lag's becomes
+    /// `actuator_lag.tau`, and both can be fitted together.
+    #[test]
+    fn a_taken_parameter_name_is_qualified() {
+        let text = "name = \"p\"\nstates = [\"x\"]\ninputs = [\"u\"]\noutputs = [\"x\"]\n\
+                    [parameters]\ntau = { value = 0.5, min = 0.01 }\n\
+                    [linear]\nA = [[\"-1/tau\"]]\nB = [[1]]\nC = [[1]]\n";
+        let file =
+            crate::workbench::ModelFile::parse(text, std::path::Path::new("p.toml")).unwrap();
+        let model = crate::workbench::Model::new(Arc::new(file))
+            .with_effect("actuator_lag")
+            .unwrap();
+        let names: Vec<String> = model
+            .parameters()
+            .unwrap()
+            .into_iter()
+            .map(|p| p.name)
+            .collect();
+        assert_eq!(names, ["tau", "actuator_lag.tau"]);
+        let ss = model.state_space(&[0.5, 0.02]).unwrap();
+        assert_eq!(ss.a.shape(), (2, 2));
+        assert_eq!(ss.a[(1, 1)], -50.0);
+    }
 }

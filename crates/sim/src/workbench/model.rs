@@ -380,17 +380,18 @@ impl Model {
     }
 
     /// All parameters: structure (with enabled effects), then the added effects' (prefixed by
-    /// the effect's name where [`Effect::qualified_names`] says so).
+    /// the effect's name where [`Effect::qualified_names`] says so, or where the plain name is
+    /// taken).
     pub fn parameters(&self) -> Result<Vec<Parameter>> {
         let mut params = self.structure.parameters(&self.enabled)?;
         for e in &self.added {
-            let qualified = e.qualified_names();
-            params.extend(e.parameters().into_iter().map(|mut p| {
-                if qualified {
+            for mut p in e.parameters() {
+                // A plain name that is already taken (a structure's own `tau`) is qualified.
+                if e.qualified_names() || params.iter().any(|q| q.name == p.name) {
                     p.name = format!("{}.{}", e.name(), p.name);
                 }
-                p
-            }));
+                params.push(p);
+            }
         }
         check_parameters(&params)?;
         Ok(params)

@@ -517,9 +517,10 @@ pub fn time_fit(
                 policy: format!(
                     "stationary Kalman predictor of the sampled model, started at zero state, \
                      noise covariances estimated from the data (sensor noise from first \
-                     differences, input-referred process noise scaled by the ratio that \
-                     minimises the innovation log-determinant); one-step and {k}-step \
-                     predictions ({:.3} s) from the filtered state, scored from samples {} and {}",
+                     differences, input-referred and state process noise and per-output sensor \
+                     factors chosen to minimise the innovation log-determinant); one-step and \
+                     {k}-step predictions ({:.3} s) from the filtered state, scored from samples \
+                     {} and {}",
                     k as f64 * t,
                     m + 1,
                     m + k
