@@ -408,14 +408,14 @@ fn chart(title: &str, x_axis: XAxis<'_>, y_label: &str, series: &[Series<'_>]) -
         r#"<text x="{l}" y="16" font-size="13">{}</text>"#,
         escape(title)
     );
-    for i in 0..=4 {
-        let y = ymin + (ymax - ymin) * i as f64 / 4.0;
+    let (ystep, yticks) = nice_ticks(ymin, ymax);
+    for y in yticks {
         let _ = write!(
             s,
             r#"<text x="{}" y="{:.1}" text-anchor="end">{}</text>"#,
             l - 4.0,
             py(y) + 4.0,
-            fmt_tick(y, (ymax - ymin) / 4.0)
+            fmt_tick(y, ystep)
         );
     }
     let ticks: Vec<f64> = if x_axis.log {
@@ -424,15 +424,13 @@ fn chart(title: &str, x_axis: XAxis<'_>, y_label: &str, series: &[Series<'_>]) -
             .filter(|x| *x >= xmin * 0.8 && *x <= xmax * 1.25)
             .collect()
     } else {
-        (0..=4)
-            .map(|i| xmin + (xmax - xmin) * i as f64 / 4.0)
-            .collect()
+        nice_ticks(xmin, xmax).1
     };
     for x in ticks {
         let label = if x_axis.log {
-            fmt_num(x)
+            format!("{x}")
         } else {
-            fmt_tick(x, (xmax - xmin) / 4.0)
+            fmt_tick(x, nice_ticks(xmin, xmax).0)
         };
         let _ = write!(
             s,
@@ -512,21 +510,48 @@ fn chart(title: &str, x_axis: XAxis<'_>, y_label: &str, series: &[Series<'_>]) -
     s
 }
 
-/// A tick label with enough decimals to tell ticks `step` apart.
+/// Ticks at multiples of 1, 2 or 5 times a power of ten, four to ten over `[lo, hi]`, and
+/// their spacing.
+fn nice_ticks(lo: f64, hi: f64) -> (f64, Vec<f64>) {
+    let raw = ((hi - lo) / 5.0).max(1e-300);
+    let power = 10f64.powf(raw.log10().floor());
+    let step = [1.0, 2.0, 5.0, 10.0]
+        .into_iter()
+        .map(|m| m * power)
+        .find(|s| *s >= raw)
+        .unwrap_or(10.0 * power);
+    let first = (lo / step).ceil() as i64;
+    let last = (hi / step).floor() as i64;
+    (step, (first..=last).map(|i| i as f64 * step).collect())
+}
+
+/// A tick label with the decimals its spacing needs (plain, or in exponent form for very
+/// large or small steps).
 fn fmt_tick(v: f64, step: f64) -> String {
-    if v.abs() >= 1e4 || (v != 0.0 && v.abs() < 1e-2) || step.is_nan() || step <= 0.0 {
+    if !(step > 0.0) {
         return fmt_num(v);
     }
-    let decimals = (1.0 - step.log10().floor()).clamp(0.0, 6.0) as usize;
+    if v.abs() < 1e-6 * step {
+        return "0".into();
+    }
+    if step >= 1e4 || step < 1e-3 {
+        let digits = ((v.abs().log10().floor() - step.log10().floor()).max(0.0)) as usize;
+        return format!("{v:.digits$e}");
+    }
+    let decimals = (-step.log10().floor()).clamp(0.0, 6.0) as usize;
     format!("{v:.decimals$}")
 }
 
+/// Four significant digits.
 fn fmt_num(v: f64) -> String {
-    if v.abs() >= 1e4 || (v != 0.0 && v.abs() < 1e-2) {
-        format!("{v:.1e}")
-    } else {
-        format!("{v:.1}")
+    if v == 0.0 {
+        return "0".into();
     }
+    if v.abs() >= 1e5 || v.abs() < 1e-3 {
+        return format!("{v:.3e}");
+    }
+    let decimals = (3.0 - v.abs().log10().floor()).clamp(0.0, 6.0) as usize;
+    format!("{v:.decimals$}")
 }
 
 fn escape(s: &str) -> String {
@@ -980,4 +1005,21 @@ fn cubli_html(d: &CubliDiscovery) -> String {
         chart(&format!("{} residual / noise", CUBLI_CHANNELS[worst]), time_axis, "residual / std", &series)
     );
     page(&body)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ticks_are_round_and_labels_carry_the_digits_they_need() {
+        let (step, ticks) = nice_ticks(-0.047, 0.042);
+        assert_eq!(step, 0.02);
+        let labels: Vec<String> = ticks.iter().map(|t| fmt_tick(*t, step)).collect();
+        assert_eq!(labels, ["-0.04", "-0.02", "0", "0.02", "0.04"]);
+        assert_eq!(nice_ticks(0.0, 5.99).1, [0.0, 2.0, 4.0]);
+        assert_eq!(fmt_num(0.030113), "0.03011");
+        assert_eq!(fmt_num(123592.1), "1.236e5");
+        assert_eq!(fmt_num(-4.98e-5), "-4.980e-5");
+    }
 }
