@@ -152,6 +152,9 @@ pub struct Discovery {
     pub caveats: Vec<String>,
     /// True when a significant misfit remains.
     pub unexplained: bool,
+    /// Under which noise estimate the costs of the steps are weighted (they compare only
+    /// under one weighting; `compare` and `discover` may use different ones).
+    pub weighting: String,
     /// The verdict.
     pub verdict: Verdict,
     /// Significance level of the tests.
@@ -245,6 +248,20 @@ impl Workbench {
         })
     }
 
+    /// Names the weighting every step's cost is computed under: the noise re-estimated from
+    /// the residual of the model with `effects` (instrumental variables), or the estimate's
+    /// own period-to-period (segment-to-segment) variation.
+    fn weighting_sentence(&self, effects: &[String]) -> String {
+        if self.reweights() {
+            format!(
+                "costs weighted by the noise re-estimated from the residual of the model with [{}]",
+                effects.join(", ")
+            )
+        } else {
+            "costs weighted by the noise of the non-parametric estimate".to_string()
+        }
+    }
+
     /// Whether the weighting's noise is re-estimated from each model's residual: for the
     /// instrumental variables, whose estimate-based noise is distorted at the lowest lines of
     /// a closed loop ([`super::frf::model_noise`]).
@@ -330,6 +347,7 @@ impl Workbench {
             &self.data.outputs,
             &self.data.inputs,
             DEFAULT_LAGS,
+            usize::from(!self.data.is_open_loop()),
         );
         if time_fit.kalman.is_some() {
             residual_tests.residual = "innovations of the stationary Kalman predictor".into();
@@ -484,12 +502,14 @@ impl Workbench {
     /// verdict on the remaining cost.
     pub fn record(&self, step: Step) -> Discovery {
         let verdict = self.verdict(&step);
+        let weighting = self.weighting_sentence(&step.effects);
         Discovery {
             steps: vec![step],
             found: Vec::new(),
             tentative: Vec::new(),
             caveats: Vec::new(),
             unexplained: matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. }),
+            weighting,
             verdict,
             level: LEVEL,
         }
@@ -645,12 +665,15 @@ impl Workbench {
         } else {
             (Vec::new(), found, caveats)
         };
+        let weighting =
+            self.weighting_sentence(&steps.last().map(|s| s.effects.clone()).unwrap_or_default());
         Ok(Discovery {
             steps,
             found,
             tentative,
             caveats,
             unexplained: matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. }),
+            weighting,
             verdict,
             level: LEVEL,
         })

@@ -753,11 +753,6 @@ impl ModelFile {
         &self.states
     }
 
-    /// The experimenter's controller, if the file gives one.
-    pub fn controller(&self) -> Option<&Controller> {
-        self.controller.as_ref()
-    }
-
     fn enabled_effects<'a>(
         &'a self,
         enabled: &'a [String],
@@ -1076,7 +1071,7 @@ A = { "omega,omega" = "-b/Jp" }        # added terms, keyed "row,column" by stat
         match parse(&sf).unwrap().controller() {
             Some(Controller::StateFeedback { k, sample_rate_hz }) => {
                 assert_eq!(k.shape(), (1, 2));
-                assert_eq!(*sample_rate_hz, 100.0);
+                assert_eq!(sample_rate_hz, 100.0);
             }
             other => panic!("{other:?}"),
         }

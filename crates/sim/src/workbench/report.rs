@@ -49,7 +49,7 @@ pub fn table(wb: &Workbench, d: &Discovery) -> String {
             s,
             "{:<5} {:<16} {:>12.1} {:>9.2} {:>8.2}",
             i,
-            st.added.as_deref().unwrap_or("(start)"),
+            step_label(st),
             st.cost,
             st.reduction_percent,
             st.normalized_cost
@@ -59,6 +59,7 @@ pub fn table(wb: &Workbench, d: &Discovery) -> String {
         }
         s.push('\n');
     }
+    let _ = writeln!(s, "weighting: {}", d.weighting);
     time_domain_table(&mut s, d);
     let last = d.steps.last();
     if let Some(st) = last {
@@ -97,6 +98,16 @@ pub fn table(wb: &Workbench, d: &Discovery) -> String {
     }
     let _ = writeln!(s, "verdict: {}", d.verdict.sentence());
     s
+}
+
+/// What a step's model is: the effect it added, "(start)" for the base model, or the effects
+/// a one-step `fit --with` enabled.
+fn step_label(st: &Step) -> String {
+    match (&st.added, st.effects.is_empty()) {
+        (Some(e), _) => e.clone(),
+        (None, true) => "(start)".into(),
+        (None, false) => format!("with {}", st.effects.join("+")),
+    }
 }
 
 /// Time-domain fit % per step (simulation and k-step prediction) with the stated policy, and
@@ -239,6 +250,7 @@ pub fn json(wb: &Workbench, d: &Discovery) -> Value {
         "tentative": d.tentative,
         "tentative_why": d.caveats,
         "unexplained": d.unexplained,
+        "weighting": d.weighting,
         "verdict": d.verdict,
         "verdict_text": d.verdict.sentence(),
         "level": d.level,

@@ -178,7 +178,9 @@ fn strongest<K>(items: impl Iterator<Item = (K, f64)>) -> Option<(K, f64)> {
 }
 
 /// Tests residuals (one matrix samples x outputs per record) against the inputs (samples x
-/// inputs) and model states (samples x states) of the same records.
+/// inputs) and model states (samples x states) of the same records. Input leads from
+/// `first_input_lag` are tested: 0 for open-loop data, 1 in closed loop, where a controller
+/// with feed-through computes `u[k]` from `y[k]` and so correlates the two at lag 0.
 pub fn residual_tests(
     residuals: &[&DMatrix<f64>],
     inputs: &[&DMatrix<f64>],
@@ -186,6 +188,7 @@ pub fn residual_tests(
     output_names: &[String],
     input_names: &[String],
     lags: usize,
+    first_input_lag: usize,
 ) -> ResidualTests {
     let samples: usize = residuals.iter().map(|r| r.nrows()).sum();
     let nx = states.first().map_or(0, |s| s.ncols());
@@ -207,7 +210,7 @@ pub fn residual_tests(
             let input_tests: Vec<(String, BandTest)> = input_names
                 .iter()
                 .zip(&input_r)
-                .map(|(iname, r)| (iname.clone(), BandTest::new(r, 0, samples)))
+                .map(|(iname, r)| (iname.clone(), BandTest::new(r, first_input_lag, samples)))
                 .collect();
             let correlated_inputs = input_tests
                 .iter()
@@ -264,7 +267,7 @@ mod tests {
     fn run(e: &[f64], u: &[f64]) -> ChannelResidual {
         let (e, u) = (as_matrix(e), as_matrix(u));
         let x = u.clone();
-        residual_tests(&[&e], &[&u], &[&x], &["y".into()], &["u".into()], 20)
+        residual_tests(&[&e], &[&u], &[&x], &["y".into()], &["u".into()], 20, 0)
             .channels
             .remove(0)
     }
@@ -344,6 +347,7 @@ mod tests {
             &["y".into()],
             &["u".into()],
             10,
+            0,
         );
         assert_eq!(r.samples, 4000);
         assert!((r.channels[0].whiteness.band - Z99 / 4000f64.sqrt()).abs() < 1e-15);
