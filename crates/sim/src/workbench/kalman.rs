@@ -19,9 +19,7 @@ use super::timedomain::Discrete;
 use crate::error::{Result, SimError};
 
 /// Process-to-sensor noise ratios tried, relative to the output-referred scale.
-const RATIOS: [f64; 13] = [
-    1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6,
-];
+const RATIOS: [f64; 7] = [1e-6, 1e-4, 1e-2, 1.0, 1e2, 1e4, 1e6];
 
 /// The designed predictor and what was estimated for it.
 #[derive(Debug, Clone)]
@@ -48,7 +46,7 @@ pub struct NoiseEstimate {
 
 /// Samples of the records the noise search evaluates each candidate on (the final predictor
 /// runs on all of them).
-const SEARCH_SAMPLES: usize = 8_000;
+const SEARCH_SAMPLES: usize = 5_000;
 
 /// Samples at the start of each record left out of the search's criterion: the predictor
 /// starts from the zero state, and its start-up would dominate a short record.
@@ -157,20 +155,22 @@ impl Predictor {
             qx[(i, i)] = (motion[i] / steps.max(1) as f64).max(1e-12 * trace);
         }
         let qx = &qx * output_scale(&qx);
-        // The state noise starts from its absolute grid; then every factor is refined around
-        // its current value.
+        // The state noise starts from its absolute grid; the coarse sweeps refine the input
+        // and state factors and all sensor factors together, the fine sweep each factor.
+        // Coordinates: 0 input, 1 state, 2 all sensors, 3 + i sensor i.
         for sweep in 0..=SWEEPS + 1 {
-            let coordinates: Vec<usize> = if sweep == 0 {
-                vec![1]
-            } else {
-                (0..2 + p).collect()
+            let coordinates: Vec<usize> = match sweep {
+                0 => vec![1],
+                s if s <= SWEEPS => vec![0, 1, 2],
+                _ => [0, 1].into_iter().chain(3..3 + p).collect(),
             };
             for coordinate in coordinates {
                 let keep = f.clone();
                 let current = match coordinate {
                     0 => keep.input,
                     1 => keep.state,
-                    i => keep.sensor[i - 2],
+                    2 => 1.0,
+                    i => keep.sensor[i - 3],
                 };
                 let grid: Vec<f64> = if sweep == 0 {
                     RATIOS.to_vec()
@@ -187,7 +187,8 @@ impl Predictor {
                     match coordinate {
                         0 => t.input = v,
                         1 => t.state = v,
-                        i => t.sensor[i - 2] = v,
+                        2 => t.sensor.iter_mut().for_each(|c| *c *= v),
+                        i => t.sensor[i - 3] = v,
                     }
                     if let Ok((ld, k)) = Self::score(disc, &qu, &qx, &r, &t, &search) {
                         if ld < best.0 {
@@ -376,7 +377,8 @@ mod tests {
 
     /// Simulated from an unstable two-state model with process noise through the input and
     /// white sensor noise, fed back by a stabilizing gain: the designed predictor's
-    /// innovations are white (every lag 1-10 inside the 99 % band, 5 seeds), its k-step
+    /// innovations are white (lags 1-10 inside the band of a 1 % family-wise test, z = 3.29
+    /// for ten lags as in the residual tests, 5 seeds), its k-step
     /// predictions equal a per-sample propagation, and it is stable.
     #[test]
     fn innovations_of_the_true_model_are_white() {
@@ -406,7 +408,7 @@ mod tests {
             let e: Vec<f64> = e.column(0).iter().skip(100).copied().collect();
             let mean = e.iter().sum::<f64>() / e.len() as f64;
             let var: f64 = e.iter().map(|v| (v - mean).powi(2)).sum();
-            let band = 2.576 / (e.len() as f64).sqrt();
+            let band = 3.29 / (e.len() as f64).sqrt();
             for lag in 1..=10 {
                 let c: f64 = (lag..e.len())
                     .map(|i| (e[i] - mean) * (e[i - lag] - mean))
