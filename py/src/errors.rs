@@ -51,6 +51,7 @@ impl IntoPyError for sim::SimError {
             | E::NotFinite { .. }
             | E::BadMessage { .. } => LogError::new_err(message),
             E::InvalidParameter { .. } | E::Domain { .. } => SimError::new_err(message),
+            E::UnsafeOutput { .. } => Error::new_err(message),
         }
     }
 }

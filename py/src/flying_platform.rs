@@ -261,6 +261,14 @@ fn controller(py: Python<'_>, l3: f64) -> PyResult<Bound<'_, PyDict>> {
 }
 
 fn design(seed: u64, lambda: Option<[f64; 3]>, periods: usize) -> PyResult<fp::ExperimentDesign> {
+    // The 18 experiments of 200 + 250 periods samples are returned together.
+    sim::limits::check(
+        "periods",
+        periods,
+        18.0 * (200.0 + 250.0 * periods as f64),
+        sim::limits::BYTES_PER_SAMPLE,
+    )
+    .map_err(to_py_err)?;
     let lambda = lambda.unwrap_or(fp::ExperimentDesign::LAMBDA_WITHIN_LIMITS);
     fp::ExperimentDesign::new(
         lambda,
@@ -397,8 +405,9 @@ fn simulate<'py>(
         log_delay_samples,
         set,
     )?;
+    let samples = sim::scenarios::samples(duration, cfg.sample_rate_hz).map_err(to_py_err)?;
     let mut sc = fp::Scenario {
-        samples: (duration * cfg.sample_rate_hz).round() as usize,
+        samples,
         ..Default::default()
     };
     match scenario {
