@@ -19,6 +19,7 @@ into numpy arrays, ``gramian`` and ``optimal_l3`` the controllability design.
 >>> m.frequency_response([1.0]).shape
 (1, 6, 9)
 """
+from ._arrays import real_array
 from . import _stabilis
 
 _native = _stabilis.flying_platform
@@ -62,7 +63,7 @@ def simulate(scenario="hover", duration=20.0, effects="momentum_drag,fan_gyrosco
     ``td`` is the in-loop delay of the ``input_delay`` effect."""
     import numpy as np
 
-    exc = None if excitation is None else np.ascontiguousarray(excitation, dtype=np.float64)
+    exc = None if excitation is None else real_array(excitation, "excitation")
     st = None if step is None else [float(v) for v in step]
     return _native.simulate(scenario, float(duration), effects, float(td), dynamics, bool(noise_free),
                             int(seed), int(log_delay_samples), _set(set), st, exc)
