@@ -47,6 +47,12 @@ impl Args {
             crate::output::check_file(path, crate::output::Kind::Mcap, inputs)?;
         }
         let log = read_mcap(&self.data)?;
+        if let Some(problem) = &log.problem {
+            eprintln!(
+                "warning: {} is incomplete ({problem}); estimating what was read",
+                self.data.display()
+            );
+        }
         let estimator = estimator_from_metadata(&log)?;
         let accel = log.topic(ACCEL_TOPIC)?;
         let samples = samples(accel, estimator.layout().len())?;
