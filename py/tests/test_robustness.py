@@ -33,6 +33,13 @@ SPECIAL = [
 ]
 
 
+@pytest.fixture(autouse=True)
+def in_scratch_directory(tmp_path, monkeypatch):
+    """Special values given as ``out=`` are valid file names: keep what they write out of the
+    source tree."""
+    monkeypatch.chdir(tmp_path)
+
+
 def call(f, *args, **kwargs):
     """Calls ``f``; an ordinary exception is a refusal, and fine."""
     try:
