@@ -317,20 +317,25 @@ fn rewrite(
     w.finish().unwrap();
 }
 
-#[test]
-fn workbench_logs_with_uneven_time_or_a_wrong_rate_or_given_twice_are_refused() {
-    let dir = scratch("time");
-    let fp = dir.join("fp");
+/// A flying-platform hover log of `duration` seconds written into `dir`.
+fn hover_log(dir: &Path, duration: f64) -> PathBuf {
     let run = stabilis(&[
         "sim",
         "flying-platform",
         "--duration",
-        "20",
+        &duration.to_string(),
         "--out",
-        fp.to_str().unwrap(),
+        dir.to_str().unwrap(),
     ]);
     assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
-    let good = fp.join("flying_platform_hover.mcap");
+    dir.join("flying_platform_hover.mcap")
+}
+
+#[test]
+fn workbench_logs_with_uneven_time_or_a_wrong_rate_or_given_twice_are_refused() {
+    let dir = scratch("time");
+    let fp = dir.join("fp");
+    let good = hover_log(&fp, 20.0);
     let g = good.to_str().unwrap();
     // The same log twice, by two spellings.
     let again = fp.join(".").join("flying_platform_hover.mcap");
@@ -372,17 +377,7 @@ fn workbench_logs_with_uneven_time_or_a_wrong_rate_or_given_twice_are_refused() 
 #[test]
 fn a_cut_off_log_is_analysed_with_a_warning() {
     let dir = scratch("cut");
-    let fp = dir.join("fp");
-    let run = stabilis(&[
-        "sim",
-        "flying-platform",
-        "--duration",
-        "30",
-        "--out",
-        fp.to_str().unwrap(),
-    ]);
-    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
-    let bytes = std::fs::read(fp.join("flying_platform_hover.mcap")).unwrap();
+    let bytes = std::fs::read(hover_log(&dir.join("fp"), 30.0)).unwrap();
     let cut = dir.join("cut.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() * 3 / 4]).unwrap();
     let run = stabilis(&["fit", "--data", cut.to_str().unwrap()]);
