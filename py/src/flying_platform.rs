@@ -16,6 +16,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyComplex, PyDict};
 
 use crate::errors::{to_py_err, Error, IntoPyError, SimError};
+use crate::real::Real;
 
 impl IntoPyError for fp::Error {
     fn into_py_error(self) -> PyErr {
@@ -130,8 +131,8 @@ impl PyModel {
     }
 
     /// Sets the flat parameter vector (length and bounds checked).
-    fn set_parameter_vector(&mut self, theta: Vec<f64>) -> PyResult<()> {
-        self.inner.set_parameter_vector(&theta).map_err(to_py_err)
+    fn set_parameter_vector(&mut self, theta: Real<Vec<f64>>) -> PyResult<()> {
+        self.inner.set_parameter_vector(&theta.0).map_err(to_py_err)
     }
 
     /// A named effect parameter.
@@ -155,10 +156,10 @@ impl PyModel {
     fn state_space<'py>(
         &self,
         py: Python<'py>,
-        theta: Option<Vec<f64>>,
+        theta: Option<Real<Vec<f64>>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let ss = match theta {
-            Some(t) => self.inner.state_space_at(&t),
+            Some(Real(t)) => self.inner.state_space_at(&t),
             None => self.inner.state_space(),
         }
         .map_err(to_py_err)?;
@@ -177,12 +178,12 @@ impl PyModel {
     fn frequency_response<'py>(
         &self,
         py: Python<'py>,
-        omegas: Vec<f64>,
-        theta: Option<Vec<f64>>,
+        omegas: Real<Vec<f64>>,
+        theta: Option<Real<Vec<f64>>>,
     ) -> PyResult<Bound<'py, PyArray3<Complex<f64>>>> {
         let g = match theta {
-            Some(t) => self.inner.frequency_response_at(&t, &omegas),
-            None => self.inner.frequency_response(&omegas),
+            Some(Real(t)) => self.inner.frequency_response_at(&t, &omegas.0),
+            None => self.inner.frequency_response(&omegas.0),
         }
         .map_err(to_py_err)?;
         Ok(Array3::from_shape_fn((g.len(), 6, 9), |(f, i, j)| g[f][(i, j)]).into_pyarray(py))

@@ -156,6 +156,16 @@ def test_complex_arrays_are_refused_not_truncated():
         cubli.momenta(np.zeros(3) + 1j, np.zeros(3))
     with pytest.raises(TypeError, match="complex"):
         flying_platform.simulate(excitation=np.zeros((10, 9)) * 1j)
+    # Methods of the native classes too (numpy complex scalars pass through __float__).
+    g = np.array([0.0, 0.0, -9.81])
+    with pytest.raises(TypeError, match="complex"):
+        cubli.Backstepping().control(g + 0.1j, np.zeros(3), np.zeros(3))
+    with pytest.raises(TypeError, match="complex"):
+        cubli.Params(m=np.array([0.1, 0.1, 0.1]) * (1 + 1j))
+    with pytest.raises(TypeError, match="complex"):
+        flying_platform.Model().frequency_response(np.array([1.0, 2.0]) * (1 + 1j))
+    with pytest.raises(TypeError, match="complex"):
+        est.d_criterion(g * (1 + 1j))
 
 
 def test_huge_rotation_vectors_and_measurements():

@@ -59,12 +59,15 @@ class Estimator:
     def fisher(self, omega, omega_dot, g=(0.0, 0.0, -G0), sigma=1.0):
         """Fisher information and Cramer-Rao bound at one state (parameters omega, omega_dot, n)."""
         return self._native.fisher(
-            [float(v) for v in omega], [float(v) for v in omega_dot], [float(v) for v in g], float(sigma)
+            real_array(omega, "omega").tolist(),
+            real_array(omega_dot, "omega_dot").tolist(),
+            real_array(g, "g").tolist(),
+            float(real_array(sigma, "sigma").item()),
         )
 
     def d_criterion(self, g=(0.0, 0.0, -G0)):
         """D-criterion (2.64) of the layout for gravity g in the body frame."""
-        return self._native.d_criterion([float(v) for v in g])
+        return self._native.d_criterion(real_array(g, "g").tolist())
 
     def __repr__(self):
         return repr(self._native)
