@@ -375,7 +375,7 @@ fn workbench_logs_with_uneven_time_or_a_wrong_rate_or_given_twice_are_refused() 
 }
 
 #[test]
-fn a_cut_off_log_is_analysed_with_a_warning() {
+fn a_cut_off_log_is_read_with_a_warning() {
     let dir = scratch("cut");
     let bytes = std::fs::read(hover_log(&dir.join("fp"), 30.0)).unwrap();
     let cut = dir.join("cut.mcap");
