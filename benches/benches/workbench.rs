@@ -1,13 +1,21 @@
 //! End to end workbench time on the paper's identification data (18 experiments x 2700
 //! samples, 6 outputs, 9 inputs, closed loop): FRF with covariance, noise reference, the
 //! discovery loop (4 candidates, every fit with standard errors). The data are simulated once
-//! outside the timed region. The second entry times the non-parametric part alone.
+//! outside the timed region. The second entry times the non-parametric part alone. The third
+//! group is a user's system through its model file (the cart-pole of py/tests/data).
 #![allow(clippy::unwrap_used)]
 use std::sync::Arc;
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use nalgebra::{DMatrix, DVector};
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use rand_distr::StandardNormal;
 use sim::workbench::flying_platform::{embedded_dataset, FlyingPlatform};
-use sim::workbench::{EstimatorChoice, Workbench};
+use sim::workbench::{
+    Controller, Dataset, EstimatorChoice, Experiment, ModelFile, ModelStructure, Periodic,
+    Workbench,
+};
 
 fn workbench(c: &mut Criterion) {
     let data = embedded_dataset().unwrap();
@@ -39,5 +47,102 @@ fn workbench(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, workbench);
+/// A cart-pole campaign of the size (4 experiments x 8300 samples at 100 Hz, one
+/// input, two outputs), simulated once outside the timed region: the model file's linear model
+/// with its declared friction on (b = 0.8), in closed loop with the file's own discrete
+/// controller, a periodic multisine excitation (1000-sample period, lines 1-70), force noise and
+/// sensor noise.
+fn cart_pole_campaign(file: &ModelFile) -> Dataset {
+    let with = vec!["cart_friction".to_string()];
+    let mut theta: Vec<f64> = file
+        .parameters(&with)
+        .unwrap()
+        .iter()
+        .map(|p| p.value)
+        .collect();
+    *theta.last_mut().unwrap() = 0.8;
+    let ss = file.state_space(&with, &theta).unwrap();
+    let (phi, gamma) = rigid_body::lti::c2d_zoh(&ss.a, &ss.b, 0.01).unwrap();
+    let Some(Controller::Discrete { a, b, c, d, .. }) = file.controller() else {
+        panic!("the cart-pole file gives a discrete controller")
+    };
+    let (period, periods, transient) = (1000, 8, 300);
+    let n = transient + period * periods;
+    let experiments = (0..4u64)
+        .map(|seed| {
+            let mut rng = StdRng::seed_from_u64(seed);
+            let phases: Vec<f64> = (0..70)
+                .map(|_| rng.random::<f64>() * std::f64::consts::TAU)
+                .collect();
+            let r: Vec<f64> = (0..n)
+                .map(|k| {
+                    let t = (k % period) as f64 / period as f64;
+                    phases
+                        .iter()
+                        .enumerate()
+                        .map(|(l, ph)| (std::f64::consts::TAU * (l + 1) as f64 * t + ph).cos())
+                        .sum::<f64>()
+                        * 0.05
+                })
+                .collect();
+            let mut x = DVector::zeros(4);
+            let mut xc = DVector::zeros(a.nrows());
+            let (mut u, mut y, mut rr) = (
+                DMatrix::zeros(n, 1),
+                DMatrix::zeros(n, 2),
+                DMatrix::zeros(n, 1),
+            );
+            for k in 0..n {
+                let noise = DVector::from_fn(2, |i, _| {
+                    [2e-4, 5e-4][i] * rng.sample::<f64, _>(StandardNormal)
+                });
+                let yk = &ss.c * &x + noise;
+                let uk = (&c * &xc + &d * &yk)[0] + r[k];
+                xc = &a * &xc + &b * &yk;
+                let w = 0.05 * rng.sample::<f64, _>(StandardNormal);
+                x = &phi * &x + &gamma * (uk + w);
+                u[(k, 0)] = uk;
+                rr[(k, 0)] = r[k];
+                y.row_mut(k).copy_from(&yk.transpose());
+            }
+            Experiment {
+                name: format!("experiment {seed}"),
+                u,
+                y,
+                r: Some(rr),
+                periodic: Some(Periodic {
+                    period,
+                    periods,
+                    transient,
+                }),
+            }
+        })
+        .collect();
+    Dataset {
+        sample_rate_hz: 100.0,
+        inputs: file.inputs(),
+        outputs: file.outputs(),
+        experiments,
+    }
+}
+
+fn own_system(c: &mut Criterion) {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../py/tests/data/cart_pole.toml");
+    let file = Arc::new(ModelFile::from_path(&path).unwrap());
+    let data = cart_pole_campaign(&file);
+    let mut group = c.benchmark_group("workbench_model_file_4x8300");
+    group.sample_size(10);
+    group.bench_function("discover_end_to_end", |b| {
+        b.iter(|| {
+            let wb = Workbench::new(file.clone(), data.clone(), EstimatorChoice::Auto).unwrap();
+            let d = wb.discover().unwrap();
+            assert_eq!(d.found, ["cart_friction"]);
+            d
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, workbench, own_system);
 criterion_main!(benches);

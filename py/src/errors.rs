@@ -19,6 +19,12 @@ create_exception!(
 );
 create_exception!(
     stabilis,
+    ModelError,
+    Error,
+    "A model file or Python model is malformed (the message names the file, key and problem)."
+);
+create_exception!(
+    stabilis,
     SimError,
     Error,
     "A simulation was given invalid options or diverged."
@@ -50,6 +56,7 @@ impl IntoPyError for sim::SimError {
             | E::MissingField { .. }
             | E::NotFinite { .. }
             | E::BadMessage { .. } => LogError::new_err(message),
+            E::ModelFile { .. } => ModelError::new_err(message),
             E::InvalidParameter { .. } | E::Domain { .. } => SimError::new_err(message),
             E::UnsafeOutput { .. } => Error::new_err(message),
         }
@@ -73,5 +80,6 @@ pub fn register(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add("Error", py.get_type::<Error>())?;
     module.add("LogError", py.get_type::<LogError>())?;
     module.add("SimError", py.get_type::<SimError>())?;
+    module.add("ModelError", py.get_type::<ModelError>())?;
     Ok(())
 }

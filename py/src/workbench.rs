@@ -12,10 +12,14 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use sim::workbench::cubli::{CubliBench, CubliDiscovery};
-use sim::workbench::flying_platform::{embedded_dataset, FlyingPlatform};
+use sim::workbench::dataset::detect_period;
+use sim::workbench::flying_platform::embedded_dataset;
 use sim::workbench::model::{Effect as EffectTrait, Parameter, StateSpace};
 use sim::workbench::report::{json, write_cubli_report, write_report};
-use sim::workbench::{load, Discovery, EstimatorChoice, ModelStructure};
+use sim::workbench::systems::{self, Source};
+use sim::workbench::{
+    load, Dataset, Discovery, EstimatorChoice, Experiment, ModelFile, ModelStructure,
+};
 
 use crate::errors::to_py_err;
 
@@ -141,7 +145,7 @@ impl PyEffect {
             params.set_item(&p.name, v)?;
         }
         let model = PyDict::new(py);
-        let mats: [(&str, &mut nalgebra::DMatrix<f64>); 4] = [
+        let mut mats: [(&str, &mut nalgebra::DMatrix<f64>); 4] = [
             ("A", &mut ss.a),
             ("B", &mut ss.b),
             ("C", &mut ss.c),
@@ -173,16 +177,6 @@ impl PyEffect {
                 PyValueError::new_err(format!("effect {}: {key} must be a 2-D array", effect.name))
             })?;
             let array = array.as_array();
-            let target = &mats[i].1;
-            if array.dim() != (target.nrows(), target.ncols()) {
-                return Err(PyValueError::new_err(format!(
-                    "effect {}: returned {key} of shape {:?}; the model's {key} is ({}, {})",
-                    effect.name,
-                    array.dim(),
-                    target.nrows(),
-                    target.ncols()
-                )));
-            }
             if let Some(((r, c), v)) = array.indexed_iter().find(|(_, v)| !v.is_finite()) {
                 return Err(PyValueError::new_err(format!(
                     "effect {}: returned {key}[{r}, {c}] = {v} at params {theta:?}",
@@ -190,6 +184,45 @@ impl PyEffect {
                 )));
             }
             additions.push((i, array.to_owned()));
+        }
+        // An effect may add states: a returned A larger than the model's extends the state,
+        // the model's matrices padded with zeros.
+        let n = mats[0].1.nrows();
+        let n_new = additions
+            .iter()
+            .find(|(i, _)| *i == 0)
+            .map_or(n, |(_, a)| a.nrows());
+        if n_new < n {
+            return Err(PyValueError::new_err(format!(
+                "effect {}: returned A with {n_new} rows; the model has {n} states",
+                effect.name
+            )));
+        }
+        let (ny, nu) = (mats[2].1.nrows(), mats[1].1.ncols());
+        let shapes = [(n_new, n_new), (n_new, nu), (ny, n_new), (ny, nu)];
+        for (key, m) in mats.iter_mut() {
+            let want = shapes[["A", "B", "C", "D"]
+                .iter()
+                .position(|k| k == key)
+                .unwrap_or(0)];
+            if (m.nrows(), m.ncols()) != want {
+                let mut padded = nalgebra::DMatrix::zeros(want.0, want.1);
+                padded.view_mut((0, 0), (m.nrows(), m.ncols())).copy_from(m);
+                **m = padded;
+            }
+        }
+        for (i, array) in &additions {
+            let target = &mats[*i].1;
+            if array.dim() != (target.nrows(), target.ncols()) {
+                let key = ["A", "B", "C", "D"][*i];
+                return Err(PyValueError::new_err(format!(
+                    "effect {}: returned {key} of shape {:?}; with {n_new} states the model's {key} is ({}, {})",
+                    effect.name,
+                    array.dim(),
+                    target.nrows(),
+                    target.ncols()
+                )));
+            }
         }
         let [(_, a), (_, b), (_, c), (_, d)] = mats;
         let mut targets = [a, b, c, d];
@@ -229,6 +262,413 @@ impl EffectTrait for PyEffect {
             )
         })
     }
+}
+
+/// A user's model as a workbench structure: a Python callable `matrices(params) -> (A, B, C, D)`
+/// evaluated under the GIL, its first exception kept for the caller like an effect's.
+#[derive(Debug)]
+struct PyStructure {
+    name: String,
+    states: usize,
+    inputs: Vec<String>,
+    outputs: Vec<String>,
+    params: Vec<Parameter>,
+    fixed: Vec<(String, f64)>,
+    matrices: Py<PyAny>,
+    error: Arc<Mutex<Option<PyErr>>>,
+}
+
+impl PyStructure {
+    /// The same model under another system name.
+    fn named(&self, py: Python<'_>, name: String) -> Self {
+        Self {
+            name,
+            states: self.states,
+            inputs: self.inputs.clone(),
+            outputs: self.outputs.clone(),
+            params: self.params.clone(),
+            fixed: self.fixed.clone(),
+            matrices: self.matrices.clone_ref(py),
+            error: Arc::clone(&self.error),
+        }
+    }
+
+    fn call(&self, py: Python<'_>, theta: &[f64]) -> PyResult<StateSpace> {
+        let params = PyDict::new(py);
+        for (p, v) in self.params.iter().zip(theta) {
+            params.set_item(&p.name, v)?;
+        }
+        for (name, v) in &self.fixed {
+            params.set_item(name, v)?;
+        }
+        let out = self.matrices.call1(py, (params,))?;
+        let out = out.bind(py);
+        let parts: Vec<Bound<'_, PyAny>> = out
+            .try_iter()
+            .and_then(|it| it.collect::<PyResult<Vec<_>>>())
+            .map_err(|_| {
+                PyTypeError::new_err(format!(
+                    "model {}: matrices(params) must return (A, B, C, D)",
+                    self.name
+                ))
+            })?;
+        if parts.len() != 4 {
+            return Err(PyValueError::new_err(format!(
+                "model {}: matrices(params) returned {} items, expected (A, B, C, D)",
+                self.name,
+                parts.len()
+            )));
+        }
+        let np = py.import("numpy")?;
+        let (n, m, p) = (self.states, self.inputs.len(), self.outputs.len());
+        let shapes = [(n, n), (n, m), (p, n), (p, m)];
+        let mut mats = Vec::with_capacity(4);
+        for ((key, part), want) in ["A", "B", "C", "D"].iter().zip(parts).zip(shapes) {
+            let array = np.call_method1(
+                "atleast_2d",
+                (np.call_method1("asarray", (part, "float64"))?,),
+            )?;
+            let array: PyReadonlyArray2<f64> = array.extract().map_err(|_| {
+                PyValueError::new_err(format!("model {}: {key} must be a 2-D array", self.name))
+            })?;
+            let a = array.as_array();
+            if a.dim() != want {
+                return Err(PyValueError::new_err(format!(
+                    "model {}: {key} has shape {:?}, must be {want:?} ({n} states, {m} inputs, {p} outputs)",
+                    self.name,
+                    a.dim()
+                )));
+            }
+            if let Some(((r, c), v)) = a.indexed_iter().find(|(_, v)| !v.is_finite()) {
+                return Err(PyValueError::new_err(format!(
+                    "model {}: {key}[{r}, {c}] = {v} at params {theta:?}",
+                    self.name
+                )));
+            }
+            mats.push(nalgebra::DMatrix::from_fn(want.0, want.1, |i, j| a[(i, j)]));
+        }
+        let d = mats.pop().unwrap_or_default();
+        let c = mats.pop().unwrap_or_default();
+        let b = mats.pop().unwrap_or_default();
+        let a = mats.pop().unwrap_or_default();
+        Ok(StateSpace {
+            a,
+            b,
+            c,
+            d,
+            delay: 0.0,
+        })
+    }
+}
+
+impl ModelStructure for PyStructure {
+    fn system(&self) -> &str {
+        &self.name
+    }
+
+    fn inputs(&self) -> Vec<String> {
+        self.inputs.clone()
+    }
+
+    fn outputs(&self) -> Vec<String> {
+        self.outputs.clone()
+    }
+
+    fn effects(&self) -> Vec<String> {
+        Vec::new()
+    }
+
+    fn describe(&self, effect: &str) -> String {
+        format!("unknown effect {effect}")
+    }
+
+    fn fixed(&self) -> Vec<(String, f64, String)> {
+        self.fixed
+            .iter()
+            .map(|(n, v)| (n.clone(), *v, "fixed in the Python model".into()))
+            .collect()
+    }
+
+    fn parameters(&self, _enabled: &[String]) -> sim::Result<Vec<Parameter>> {
+        Ok(self.params.clone())
+    }
+
+    fn state_space(&self, _enabled: &[String], theta: &[f64]) -> sim::Result<StateSpace> {
+        Python::attach(|py| self.call(py, theta)).map_err(|err| {
+            let message = err.to_string();
+            if let Ok(mut slot) = self.error.lock() {
+                slot.get_or_insert(err);
+            }
+            sim::SimError::invalid(format!("model {}", self.name), "Python callable", message)
+        })
+    }
+}
+
+/// Reads one parameter given as `value`, `(value, min, max)` or
+/// `{"value", "min", "max", "unit", "fixed"}`; returns it and whether it is fixed.
+fn py_parameter(name: &str, spec: &Bound<'_, PyAny>) -> PyResult<(Parameter, bool)> {
+    let bad = || {
+        PyTypeError::new_err(format!(
+            "parameter {name}: give a number, (value, min, max) or a dict with value, min, max, unit, fixed"
+        ))
+    };
+    let (value, lower, upper, unit, fixed) = if let Ok(v) = spec.extract::<f64>() {
+        (v, f64::NEG_INFINITY, f64::INFINITY, String::new(), false)
+    } else if let Ok((v, lo, hi)) = spec.extract::<(f64, f64, f64)>() {
+        (v, lo, hi, String::new(), false)
+    } else if let Ok(d) = spec.cast::<PyDict>() {
+        for key in d.keys() {
+            let key: String = key.extract().map_err(|_| bad())?;
+            if !["value", "min", "max", "unit", "fixed"].contains(&key.as_str()) {
+                return Err(PyValueError::new_err(format!(
+                    "parameter {name}: unknown field {key:?} (expected value, min, max, unit, fixed)"
+                )));
+            }
+        }
+        let num = |k: &str, default: f64| -> PyResult<f64> {
+            d.get_item(k)?
+                .map_or(Ok(default), |v| v.extract::<f64>().map_err(|_| bad()))
+        };
+        let value = d
+            .get_item("value")?
+            .ok_or_else(|| PyValueError::new_err(format!("parameter {name}: missing value")))?
+            .extract::<f64>()
+            .map_err(|_| bad())?;
+        let unit = d
+            .get_item("unit")?
+            .map_or(Ok(String::new()), |u| u.extract::<String>())?;
+        let fixed = d
+            .get_item("fixed")?
+            .map_or(Ok(false), |f| f.extract::<bool>())?;
+        (
+            value,
+            num("min", f64::NEG_INFINITY)?,
+            num("max", f64::INFINITY)?,
+            unit,
+            fixed,
+        )
+    } else {
+        return Err(bad());
+    };
+    if !(value.is_finite() && lower <= value && value <= upper) {
+        return Err(PyValueError::new_err(format!(
+            "parameter {name}: value {value} must be finite and lie in [{lower}, {upper}]"
+        )));
+    }
+    Ok((Parameter::new(name, value, lower, upper, unit), fixed))
+}
+
+/// A model for the workbench: from a model file (`Model.from_file(path)`) or from Python,
+/// `Model(states=, inputs=, outputs=, parameters=, matrices=callable, effects=[...], name=)`,
+/// where `matrices(params)` returns `(A, B, C, D)` (numpy arrays) of the continuous-time model
+/// for the parameter values `{name: float}`, and `effects` are [`Effect`]s that discovery
+/// tries next to the generic `actuator_lag` and `input_delay`.
+#[pyclass(name = "Model", module = "stabilis._stabilis.workbench", frozen)]
+#[derive(Debug)]
+struct Model {
+    structure: Arc<dyn ModelStructure>,
+    /// A Python model given without a name, named later after the logs' topics.
+    unnamed: Option<PyStructure>,
+    effects: Vec<Py<Effect>>,
+    error: Arc<Mutex<Option<PyErr>>>,
+}
+
+#[pymethods]
+impl Model {
+    #[new]
+    #[pyo3(signature = (states, inputs, outputs, parameters, matrices, effects = None, name = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        states: Vec<String>,
+        inputs: Vec<String>,
+        outputs: Vec<String>,
+        parameters: &Bound<'_, PyDict>,
+        matrices: Py<PyAny>,
+        effects: Option<Vec<Py<Effect>>>,
+        name: Option<String>,
+    ) -> PyResult<Self> {
+        // Without a name the system is read from the logs' topics when the workbench loads them.
+        let name = name.unwrap_or_default();
+        let name = name.as_str();
+        for (what, list) in [
+            ("states", &states),
+            ("inputs", &inputs),
+            ("outputs", &outputs),
+        ] {
+            if list.is_empty() {
+                return Err(PyValueError::new_err(format!(
+                    "model {name}: {what} must name at least one"
+                )));
+            }
+            if let Some((i, n)) = list
+                .iter()
+                .enumerate()
+                .find(|(i, n)| list[..*i].contains(n))
+            {
+                return Err(PyValueError::new_err(format!(
+                    "model {name}: {what}[{i}] {n:?} is named twice"
+                )));
+            }
+        }
+        if !matrices.bind(py).is_callable() {
+            return Err(PyTypeError::new_err(format!(
+                "model {name}: matrices must be callable"
+            )));
+        }
+        let mut params = Vec::new();
+        let mut fixed = Vec::new();
+        for (k, v) in parameters.iter() {
+            let pname: String = k.extract()?;
+            let (p, is_fixed) = py_parameter(&pname, &v)?;
+            if is_fixed {
+                fixed.push((p.name, p.value));
+            } else {
+                params.push(p);
+            }
+        }
+        sim::workbench::model::check_parameters(&params).map_err(to_py_err)?;
+        let error = Arc::new(Mutex::new(None));
+        let structure = PyStructure {
+            name: name.to_string(),
+            states: states.len(),
+            inputs,
+            outputs,
+            params,
+            fixed,
+            matrices,
+            error: Arc::clone(&error),
+        };
+        let theta: Vec<f64> = structure.params.iter().map(|p| p.value).collect();
+        structure.call(py, &theta)?;
+        let unnamed = name.is_empty().then(|| structure.named(py, String::new()));
+        Ok(Self {
+            structure: Arc::new(structure),
+            unnamed,
+            effects: effects.unwrap_or_default(),
+            error,
+        })
+    }
+
+    /// Reads a model file (TOML; README "Your own system").
+    #[staticmethod]
+    fn from_file(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+        let file = py
+            .detach(|| ModelFile::from_path(&path))
+            .map_err(to_py_err)?;
+        Ok(Self {
+            structure: Arc::new(file),
+            unnamed: None,
+            effects: Vec::new(),
+            error: Arc::new(Mutex::new(None)),
+        })
+    }
+
+    /// The system name (MCAP topics `/<name>/input`, ...).
+    #[getter]
+    fn name(&self) -> &str {
+        self.structure.system()
+    }
+
+    /// Input names.
+    #[getter]
+    fn inputs(&self) -> Vec<String> {
+        self.structure.inputs()
+    }
+
+    /// Output names.
+    #[getter]
+    fn outputs(&self) -> Vec<String> {
+        self.structure.outputs()
+    }
+
+    /// The matrices at the documented values: `{"A", "B", "C", "D"}` as numpy arrays.
+    fn matrices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let s = Arc::clone(&self.structure);
+        let ss = run_with(&self.error, py, move || {
+            let theta: Vec<f64> = s.parameters(&[])?.iter().map(|p| p.value).collect();
+            s.state_space(&[], &theta)
+        })?;
+        let out = PyDict::new(py);
+        for (k, m) in [("A", &ss.a), ("B", &ss.b), ("C", &ss.c), ("D", &ss.d)] {
+            let a = Array2::from_shape_fn((m.nrows(), m.ncols()), |(i, j)| m[(i, j)]);
+            out.set_item(k, a.into_pyarray(py))?;
+        }
+        Ok(out)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Model({:?}, inputs={:?}, outputs={:?})",
+            self.structure.system(),
+            self.structure.inputs(),
+            self.structure.outputs()
+        )
+    }
+}
+
+/// Experiments given as arrays: each a dict with `u` (samples x inputs), `y` (samples x
+/// outputs) and optionally `r` (the logged excitation, shaped like `u`); periods are detected
+/// from `r` as for logs without period metadata.
+fn dataset_from_arrays(
+    structure: &dyn ModelStructure,
+    experiments: &[Bound<'_, PyDict>],
+    sample_rate_hz: f64,
+) -> PyResult<Dataset> {
+    let np = experiments
+        .first()
+        .map(|e| e.py().import("numpy"))
+        .transpose()?
+        .ok_or_else(|| PyValueError::new_err("data: give at least one experiment"))?;
+    let mut out = Vec::with_capacity(experiments.len());
+    for (i, e) in experiments.iter().enumerate() {
+        let get = |key: &str, cols: usize| -> PyResult<Option<nalgebra::DMatrix<f64>>> {
+            let Some(v) = e.get_item(key)? else {
+                return Ok(None);
+            };
+            let arr = np.call_method1("asarray", (v, "float64"))?;
+            let arr = if arr.getattr("ndim")?.extract::<usize>()? == 1 {
+                arr.call_method1("reshape", ((-1i64, 1i64),))?
+            } else {
+                arr
+            };
+            let arr: PyReadonlyArray2<f64> = arr.extract().map_err(|_| {
+                PyValueError::new_err(format!("data[{i}][{key:?}] must be a 1-D or 2-D array"))
+            })?;
+            let a = arr.as_array();
+            if a.ncols() != cols {
+                return Err(PyValueError::new_err(format!(
+                    "data[{i}][{key:?}] has {} columns; the model has {cols}",
+                    a.ncols()
+                )));
+            }
+            Ok(Some(nalgebra::DMatrix::from_fn(a.nrows(), cols, |r, c| {
+                a[(r, c)]
+            })))
+        };
+        let (m, p) = (structure.inputs().len(), structure.outputs().len());
+        let u =
+            get("u", m)?.ok_or_else(|| PyValueError::new_err(format!("data[{i}] needs \"u\"")))?;
+        let y =
+            get("y", p)?.ok_or_else(|| PyValueError::new_err(format!("data[{i}] needs \"y\"")))?;
+        let r = get("r", m)?;
+        let periodic = r.as_ref().and_then(detect_period);
+        out.push(Experiment {
+            name: format!("experiment {}", i + 1),
+            u,
+            y,
+            r,
+            periodic,
+        });
+    }
+    let data = Dataset {
+        sample_rate_hz,
+        inputs: structure.inputs(),
+        outputs: structure.outputs(),
+        experiments: out,
+    };
+    data.validate().map_err(to_py_err)?;
+    Ok(data)
 }
 
 /// What a workbench works on.
@@ -321,12 +761,14 @@ impl Workbench {
 #[pymethods]
 impl Workbench {
     #[new]
-    #[pyo3(signature = (system = "flying_platform", data = None, estimator = "auto"))]
+    #[pyo3(signature = (system = "flying_platform", data = None, estimator = "auto", model = None, sample_rate_hz = None))]
     fn new(
         py: Python<'_>,
         system: &str,
-        data: Option<Vec<PathBuf>>,
+        data: Option<&Bound<'_, PyAny>>,
         estimator: &str,
+        model: Option<&Bound<'_, PyAny>>,
+        sample_rate_hz: Option<f64>,
     ) -> PyResult<Self> {
         let choice = match estimator {
             "auto" => EstimatorChoice::Auto,
@@ -338,30 +780,98 @@ impl Workbench {
                 )))
             }
         };
-        let inner = match system {
-            "flying_platform" => {
-                let structure: Arc<dyn ModelStructure> = Arc::new(FlyingPlatform::default());
-                let wb = py
-                    .detach(|| {
-                        let dataset = match &data {
-                            None => embedded_dataset()?,
-                            Some(paths) => load::load(
-                                structure.system(),
-                                &structure.inputs(),
-                                &structure.outputs(),
-                                paths,
-                            )?,
-                        };
-                        sim::workbench::Workbench::new(structure, dataset, choice)
-                    })
+        // `model` is a stabilis.Model or the path of a model file.
+        let (source, effects, error) = match model {
+            None => (
+                systems::shipped(system).map_err(to_py_err)?,
+                Vec::new(),
+                Arc::new(Mutex::new(None)),
+            ),
+            Some(m) => {
+                let m: Py<Model> = match m.cast::<Model>() {
+                    Ok(m) => m.clone().unbind(),
+                    Err(_) => {
+                        let path: PathBuf = m.extract().map_err(|_| {
+                            PyTypeError::new_err(
+                                "model must be a stabilis.Model or a model-file path",
+                            )
+                        })?;
+                        Py::new(py, Model::from_file(py, path)?)?
+                    }
+                };
+                let m = m.get();
+                let effects: Vec<Py<Effect>> = m.effects.iter().map(|e| e.clone_ref(py)).collect();
+                let logs = data.and_then(|d| d.extract::<Vec<PathBuf>>().ok());
+                let structure: Arc<dyn ModelStructure> = match (&m.unnamed, logs) {
+                    (Some(unnamed), Some(paths)) => {
+                        let name = py.detach(|| load::system_of(&paths)).map_err(to_py_err)?;
+                        Arc::new(unnamed.named(py, name))
+                    }
+                    _ => Arc::clone(&m.structure),
+                };
+                (Source::Structure(structure), effects, Arc::clone(&m.error))
+            }
+        };
+        let paths: Option<Vec<PathBuf>> = match data {
+            None => None,
+            Some(d) => match d.extract::<Vec<PathBuf>>() {
+                Ok(p) => Some(p),
+                Err(_) => None,
+            },
+        };
+        let arrays: Option<Vec<Bound<'_, PyDict>>> = match (data, &paths) {
+            (Some(d), None) => Some(d.extract::<Vec<Bound<'_, PyDict>>>().map_err(|_| {
+                PyTypeError::new_err(
+                    "data must be a list of log paths or of dicts {\"u\", \"y\", \"r\"} of arrays",
+                )
+            })?),
+            _ => None,
+        };
+        let inner = match source {
+            Source::Structure(structure) => {
+                let dataset = match (&paths, &arrays) {
+                    (_, Some(experiments)) => {
+                        let fs = sample_rate_hz.ok_or_else(|| {
+                            PyValueError::new_err("data given as arrays needs sample_rate_hz=")
+                        })?;
+                        Some(dataset_from_arrays(structure.as_ref(), experiments, fs)?)
+                    }
+                    _ => None,
+                };
+                let s = Arc::clone(&structure);
+                let shipped_default = model.is_none() && system == "flying_platform";
+                let mut wb = run_with(&error, py, move || {
+                    let dataset = match (dataset, &paths) {
+                        (Some(d), _) => d,
+                        (None, Some(p)) => load::load(s.system(), &s.inputs(), &s.outputs(), p)?,
+                        (None, None) if shipped_default => embedded_dataset()?,
+                        (None, None) => {
+                            return Err(sim::SimError::invalid(
+                                "data",
+                                "None",
+                                format!(
+                                    "{} needs measurements: data=[paths] or arrays",
+                                    s.system()
+                                ),
+                            ))
+                        }
+                    };
+                    sim::workbench::Workbench::new(s, dataset, choice)
+                })?;
+                for e in effects {
+                    wb.offer(Arc::new(PyEffect {
+                        effect: e,
+                        error: Arc::clone(&error),
+                    }))
                     .map_err(to_py_err)?;
+                }
                 Inner::Frf {
                     wb: Box::new(wb),
                     last: None,
                 }
             }
-            "cubli" => {
-                let paths = data.ok_or_else(|| {
+            Source::Cubli => {
+                let paths = paths.ok_or_else(|| {
                     PyValueError::new_err(
                         "the cubli workbench needs logs: data=[run1.mcap, run2.mcap, ...]",
                     )
@@ -372,25 +882,51 @@ impl Workbench {
                     last: None,
                 }
             }
-            other => {
-                return Err(PyValueError::new_err(format!(
-                    "unknown system {other:?}; the workbench knows: flying_platform, cubli"
-                )))
-            }
         };
-        Ok(Self {
-            inner,
-            error: Arc::new(Mutex::new(None)),
-        })
+        Ok(Self { inner, error })
     }
 
     /// The system name.
     #[getter]
-    fn system(&self) -> &str {
+    fn system(&self) -> String {
         match &self.inner {
-            Inner::Frf { .. } => "flying_platform",
-            Inner::Cubli { .. } => "cubli",
+            Inner::Frf { wb, .. } => wb.model().structure().system().to_string(),
+            Inner::Cubli { .. } => "cubli".to_string(),
         }
+    }
+
+    /// Offers an effect to `discover()` as a candidate, next to the declared and generic ones
+    /// (it is not enabled): a [`Effect`], or a callable with `params=` as for `add`.
+    #[pyo3(signature = (effect, params = None, bounds = None, units = None, name = None))]
+    fn suspect(
+        &mut self,
+        py: Python<'_>,
+        effect: &Bound<'_, PyAny>,
+        params: Option<&Bound<'_, PyDict>>,
+        bounds: Option<HashMap<String, (f64, f64)>>,
+        units: Option<HashMap<String, String>>,
+        name: Option<String>,
+    ) -> PyResult<()> {
+        let user = user_effect(py, effect, params, bounds, units, name)?;
+        let Inner::Frf { wb, .. } = &mut self.inner else {
+            return Err(PyValueError::new_err(
+                "user-defined effects edit a state-space model; the cubli workbench fits its named candidates only",
+            ));
+        };
+        let effect = Arc::new(PyEffect {
+            effect: user.unbind(),
+            error: Arc::clone(&self.error),
+        });
+        // Evaluated once at its documented values, so that a broken callable fails here.
+        let probe = wb
+            .model()
+            .with_user_effect(effect.clone())
+            .map_err(to_py_err)?;
+        run_with(&self.error, py, || {
+            let theta: Vec<f64> = probe.parameters()?.iter().map(|p| p.value).collect();
+            probe.state_space(&theta).map(|_| ())
+        })?;
+        wb.offer(effect).map_err(to_py_err)
     }
 
     /// Fits the current model: a dict with `steps` (one), `found` (empty), `unexplained`.
@@ -463,37 +999,19 @@ impl Workbench {
         units: Option<HashMap<String, String>>,
         name: Option<String>,
     ) -> PyResult<()> {
-        let extras = params.is_some() || bounds.is_some() || units.is_some() || name.is_some();
-        let is_effect = effect.cast::<Effect>().is_ok();
-        if extras && (is_effect || !effect.is_callable()) {
-            return Err(PyTypeError::new_err(
-                "params, bounds, units and name go with a callable, not with an effect name or a stabilis.Effect",
-            ));
-        }
         if let Ok(name) = effect.extract::<String>() {
+            if params.is_some() || bounds.is_some() || units.is_some() {
+                return Err(PyTypeError::new_err(
+                    "params, bounds, units and name go with a callable, not with an effect name",
+                ));
+            }
             return match &mut self.inner {
                 Inner::Frf { wb, .. } => wb.add(&name),
                 Inner::Cubli { bench, .. } => bench.add(&name),
             }
             .map_err(to_py_err);
         }
-        let user: Bound<'_, Effect> = if let Ok(user) = effect.cast::<Effect>() {
-            user.clone()
-        } else if effect.is_callable() {
-            let params = params.ok_or_else(|| {
-                PyTypeError::new_err("add(func) needs params={name: documented value}")
-            })?;
-            let name = match name {
-                Some(n) => n,
-                None => effect.getattr("__name__")?.extract()?,
-            };
-            let built = Effect::new(py, name, params, effect.clone().unbind(), bounds, units, "")?;
-            Bound::new(py, built)?
-        } else {
-            return Err(PyTypeError::new_err(
-                "add() takes an effect name, a stabilis.Effect or a callable with params",
-            ));
-        };
+        let user = user_effect(py, effect, params, bounds, units, name)?;
         let Inner::Frf { wb, .. } = &self.inner else {
             return Err(PyValueError::new_err(
                 "user-defined effects edit a state-space model; the cubli workbench fits its named candidates only",
@@ -562,10 +1080,45 @@ impl Workbench {
     }
 }
 
+/// A [`Effect`] from what `add`/`suspect` were given: an Effect, or a callable with `params`.
+fn user_effect<'py>(
+    py: Python<'py>,
+    effect: &Bound<'py, PyAny>,
+    params: Option<&Bound<'py, PyDict>>,
+    bounds: Option<HashMap<String, (f64, f64)>>,
+    units: Option<HashMap<String, String>>,
+    name: Option<String>,
+) -> PyResult<Bound<'py, Effect>> {
+    let extras = params.is_some() || bounds.is_some() || units.is_some() || name.is_some();
+    if let Ok(user) = effect.cast::<Effect>() {
+        if extras {
+            return Err(PyTypeError::new_err(
+                "params, bounds, units and name go with a callable, not with a stabilis.Effect",
+            ));
+        }
+        return Ok(user.clone());
+    }
+    if !effect.is_callable() {
+        return Err(PyTypeError::new_err(
+            "give an effect name, a stabilis.Effect or a callable with params",
+        ));
+    }
+    let params = params.ok_or_else(|| {
+        PyTypeError::new_err("a callable effect needs params={name: documented value}")
+    })?;
+    let name = match name {
+        Some(n) => n,
+        None => effect.getattr("__name__")?.extract()?,
+    };
+    let built = Effect::new(py, name, params, effect.clone().unbind(), bounds, units, "")?;
+    Bound::new(py, built)
+}
+
 /// Adds the `workbench` submodule.
 pub fn register(parent: &Bound<'_, PyModule>) -> PyResult<()> {
     let module = PyModule::new(parent.py(), "workbench")?;
     module.add_class::<Workbench>()?;
     module.add_class::<Effect>()?;
+    module.add_class::<Model>()?;
     parent.add_submodule(&module)
 }

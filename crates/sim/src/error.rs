@@ -103,6 +103,18 @@ pub enum SimError {
         /// The valid range or the rule it breaks.
         reason: String,
     },
+    /// A model file is malformed: `key` is the dotted TOML key (`linear.A[1][0]`,
+    /// `effects.joint_friction.parameters.b`), `reason` names the problem (with the expression
+    /// and the position of a bad name, or the sizes of mismatched matrices).
+    #[error("{}: {key}: {reason}", path.display())]
+    ModelFile {
+        /// The model file.
+        path: PathBuf,
+        /// Where in the file.
+        key: String,
+        /// What is wrong.
+        reason: String,
+    },
     /// An output path that would overwrite or delete an input or something this program did
     /// not write (see [`crate::output`]).
     #[error("refusing to write {}: {reason}", path.display())]

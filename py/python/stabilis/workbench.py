@@ -28,5 +28,6 @@ from . import _stabilis
 
 Workbench = _stabilis.workbench.Workbench
 Effect = _stabilis.workbench.Effect
+Model = _stabilis.workbench.Model
 
-__all__ = ["Workbench", "Effect"]
+__all__ = ["Workbench", "Effect", "Model"]

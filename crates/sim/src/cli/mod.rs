@@ -10,6 +10,7 @@ use crate::progress::Progress;
 use crate::scenarios::{self, Recording, Scenario};
 
 pub mod info;
+pub mod model;
 pub mod tilt;
 pub mod workbench;
 
@@ -44,6 +45,9 @@ pub enum Command {
     Compare(workbench::FitArgs),
     /// Fit a model with the effects given by `--with EFFECT[,EFFECT]`.
     Fit(workbench::FitArgs),
+    /// Checks a model file: matrices, eigenvalues, identifiability.
+    #[command(subcommand)]
+    Model(model::Command),
 }
 
 /// The systems `stabilis sim` can run.
@@ -125,6 +129,11 @@ pub struct Output {
     pub json: serde_json::Value,
 }
 
+/// The `--data` logs and the `--model` file of a workbench verb.
+fn workbench_inputs(common: &workbench::Common) -> Vec<std::path::PathBuf> {
+    common.data.iter().chain(&common.model).cloned().collect()
+}
+
 impl Command {
     /// The files and directories the verb reads (and, for `sim`, the log it writes): no output
     /// may replace or go inside any of them.
@@ -138,8 +147,9 @@ impl Command {
             Self::Tilt(args) => std::iter::once(args.data.clone())
                 .chain(args.out.clone())
                 .collect(),
-            Self::Discover(args) => args.common.data.clone(),
-            Self::Compare(args) | Self::Fit(args) => args.common.data.clone(),
+            Self::Discover(args) => workbench_inputs(&args.common),
+            Self::Compare(args) | Self::Fit(args) => workbench_inputs(&args.common),
+            Self::Model(model::Command::Check(args)) => vec![args.file.clone()],
         }
     }
 
@@ -160,6 +170,7 @@ impl Command {
             Self::Tilt(args) => args.run(),
             Self::Discover(args) => args.run(),
             Self::Compare(args) | Self::Fit(args) => args.run(),
+            Self::Model(cmd) => cmd.run(),
         }
     }
 }

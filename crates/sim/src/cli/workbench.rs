@@ -3,25 +3,15 @@
 //! Without `--data` the embedded flying-platform identification dataset is generated
 //! (deterministically, with hidden effects) and used.
 use std::path::PathBuf;
-use std::sync::Arc;
 
 use super::Output;
 use crate::error::{Result, SimError};
 use crate::progress::Progress;
 use crate::workbench::cubli::{CubliBench, CubliDiscovery};
-use crate::workbench::flying_platform::{embedded_dataset, FlyingPlatform};
+use crate::workbench::flying_platform::embedded_dataset;
 use crate::workbench::report::{json, table, write_cubli_report, write_report};
-use crate::workbench::{load, Discovery, EstimatorChoice, ModelStructure, Workbench};
-
-/// Systems the workbench has a model structure for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-#[value(rename_all = "snake_case")]
-pub enum System {
-    /// Ducted-fan flying platform (hover-linear model, effects of the flying_platform crate).
-    FlyingPlatform,
-    /// Reaction-wheel cube (time-domain prediction error on its full-state logs).
-    Cubli,
-}
+use crate::workbench::systems::{self, Source};
+use crate::workbench::{load, DataOptions, Discovery, EstimatorChoice, Workbench};
 
 /// Non-parametric estimator.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -37,15 +27,22 @@ pub enum EstimatorArg {
 /// Options shared by the workbench verbs.
 #[derive(Debug, Clone, PartialEq, clap::Args)]
 pub struct Common {
-    /// The system.
-    #[arg(long, value_enum, default_value = "flying_platform")]
-    pub system: System,
+    /// A shipped system: flying_platform or cubli (for any other system, --model).
+    #[arg(long, default_value = "flying_platform", conflicts_with = "model")]
+    pub system: String,
+    /// A model file (TOML) describing your own system; its `name` sets the MCAP topics.
+    #[arg(long, value_name = "FILE")]
+    pub model: Option<PathBuf>,
     /// MCAP or CSV files, or directories of them (default: the embedded dataset).
     #[arg(long, num_args = 1..)]
     pub data: Vec<PathBuf>,
     /// Non-parametric estimator.
     #[arg(long, value_enum, default_value = "auto")]
     pub estimator: EstimatorArg,
+    /// Band of a Welch estimate in Hz, LOW,HIGH, for an excitation designed for it (default:
+    /// the band the data excite).
+    #[arg(long, value_name = "LOW,HIGH", value_delimiter = ',', num_args = 1)]
+    pub band_hz: Vec<f64>,
     /// Write an HTML report with plots into this directory.
     #[arg(long)]
     pub report: Option<PathBuf>,
@@ -71,10 +68,18 @@ pub struct FitArgs {
 }
 
 impl Common {
+    /// The system named by `--system` or described by `--model`.
+    fn source(&self) -> Result<Source> {
+        match &self.model {
+            Some(path) => systems::from_model_file(path),
+            None => systems::shipped(&self.system),
+        }
+    }
+
     fn workbench(&self) -> Result<Workbench> {
-        let structure: Arc<dyn ModelStructure> = match self.system {
-            System::FlyingPlatform => Arc::new(FlyingPlatform::default()),
-            System::Cubli => {
+        let structure = match self.source()? {
+            Source::Structure(s) => s,
+            Source::Cubli => {
                 return Err(SimError::invalid(
                     "system",
                     "cubli",
@@ -83,6 +88,17 @@ impl Common {
             }
         };
         let data = if self.data.is_empty() {
+            if self.model.is_some() || self.system != "flying_platform" {
+                return Err(SimError::invalid(
+                    "data",
+                    "(none)",
+                    format!(
+                        "{} needs logs: --data run1.mcap run2.mcap ... (only the flying platform \
+                         has an embedded dataset)",
+                        structure.system()
+                    ),
+                ));
+            }
             embedded_dataset()?
         } else {
             load::load(
@@ -97,7 +113,18 @@ impl Common {
             EstimatorArg::Ls => EstimatorChoice::LeastSquares,
             EstimatorArg::Iv => EstimatorChoice::InstrumentalVariable,
         };
-        Workbench::new(structure, data, choice)
+        let band_hz = match self.band_hz.as_slice() {
+            [] => None,
+            [lo, hi] => Some((*lo, *hi)),
+            other => {
+                return Err(SimError::invalid(
+                    "--band-hz",
+                    format!("{other:?}"),
+                    "give two frequencies, LOW,HIGH",
+                ))
+            }
+        };
+        Workbench::with_options(structure, data, choice, DataOptions { band_hz })
     }
 
     fn finish(&self, wb: &Workbench, d: &Discovery) -> Result<Output> {
@@ -149,7 +176,7 @@ impl Common {
 impl DiscoverArgs {
     /// Finds the missing effects step by step.
     pub fn run(&self) -> Result<Output> {
-        if self.common.system == System::Cubli {
+        if matches!(self.common.source()?, Source::Cubli) {
             let d = self.common.cubli()?.discover()?;
             return self.common.finish_cubli(&d);
         }
@@ -170,7 +197,7 @@ impl DiscoverArgs {
 impl FitArgs {
     /// Fits the model with the given effects and reports it (a one-step discovery record).
     pub fn run(&self) -> Result<Output> {
-        if self.common.system == System::Cubli {
+        if matches!(self.common.source()?, Source::Cubli) {
             let mut bench = self.common.cubli()?;
             for e in &self.with {
                 bench.add(e.trim())?;

@@ -176,17 +176,36 @@ impl Discovery {
 const REWEIGHTINGS: usize = 1;
 
 /// Values tried for a new parameter: 17 points over its bounds (logarithmic for a positive
-/// range spanning decades), plus zero and the documented value when inside.
+/// range spanning decades, or one from zero without an upper bound), plus zero and the
+/// documented value when inside. An open bound is taken 100 typical magnitudes away.
 fn scan_grid(p: &super::model::Parameter) -> Vec<f64> {
     let n = 17;
-    let mut v: Vec<f64> = if p.lower > 0.0 && p.upper / p.lower > 100.0 {
-        let (a, b) = (p.lower.ln(), p.upper.ln());
+    let reach = 100.0 * p.scale();
+    let lower = if p.lower.is_finite() {
+        p.lower
+    } else {
+        p.value - reach
+    };
+    let upper = if p.upper.is_finite() {
+        p.upper
+    } else {
+        p.value + reach
+    };
+    let log_lower = if p.lower > 0.0 {
+        p.lower
+    } else {
+        1e-3 * p.scale()
+    };
+    let decades =
+        (p.lower > 0.0 && upper / p.lower > 100.0) || (p.lower == 0.0 && !p.upper.is_finite());
+    let mut v: Vec<f64> = if decades {
+        let (a, b) = (log_lower.ln(), upper.ln());
         (0..n)
             .map(|i| (a + (b - a) * i as f64 / (n - 1) as f64).exp())
             .collect()
     } else {
         (0..n)
-            .map(|i| p.lower + (p.upper - p.lower) * i as f64 / (n - 1) as f64)
+            .map(|i| lower + (upper - lower) * i as f64 / (n - 1) as f64)
             .collect()
     };
     v.push(p.value);
@@ -293,11 +312,18 @@ impl Workbench {
             ..
         } = fitted;
         let ss = model.state_space(&r.theta)?;
-        let (time_fit, runs) = time_fit(&self.data, &ss, DEFAULT_HORIZON, DEFAULT_WINDOW)?;
+        let (mut time_fit, runs) = time_fit(&self.data, &ss, DEFAULT_HORIZON, DEFAULT_WINDOW)?;
+        if let Some(controller) = model.structure().controller() {
+            let disc = ss.discretize(1.0 / self.data.sample_rate_hz)?;
+            match super::closed_loop::closed_loop_fit(&self.data, &disc, &controller) {
+                Ok(fit) => time_fit.closed_loop = Some(fit),
+                Err(why) => time_fit.closed_loop_error = Some(why),
+            }
+        }
         let residuals: Vec<_> = runs.iter().map(|(e, _, _)| e).collect();
         let states: Vec<_> = runs.iter().map(|(_, x, _)| x).collect();
         let inputs: Vec<_> = runs.iter().map(|(_, _, u)| u).collect();
-        let residual_tests = residual_tests(
+        let mut residual_tests = residual_tests(
             &residuals,
             &inputs,
             &states,
@@ -305,6 +331,9 @@ impl Workbench {
             &self.data.inputs,
             DEFAULT_LAGS,
         );
+        if time_fit.kalman.is_some() {
+            residual_tests.residual = "innovations of the stationary Kalman predictor".into();
+        }
         let (expected, _) = self.noise.fitted_level(r.free);
         let base = base_cost.unwrap_or(r.cost);
         Ok(Step {

@@ -51,6 +51,40 @@ pub fn expand(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
     Ok(out)
 }
 
+/// The system a set of MCAP logs was recorded from: the `<system>` of the first log's single
+/// `/<system>/input` topic (for a model that does not name its system).
+pub fn system_of(paths: &[PathBuf]) -> Result<String> {
+    let files = expand(paths)?;
+    let first = &files[0];
+    if first
+        .extension()
+        .is_some_and(|x| x.eq_ignore_ascii_case("csv"))
+    {
+        return Err(SimError::invalid(
+            "system name",
+            first.display(),
+            "a CSV log does not name its system: give the model a name",
+        ));
+    }
+    let log = read_mcap(first)?;
+    let systems: Vec<&str> = log
+        .topics
+        .keys()
+        .filter_map(|t| t.strip_prefix('/')?.strip_suffix("/input"))
+        .collect();
+    match systems.as_slice() {
+        [one] => Ok(one.to_string()),
+        _ => Err(SimError::invalid(
+            "system name",
+            first.display(),
+            format!(
+                "cannot tell the system from the topics ({}): give the model a name",
+                log.topics.keys().cloned().collect::<Vec<_>>().join(", ")
+            ),
+        )),
+    }
+}
+
 /// Selects `names` from `table` as columns of a matrix, naming a missing channel.
 fn columns(table: &Table, names: &[String], prefix: &str) -> Result<DMatrix<f64>> {
     let cols: Vec<&[f64]> = names

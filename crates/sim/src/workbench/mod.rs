@@ -11,21 +11,28 @@
 //! 4. diagnosis by line and channel ([`diagnose`]), in the time domain ([`timedomain`]: fit %
 //!    of simulation and k-step prediction; [`residual`]: whiteness and input correlation) and
 //!    the discovery loop ([`discover`]).
+pub mod closed_loop;
 pub mod cost;
 pub mod cubli;
 pub mod dataset;
 pub mod diagnose;
 pub mod discover;
+pub mod expr;
 pub mod fit;
 pub mod flying_platform;
 pub mod frf;
+pub mod generic;
+pub mod identifiability;
+pub mod kalman;
 pub mod load;
 pub mod model;
+pub mod model_file;
 pub mod noise;
 pub mod report;
 pub mod residual;
 pub mod spectra;
 pub mod stats;
+pub mod systems;
 pub mod timedomain;
 pub mod welch;
 
@@ -36,6 +43,7 @@ pub use discover::{CandidateScore, Discovery, Step, Verdict};
 pub use fit::{FitOptions, FitResult, ParamEstimate};
 pub use frf::{Estimator, EstimatorChoice, FrfEstimate};
 pub use model::{Effect, Model, ModelStructure, Parameter, StateSpace};
+pub use model_file::{Controller, ModelFile};
 
 use crate::error::{Result, SimError};
 use cost::WeightedCost;
@@ -54,6 +62,14 @@ pub struct Workbench {
     model: Model,
 }
 
+/// Choices a user may make about the data; the defaults take everything from the data.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct DataOptions {
+    /// The band of a Welch estimate, Hz, when the experiment was designed for a known band;
+    /// `None` finds it from the data ([`welch::excited_band`]).
+    pub band_hz: Option<(f64, f64)>,
+}
+
 impl Workbench {
     /// Estimates the FRF of `data` and prepares the cost for `structure` (no effect enabled).
     pub fn new(
@@ -61,7 +77,29 @@ impl Workbench {
         data: Dataset,
         estimator: EstimatorChoice,
     ) -> Result<Self> {
+        Self::with_options(structure, data, estimator, DataOptions::default())
+    }
+
+    /// [`Workbench::new`] with the user's choices about the data.
+    pub fn with_options(
+        structure: Arc<dyn ModelStructure>,
+        data: Dataset,
+        estimator: EstimatorChoice,
+        options: DataOptions,
+    ) -> Result<Self> {
         data.validate()?;
+        if let Some((lo, hi)) = options.band_hz {
+            if !(lo > 0.0 && lo < hi && hi.is_finite() && hi < 0.5 * data.sample_rate_hz) {
+                return Err(SimError::invalid(
+                    "band",
+                    format!("{lo},{hi} Hz"),
+                    format!(
+                        "must satisfy 0 < low < high < {} Hz (Nyquist)",
+                        0.5 * data.sample_rate_hz
+                    ),
+                ));
+            }
+        }
         for (what, want, have) in [
             ("input", structure.inputs(), &data.inputs),
             ("output", structure.outputs(), &data.outputs),
@@ -96,8 +134,12 @@ impl Workbench {
             let noise = NoiseReference::periodic(&frf, NOISE_DRAWS, 0x5eed)?;
             (frf, noise)
         } else {
-            let segment = welch::segment_length(data.sample_rate_hz, welch::BAND_HZ.0);
-            let w = welch::welch_frf(&data, estimator, welch::BAND_HZ, segment)?;
+            let band = match options.band_hz {
+                Some(band) => band,
+                None => welch::excited_band(&data)?,
+            };
+            let segment = welch::segment_length(data.sample_rate_hz, band.0);
+            let w = welch::welch_frf(&data, estimator, band, segment)?;
             let noise = w.noise_reference(NOISE_DRAWS, 0x5eed)?;
             (w.frf, noise)
         };
@@ -139,6 +181,12 @@ impl Workbench {
     /// Enables an effect of the structure by name.
     pub fn add(&mut self, effect: &str) -> Result<()> {
         self.model = self.model.with_effect(effect)?;
+        Ok(())
+    }
+
+    /// Offers a user-defined effect to discovery as a candidate (not enabled).
+    pub fn offer(&mut self, effect: Arc<dyn Effect>) -> Result<()> {
+        self.model = self.model.with_candidate(effect)?;
         Ok(())
     }
 

@@ -223,7 +223,8 @@ impl StateSpace {
     }
 }
 
-/// A physical effect that edits a state-space model (user-defined effects implement this).
+/// A physical effect that edits a state-space model of any structure: the generic effects
+/// ([`super::generic`]), effects a user writes in Python, and effects of a Rust program.
 pub trait Effect: Send + Sync + std::fmt::Debug {
     /// The effect's name.
     fn name(&self) -> &str;
@@ -231,8 +232,14 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn description(&self) -> &str;
     /// The effect's parameters.
     fn parameters(&self) -> Vec<Parameter>;
+    /// Whether its parameters are reported as `<effect>.<parameter>` (the default, so that two
+    /// effects may both call a parameter `k`) or under their own names (the generic effects'
+    /// `tau` and `td`).
+    fn qualified_names(&self) -> bool {
+        true
+    }
     /// Adds the effect's terms to `ss` for parameter values `theta` (same order as
-    /// [`Effect::parameters`]).
+    /// [`Effect::parameters`]). It may add states (a lag) or change the delay.
     fn apply(&self, theta: &[f64], ss: &mut StateSpace) -> Result<()>;
 }
 
@@ -256,23 +263,35 @@ pub trait ModelStructure: Send + Sync + std::fmt::Debug {
     fn parameters(&self, enabled: &[String]) -> Result<Vec<Parameter>>;
     /// State-space model for `theta` (order of [`ModelStructure::parameters`]).
     fn state_space(&self, enabled: &[String], theta: &[f64]) -> Result<StateSpace>;
+    /// The experimenter's controller, for closed-loop re-simulation, if known.
+    fn controller(&self) -> Option<super::model_file::Controller> {
+        None
+    }
 }
 
-/// A structure with some effects enabled, possibly extended by user-defined effects.
+/// A structure with some effects enabled, and a pool of further effects ([`Effect`]s: the
+/// generic ones every model gets and those a user registers) that discovery may add.
 #[derive(Debug, Clone)]
 pub struct Model {
     structure: Arc<dyn ModelStructure>,
-    user: Vec<Arc<dyn Effect>>,
+    /// Candidate effects that are not the structure's own, in the order they were offered.
+    pool: Vec<Arc<dyn Effect>>,
+    /// Enabled structure effects.
     enabled: Vec<String>,
+    /// Enabled pool effects, in the order they were added.
+    added: Vec<Arc<dyn Effect>>,
 }
 
 impl Model {
-    /// The base structure with no effect enabled.
+    /// The base structure with no effect enabled; the generic effects the structure does not
+    /// declare itself ([`super::generic::for_structure`]) are candidates.
     pub fn new(structure: Arc<dyn ModelStructure>) -> Self {
+        let pool = super::generic::for_structure(structure.as_ref());
         Self {
             structure,
-            user: Vec::new(),
+            pool,
             enabled: Vec::new(),
+            added: Vec::new(),
         }
     }
 
@@ -284,42 +303,64 @@ impl Model {
     /// Names of the enabled effects, in the order they were added.
     pub fn enabled(&self) -> Vec<String> {
         let mut names = self.enabled.clone();
-        names.extend(self.user.iter().map(|e| e.name().to_string()));
+        names.extend(self.added.iter().map(|e| e.name().to_string()));
         names
     }
 
-    /// All effect names that could still be added (structure effects and registered user effects).
+    /// Every effect name known to the model: the structure's, then the pool's.
+    pub fn known(&self) -> Vec<String> {
+        let mut names = self.structure.effects();
+        names.extend(self.pool.iter().map(|e| e.name().to_string()));
+        names
+    }
+
+    /// One-line description of a known effect.
+    pub fn describe(&self, effect: &str) -> String {
+        match self.pool.iter().find(|e| e.name() == effect) {
+            Some(e) => e.description().to_string(),
+            None => self.structure.describe(effect),
+        }
+    }
+
+    /// The effects discovery may still add: structure effects and pool effects not enabled.
     pub fn candidates(&self) -> Vec<String> {
-        self.structure
-            .effects()
+        let on = self.enabled();
+        self.known()
             .into_iter()
-            .filter(|e| !self.enabled.contains(e))
+            .filter(|e| !on.contains(e))
             .collect()
     }
 
-    /// Enables a structure effect by name.
+    /// Enables a known effect by name.
     pub fn with_effect(&self, name: &str) -> Result<Self> {
-        if !self.structure.effects().iter().any(|e| e == name) {
+        let mut m = self.clone();
+        if self.enabled().iter().any(|e| e == name) {
+            return Ok(m);
+        }
+        if let Some(e) = self.pool.iter().find(|e| e.name() == name) {
+            m.added.push(e.clone());
+        } else if self.structure.effects().iter().any(|e| e == name) {
+            m.enabled.push(name.to_string());
+        } else {
             return Err(SimError::invalid(
                 "effect",
                 name,
                 format!(
                     "unknown for {}; known effects: {}",
                     self.structure.system(),
-                    self.structure.effects().join(", ")
+                    self.known().join(", ")
                 ),
             ));
-        }
-        let mut m = self.clone();
-        if !m.enabled.iter().any(|e| e == name) {
-            m.enabled.push(name.to_string());
         }
         Ok(m)
     }
 
-    /// Adds a user-defined effect.
-    pub fn with_user_effect(&self, effect: Arc<dyn Effect>) -> Result<Self> {
-        if self.enabled().iter().any(|e| e == effect.name()) {
+    /// Offers a further effect as a discovery candidate (replacing a generic effect of the same
+    /// name); it is not enabled.
+    pub fn with_candidate(&self, effect: Arc<dyn Effect>) -> Result<Self> {
+        if self.structure.effects().iter().any(|e| e == effect.name())
+            || self.added.iter().any(|e| e.name() == effect.name())
+        {
             return Err(SimError::invalid(
                 "effect",
                 effect.name(),
@@ -327,18 +368,30 @@ impl Model {
             ));
         }
         let mut m = self.clone();
-        m.user.push(effect);
+        m.pool.retain(|e| e.name() != effect.name());
+        m.pool.push(effect);
         Ok(m)
     }
 
-    /// All parameters: structure (with enabled effects), then user effects prefixed by name.
+    /// Offers and enables a further effect.
+    pub fn with_user_effect(&self, effect: Arc<dyn Effect>) -> Result<Self> {
+        let name = effect.name().to_string();
+        self.with_candidate(effect)?.with_effect(&name)
+    }
+
+    /// All parameters: structure (with enabled effects), then the added effects' (prefixed by
+    /// the effect's name where [`Effect::qualified_names`] says so, or where the plain name is
+    /// taken).
     pub fn parameters(&self) -> Result<Vec<Parameter>> {
         let mut params = self.structure.parameters(&self.enabled)?;
-        for e in &self.user {
-            params.extend(e.parameters().into_iter().map(|mut p| {
-                p.name = format!("{}.{}", e.name(), p.name);
-                p
-            }));
+        for e in &self.added {
+            for mut p in e.parameters() {
+                // A plain name that is already taken (a structure's own `tau`) is qualified.
+                if e.qualified_names() || params.iter().any(|q| q.name == p.name) {
+                    p.name = format!("{}.{}", e.name(), p.name);
+                }
+                params.push(p);
+            }
         }
         check_parameters(&params)?;
         Ok(params)
@@ -349,7 +402,7 @@ impl Model {
         let n_struct = self.structure.parameters(&self.enabled)?.len();
         let n_total = n_struct
             + self
-                .user
+                .added
                 .iter()
                 .map(|e| e.parameters().len())
                 .sum::<usize>();
@@ -364,7 +417,7 @@ impl Model {
             .structure
             .state_space(&self.enabled, &theta[..n_struct])?;
         let mut at = n_struct;
-        for e in &self.user {
+        for e in &self.added {
             let k = e.parameters().len();
             e.apply(&theta[at..at + k], &mut ss)?;
             at += k;

@@ -106,6 +106,12 @@ fn time_domain_table(s: &mut String, d: &Discovery) {
         return;
     };
     let _ = writeln!(s, "time domain: {}", first.time_fit.policy);
+    if let Some(k) = &first.time_fit.kalman {
+        let _ = writeln!(s, "Kalman: {}", k.policy);
+    }
+    if let Some(c) = &first.time_fit.closed_loop {
+        let _ = writeln!(s, "closed loop: {}", c.policy);
+    }
     let _ = write!(s, "{:<5} {:<16}", "step", "fit % of");
     for (o, _) in &first.time_fit.prediction {
         let _ = write!(s, " {o:>7}");
@@ -114,18 +120,40 @@ fn time_domain_table(s: &mut String, d: &Discovery) {
     for (i, st) in d.steps.iter().enumerate() {
         let tf = &st.time_fit;
         let k = tf.horizon_samples;
+        let kalman = tf.kalman.as_ref();
         let rows = [
             ("simulation".to_string(), tf.simulation.as_ref()),
             (format!("{k}-step pred."), Some(&tf.prediction)),
             ("1-step pred.".to_string(), Some(&tf.one_step)),
+            (format!("Kalman {k}-step"), kalman.map(|f| &f.prediction)),
+            ("Kalman 1-step".to_string(), kalman.map(|f| &f.one_step)),
+            (
+                "closed loop".to_string(),
+                tf.closed_loop.as_ref().map(|f| &f.fit),
+            ),
         ];
+        let controller = tf.closed_loop.is_some() || tf.closed_loop_error.is_some();
         for (what, fits) in rows {
+            if what == "closed loop" && !controller {
+                continue;
+            }
             let _ = write!(s, "{i:<5} {what:<16}");
             match fits {
                 Some(fits) => {
                     for (_, f) in fits {
                         let _ = write!(s, " {f:>7.1}");
                     }
+                }
+                None if what == "closed loop" => {
+                    let why = tf.closed_loop_error.as_deref().unwrap_or("");
+                    let _ = write!(s, " not re-simulated: {why}");
+                }
+                None if what.starts_with("Kalman") => {
+                    let _ = write!(
+                        s,
+                        " no predictor: {}",
+                        tf.kalman_error.as_deref().unwrap_or("not designed")
+                    );
                 }
                 None => {
                     let _ = write!(

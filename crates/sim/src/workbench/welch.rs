@@ -30,8 +30,148 @@ use super::noise::{complex_normal, NoiseReference};
 use super::spectra::{Dft, C64};
 use crate::error::{Result, SimError};
 
-/// Band resolved by the estimate, Hz (the flying platform's identification band).
-pub const BAND_HZ: (f64, f64) = (0.2, 4.0);
+/// Power below the peak density of the excitation that still counts as excited (20 dB).
+pub const BAND_DYNAMIC_RANGE: f64 = 100.0;
+
+/// Fewest overlapping segments per experiment the lower band edge must leave: the noise
+/// covariance of a line is estimated from the segments, and a few tens make it usable.
+pub const MIN_SEGMENTS: usize = 64;
+
+/// Least mean coherence of input and logged excitation inside the band.
+pub const MIN_COHERENCE: f64 = 0.5;
+
+/// Frequencies at which the excitation density is evaluated to find the band.
+const BAND_GRID: usize = 96;
+
+/// The band the data excite, Hz: where the power density of the logged excitation (of the
+/// inputs when none is logged), averaged over channels and experiments, is within
+/// [`BAND_DYNAMIC_RANGE`] of its peak and, with a logged excitation, the inputs' mean
+/// coherence with it is at least [`MIN_COHERENCE`]; no lower than the records resolve with
+/// [`MIN_SEGMENTS`] segments and no higher than 0.4 of the sample rate (aliasing).
+pub fn excited_band(data: &Dataset) -> Result<(f64, f64)> {
+    let fs = data.sample_rate_hz;
+    let shortest = data
+        .experiments
+        .iter()
+        .map(|e| e.u.nrows())
+        .min()
+        .unwrap_or(0);
+    let l = (2 * shortest / (MIN_SEGMENTS + 1)) & !1;
+    let ceiling = 0.4 * fs;
+    let floor = if l > 0 {
+        LOWER_EDGE_BIN as f64 * fs / l as f64
+    } else {
+        f64::INFINITY
+    };
+    if !(floor < ceiling) {
+        return Err(SimError::invalid(
+            "data",
+            format!("records of {shortest} samples"),
+            format!(
+                "too short for a Welch estimate: {MIN_SEGMENTS} half-overlapping segments need \
+                 at least {} samples per experiment",
+                8 * (MIN_SEGMENTS + 1) / 2
+            ),
+        ));
+    }
+    let use_r = data.experiments.iter().all(|e| e.r.is_some());
+    let window = hann(l);
+    let freqs: Vec<f64> = (0..BAND_GRID)
+        .map(|i| floor * (ceiling / floor).powf(i as f64 / (BAND_GRID - 1) as f64))
+        .collect();
+    // Windowed twiddle factors per frequency, so that the inner loop is a dot product.
+    let tables: Vec<(Vec<f64>, Vec<f64>)> = freqs
+        .iter()
+        .map(|f| {
+            let w = 2.0 * std::f64::consts::PI * f / fs;
+            (0..l)
+                .map(|n| {
+                    let (s, c) = (w * n as f64).sin_cos();
+                    (window[n] * c, window[n] * s)
+                })
+                .unzip()
+        })
+        .collect();
+    let spectrum = |seg: &[f64]| -> Vec<C64> {
+        tables
+            .iter()
+            .map(|(cos, sin)| {
+                let re: f64 = seg.iter().zip(cos).map(|(v, c)| v * c).sum();
+                let im: f64 = seg.iter().zip(sin).map(|(v, s)| -v * s).sum();
+                C64::new(re, im)
+            })
+            .collect()
+    };
+    let mut density = vec![0.0; BAND_GRID];
+    // Per input channel: S_rr, S_uu and S_ur, for the coherence of input and excitation.
+    let nu = data.inputs.len();
+    let mut s_rr = vec![vec![0.0; BAND_GRID]; nu];
+    let mut s_uu = vec![vec![0.0; BAND_GRID]; nu];
+    let mut s_ur = vec![vec![C64::new(0.0, 0.0); BAND_GRID]; nu];
+    for e in &data.experiments {
+        for j in 0..nu {
+            let u: Vec<f64> = e.u.column(j).iter().copied().collect();
+            let r: Option<Vec<f64>> =
+                e.r.as_ref()
+                    .filter(|_| use_r)
+                    .map(|r| r.column(j).iter().copied().collect());
+            let mut start = 0;
+            while start + l <= u.len() {
+                let su = spectrum(&detrended(&u[start..start + l]));
+                match &r {
+                    Some(r) => {
+                        let sr = spectrum(&detrended(&r[start..start + l]));
+                        for k in 0..BAND_GRID {
+                            density[k] += sr[k].norm_sqr();
+                            s_rr[j][k] += sr[k].norm_sqr();
+                            s_uu[j][k] += su[k].norm_sqr();
+                            s_ur[j][k] += su[k] * sr[k].conj();
+                        }
+                    }
+                    None => {
+                        for k in 0..BAND_GRID {
+                            density[k] += su[k].norm_sqr();
+                        }
+                    }
+                }
+                start += l / 2;
+            }
+        }
+    }
+    // Where the excitation carries less than this share of an input, feedback of noise
+    // dominates it and the instrumental-variable estimate has little to stand on.
+    let coherent = |k: usize| {
+        !use_r
+            || (0..nu)
+                .map(|j| s_ur[j][k].norm_sqr() / (s_uu[j][k] * s_rr[j][k]).max(1e-300))
+                .sum::<f64>()
+                / nu as f64
+                >= MIN_COHERENCE
+    };
+    let peak = density.iter().cloned().fold(0.0, f64::max);
+    if !(peak > 0.0) {
+        return Err(SimError::invalid(
+            "data",
+            if use_r { "excitation" } else { "inputs" },
+            "carries no power: nothing excites the plant",
+        ));
+    }
+    let excited: Vec<usize> = (0..BAND_GRID)
+        .filter(|&k| density[k] * BAND_DYNAMIC_RANGE >= peak && coherent(k))
+        .collect();
+    let (Some(&lo), Some(&hi)) = (excited.first(), excited.last()) else {
+        return Err(SimError::invalid(
+            "data",
+            "excitation",
+            format!(
+                "explains less than {:.0}% of the inputs at every frequency (coherence): feedback \
+                 of noise dominates them",
+                100.0 * MIN_COHERENCE
+            ),
+        ));
+    };
+    Ok((freqs[lo], freqs[hi].max(freqs[lo.min(BAND_GRID - 2) + 1])))
+}
 
 /// How the records were segmented.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -425,6 +565,47 @@ impl WelchEstimate {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A sum of sines on 0.5-3 Hz: the band is found at its edges within two bins of the
+    /// density's segments (the Hann main lobe), with or without a logged excitation; without
+    /// power it is refused.
+    #[test]
+    fn excited_band_is_read_from_the_excitation() {
+        use crate::workbench::dataset::Experiment;
+        let (fs, n) = (50.0, 20_000);
+        let bin = fs / ((2 * n / (MIN_SEGMENTS + 1)) & !1) as f64;
+        let r = DMatrix::from_fn(n, 1, |k, _| {
+            (0..26)
+                .map(|i| {
+                    let f = 0.5 + 0.1 * i as f64;
+                    (std::f64::consts::TAU * f * k as f64 / fs + i as f64).sin()
+                })
+                .sum::<f64>()
+        });
+        let mut data = Dataset {
+            sample_rate_hz: fs,
+            inputs: vec!["u".into()],
+            outputs: vec!["y".into()],
+            experiments: vec![Experiment {
+                name: "e".into(),
+                u: r.clone(),
+                y: r.clone(),
+                r: Some(r.clone()),
+                periodic: None,
+            }],
+        };
+        for logged in [true, false] {
+            if !logged {
+                data.experiments[0].r = None;
+            }
+            let (lo, hi) = excited_band(&data).unwrap();
+            assert!((lo - 0.5).abs() <= 2.0 * bin, "{lo} (bin {bin})");
+            assert!((hi - 3.0).abs() <= 2.0 * bin, "{hi} (bin {bin})");
+        }
+        data.experiments[0].u.fill(0.0);
+        let msg = excited_band(&data).unwrap_err().to_string();
+        assert!(msg.contains("carries no power"), "{msg}");
+    }
     use crate::workbench::cost::WeightedCost;
     use crate::workbench::dataset::Experiment;
     use proptest::prelude::*;

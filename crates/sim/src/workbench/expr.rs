@@ -1,0 +1,222 @@
+//! Expressions of model files: parsed and evaluated by `exmex`, with the checks a user needs
+//! to find a mistake (an unknown name or a stray character, with its position).
+use exmex::{Express, FlatEx};
+
+/// Names `exmex` reads as constants or functions: a parameter may not take them, or an
+/// expression would silently use the constant (`e` is Euler's number).
+pub const RESERVED: [&str; 40] = [
+    "PI", "E", "e", "TAU", "abs", "signum", "sin", "cos", "tan", "asin", "acos", "atan", "sinh",
+    "cosh", "tanh", "asinh", "acosh", "atanh", "floor", "round", "ceil", "trunc", "fract", "exp",
+    "sqrt", "cbrt", "ln", "log2", "log10", "log", "min", "max", "atan2", "if", "else", "and", "or",
+    "true", "false", "pi",
+];
+
+/// An expression in named quantities, evaluated against a table of values.
+#[derive(Debug, Clone)]
+pub struct Expr {
+    text: String,
+    flat: FlatEx<f64>,
+    /// Index into the symbol table of each of `flat`'s variables (in exmex's sorted order).
+    slots: Vec<usize>,
+}
+
+/// Why an expression was refused, with its 1-based column where one is known.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExprError {
+    /// What is wrong.
+    pub reason: String,
+}
+
+impl Expr {
+    /// Parses `text`, whose names must all be in `symbols`.
+    pub fn parse(text: &str, symbols: &[String]) -> Result<Self, ExprError> {
+        check_characters(text)?;
+        let flat = exmex::parse::<f64>(&conventional_minus(text)).map_err(|e| ExprError {
+            reason: format!("syntax error in {text:?}: {}", e.msg()),
+        })?;
+        let mut slots = Vec::with_capacity(flat.var_names().len());
+        for name in flat.var_names() {
+            match symbols.iter().position(|s| s == name) {
+                Some(i) => slots.push(i),
+                None => {
+                    let at = position_of(text, name)
+                        .map_or(String::new(), |c| format!(" at position {c}"));
+                    return Err(ExprError {
+                        reason: format!(
+                            "unknown name {name:?}{at} in {text:?}; known names: {}",
+                            symbols.join(", ")
+                        ),
+                    });
+                }
+            }
+        }
+        Ok(Self {
+            text: text.to_string(),
+            flat,
+            slots,
+        })
+    }
+
+    /// The source text.
+    pub fn text(&self) -> &str {
+        &self.text
+    }
+
+    /// Symbol-table indices this expression reads.
+    pub fn reads(&self) -> &[usize] {
+        &self.slots
+    }
+
+    /// The value for the symbol values `table`.
+    pub fn eval(&self, table: &[f64]) -> Result<f64, ExprError> {
+        let vars: Vec<f64> = self.slots.iter().map(|&i| table[i]).collect();
+        self.flat.eval(&vars).map_err(|e| ExprError {
+            reason: format!("cannot evaluate {:?}: {}", self.text, e.msg()),
+        })
+    }
+}
+
+/// `exmex` binds a unary minus tighter than `^` (`-m^2` is `(-m)^2`); written as `-1*`, it
+/// takes the conventional meaning `-(m^2)`. After `^` the minus stays (`2^-x` is `2^(-x)`).
+fn conventional_minus(text: &str) -> String {
+    let mut out = String::with_capacity(text.len() + 8);
+    let mut prev: Option<char> = None;
+    for ch in text.chars() {
+        let unary = ch == '-' && prev.is_none_or(|p| "(+-*/,".contains(p));
+        if unary {
+            out.push_str("-1*");
+        } else {
+            out.push(ch);
+        }
+        if !ch.is_whitespace() {
+            prev = Some(ch);
+        }
+    }
+    out
+}
+
+/// Refuses characters no expression can hold and unbalanced parentheses, with the column.
+fn check_characters(text: &str) -> Result<(), ExprError> {
+    let mut depth = 0i32;
+    for (col, ch) in text.chars().enumerate() {
+        let col = col + 1;
+        match ch {
+            '(' => depth += 1,
+            ')' => {
+                depth -= 1;
+                if depth < 0 {
+                    return Err(ExprError {
+                        reason: format!("unmatched ')' at position {col} in {text:?}"),
+                    });
+                }
+            }
+            c if c.is_ascii_alphanumeric() || c.is_whitespace() || "_.+-*/^,".contains(c) => {}
+            c => {
+                return Err(ExprError {
+                    reason: format!("unexpected character {c:?} at position {col} in {text:?}"),
+                })
+            }
+        }
+    }
+    if depth > 0 {
+        return Err(ExprError {
+            reason: format!("unclosed '(' in {text:?}"),
+        });
+    }
+    if text.trim().is_empty() {
+        return Err(ExprError {
+            reason: "empty expression".into(),
+        });
+    }
+    Ok(())
+}
+
+/// 1-based column of the first whole-word occurrence of `name` in `text`.
+fn position_of(text: &str, name: &str) -> Option<usize> {
+    let chars: Vec<char> = text.chars().collect();
+    let word: Vec<char> = name.chars().collect();
+    let is_ident = |c: char| c.is_ascii_alphanumeric() || c == '_';
+    (0..chars.len()).find_map(|i| {
+        let end = i + word.len();
+        let hit = end <= chars.len()
+            && chars[i..end] == word[..]
+            && (i == 0 || !is_ident(chars[i - 1]))
+            && (end == chars.len() || !is_ident(chars[end]));
+        hit.then_some(i + 1)
+    })
+}
+
+/// Whether `name` can name a quantity: an identifier that is not reserved.
+pub fn check_name(name: &str) -> Result<(), String> {
+    let mut chars = name.chars();
+    let ok = chars
+        .next()
+        .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_');
+    if !ok {
+        return Err(format!(
+            "{name:?} is not a name (letters, digits and '_', starting with a letter)"
+        ));
+    }
+    if RESERVED.contains(&name) {
+        return Err(format!(
+            "{name:?} is a constant or function of the expression language"
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn names(list: &[&str]) -> Vec<String> {
+        list.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn evaluates_the_documented_operators_against_closed_forms() {
+        let sym = names(&["m", "l", "x"]);
+        let table = [0.5, 0.4, 0.3];
+        let cases = [
+            (
+                "m*9.81*l/(0.02 + m*l^2)",
+                0.5 * 9.81 * 0.4 / (0.02 + 0.5 * 0.16),
+            ),
+            (
+                "sin(x) + cos(x) - tan(x)",
+                0.3f64.sin() + 0.3f64.cos() - 0.3f64.tan(),
+            ),
+            (
+                "exp(x)*log(m) + sqrt(l)",
+                0.3f64.exp() * 0.5f64.ln() + 0.4f64.sqrt(),
+            ),
+            ("abs(-m) + tanh(x)", 0.5 + 0.3f64.tanh()),
+            ("-m^2", -0.25),
+            ("l*-m^2 + 2^-x", 0.4 * -0.25 + 2f64.powf(-0.3)),
+            ("exp(-x^2)/(-l)", (-0.09f64).exp() / -0.4),
+        ];
+        for (text, want) in cases {
+            let e = Expr::parse(text, &sym).unwrap();
+            let got = e.eval(&table).unwrap();
+            assert!((got - want).abs() < 1e-14, "{text}: {got} vs {want}");
+        }
+    }
+
+    #[test]
+    fn names_an_unknown_symbol_with_its_position() {
+        let err = Expr::parse("m*g*l/Jq", &names(&["m", "g", "l", "Jp"])).unwrap_err();
+        assert!(
+            err.reason.contains("\"Jq\" at position 7"),
+            "{}",
+            err.reason
+        );
+        let err = Expr::parse("m*(l", &names(&["m", "l"])).unwrap_err();
+        assert!(err.reason.contains("unclosed"), "{}", err.reason);
+        let err = Expr::parse("m # l", &names(&["m", "l"])).unwrap_err();
+        assert!(err.reason.contains("'#' at position 3"), "{}", err.reason);
+        assert!(check_name("e").is_err());
+        assert!(check_name("2x").is_err());
+        assert!(check_name("J_p2").is_ok());
+    }
+}

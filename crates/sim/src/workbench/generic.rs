@@ -1,0 +1,156 @@
+//! Effects every model gets as discovery candidates, whatever its system: a first-order lag
+//! on every input (`actuator_lag`, time constant `tau`) and a transport delay of every input
+//! (`input_delay`, `td`). A structure that declares an effect of the same name (the flying
+//! platform does) keeps its own.
+use std::sync::Arc;
+
+use nalgebra::DMatrix;
+
+use super::model::{Effect, ModelStructure, Parameter, StateSpace};
+use crate::error::Result;
+
+/// `x_a' = (u - x_a) / tau` for every input, the plant driven by `x_a`.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ActuatorLag;
+
+/// `u(t - td)` for every input, exact for fractional delays.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct InputDelay;
+
+impl Effect for ActuatorLag {
+    fn name(&self) -> &str {
+        "actuator_lag"
+    }
+
+    fn description(&self) -> &str {
+        "first-order lag with one time constant tau on every input"
+    }
+
+    fn parameters(&self) -> Vec<Parameter> {
+        // The lower bound is far below any sample period, so the lagged model nests the one
+        // without lag and the fit can never be worse than without it.
+        vec![Parameter::new("tau", 0.01, 1e-4, 0.5, "s")]
+    }
+
+    fn qualified_names(&self) -> bool {
+        false
+    }
+
+    fn apply(&self, theta: &[f64], ss: &mut StateSpace) -> Result<()> {
+        let (n, m, p) = (ss.a.nrows(), ss.b.ncols(), ss.c.nrows());
+        let rate = 1.0 / theta[0];
+        let mut a = DMatrix::zeros(n + m, n + m);
+        a.view_mut((0, 0), (n, n)).copy_from(&ss.a);
+        a.view_mut((0, n), (n, m)).copy_from(&ss.b);
+        let mut b = DMatrix::zeros(n + m, m);
+        for i in 0..m {
+            a[(n + i, n + i)] = -rate;
+            b[(n + i, i)] = rate;
+        }
+        let mut c = DMatrix::zeros(p, n + m);
+        c.view_mut((0, 0), (p, n)).copy_from(&ss.c);
+        c.view_mut((0, n), (p, m)).copy_from(&ss.d);
+        ss.a = a;
+        ss.b = b;
+        ss.c = c;
+        ss.d = DMatrix::zeros(p, m);
+        Ok(())
+    }
+}
+
+impl Effect for InputDelay {
+    fn name(&self) -> &str {
+        "input_delay"
+    }
+
+    fn description(&self) -> &str {
+        "transport delay td of every input"
+    }
+
+    fn parameters(&self) -> Vec<Parameter> {
+        vec![Parameter::new("td", 0.01, 0.0, 0.5, "s")]
+    }
+
+    fn qualified_names(&self) -> bool {
+        false
+    }
+
+    fn apply(&self, theta: &[f64], ss: &mut StateSpace) -> Result<()> {
+        ss.delay += theta[0];
+        Ok(())
+    }
+}
+
+/// The generic effects `structure` does not declare itself.
+pub fn for_structure(structure: &dyn ModelStructure) -> Vec<Arc<dyn Effect>> {
+    let own = structure.effects();
+    let all: [Arc<dyn Effect>; 2] = [Arc::new(ActuatorLag), Arc::new(InputDelay)];
+    all.into_iter()
+        .filter(|e| !own.iter().any(|o| o == e.name()))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::workbench::spectra::C64;
+
+    fn plant() -> StateSpace {
+        StateSpace {
+            a: DMatrix::from_row_slice(2, 2, &[0.0, 1.0, 4.0, -0.3]),
+            b: DMatrix::from_row_slice(2, 1, &[0.0, 2.0]),
+            c: DMatrix::from_row_slice(2, 2, &[1.0, 0.0, 0.0, 1.0]),
+            d: DMatrix::from_row_slice(2, 1, &[0.0, 0.5]),
+            delay: 0.0,
+        }
+    }
+
+    /// The lagged response is the plant's times `1 / (1 + j w tau)` (closed form), and the
+    /// delayed one times `e^{-j w td}`, on every entry.
+    #[test]
+    fn lag_and_delay_multiply_the_response_by_their_closed_forms() {
+        let (tau, td) = (0.037, 0.0123);
+        let mut lagged = plant();
+        ActuatorLag.apply(&[tau], &mut lagged).unwrap();
+        lagged.check().unwrap();
+        let mut delayed = plant();
+        InputDelay.apply(&[td], &mut delayed).unwrap();
+        let freqs = [0.1, 0.7, 3.0, 11.0];
+        let g0 = plant().frf_lines(&freqs, None).unwrap();
+        let gl = lagged.frf_lines(&freqs, None).unwrap();
+        let gd = delayed.frf_lines(&freqs, None).unwrap();
+        for (k, f) in freqs.iter().enumerate() {
+            let w = 2.0 * std::f64::consts::PI * f;
+            let lag = C64::new(1.0, w * tau).inv();
+            let delay = C64::new(0.0, -w * td).exp();
+            for i in 0..2 {
+                assert!((gl[k][(i, 0)] - g0[k][(i, 0)] * lag).norm() < 1e-10);
+                assert!((gd[k][(i, 0)] - g0[k][(i, 0)] * delay).norm() < 1e-12);
+            }
+        }
+    }
+
+    /// A model whose own parameter is called `tau` keeps it; the generic lag's becomes
+    /// `actuator_lag.tau`, and both can be fitted together.
+    #[test]
+    fn a_taken_parameter_name_is_qualified() {
+        let text = "name = \"p\"\nstates = [\"x\"]\ninputs = [\"u\"]\noutputs = [\"x\"]\n\
+                    [parameters]\ntau = { value = 0.5, min = 0.01 }\n\
+                    [linear]\nA = [[\"-1/tau\"]]\nB = [[1]]\nC = [[1]]\n";
+        let file =
+            crate::workbench::ModelFile::parse(text, std::path::Path::new("p.toml")).unwrap();
+        let model = crate::workbench::Model::new(Arc::new(file))
+            .with_effect("actuator_lag")
+            .unwrap();
+        let names: Vec<String> = model
+            .parameters()
+            .unwrap()
+            .into_iter()
+            .map(|p| p.name)
+            .collect();
+        assert_eq!(names, ["tau", "actuator_lag.tau"]);
+        let ss = model.state_space(&[0.5, 0.02]).unwrap();
+        assert_eq!(ss.a.shape(), (2, 2));
+        assert_eq!(ss.a[(1, 1)], -50.0);
+    }
+}

@@ -1,0 +1,447 @@
+"""An independent simulator of a cart-pole balanced upright in closed loop: a system stabilis
+does not ship, for checking the workbench on a user's own model file (py/tests/data/cart_pole.toml).
+
+Written with numpy/scipy and the official `mcap` writer only (no stabilis code):
+
+* Plant (nonlinear, Lagrange): cart of mass M on a track, pole of mass m with its centre of mass
+  at distance l from the pivot and inertia J about it, theta = 0 upright (unstable):
+
+      (M + m) x'' + m l cos(theta) theta'' - m l sin(theta) theta'^2 = F_c
+      m l cos(theta) x'' + (J + m l^2) theta'' - m g l sin(theta)    = T_d
+
+  with the force on the cart F_c = F_a + w - b x' - F_coul tanh(x' / v_coul) + F_s: F_a the
+  actuator force, w a force disturbance (process noise, held over each sample), b the cart's
+  viscous friction, and T_d a small torque disturbance on the pole.
+* A flexible mode no effect of the model file and no generic effect describes (switchable): an
+  appendage of mass m_f on the cart (a cable carrier, a sensor mast) on a lightly damped
+  spring, q its displacement relative to the cart, natural frequency wn, damping zeta:
+  F_s = m_f wn (wn q + 2 zeta q'), q'' = -x'' - F_s / m_f. Below wn it adds m_f to the cart
+  (the fitted M absorbs it); around wn it puts a resonance / antiresonance pair in the band.
+* Actuator chain from the logged command F to F_a, each link switchable: an exact transport
+  delay td (the zero-order-hold command switches at k Ts + td, integrated as two sub-intervals)
+  and a first-order lag tau F_a' = F_del - F_a.
+* Integration: classical RK4 with sub-steps of at most Ts / substeps between samples.
+* Sensors: x and theta at 100 Hz with white noise.
+* Controller (its own): a discrete LQR on the current estimate of a Kalman filter, both designed
+  on the nominal linearised model at the documented parameters (no friction, zero-order hold).
+  The filter is driven by the measured outputs and by the controller's own output; the
+  excitation r is added after the controller (as an injected actuator signal the filter does
+  not see), so the controller is exactly xc[k+1] = Ac xc[k] + Bc y[k], u[k] = Cc xc[k] +
+  Dc y[k] + r[k], the form of the model file's [controller] section.
+* Excitation: a random-phase flat multisine on lines 1..lines of a period_samples period, a
+  fresh phase draw per experiment (lowest crest factor of phase_draws draws), periods whole
+  periods after transient_samples samples.
+* Logs: MCAP exactly per DESIGN.md (topics /cart_pole/input F, /cart_pole/output x theta,
+  /cart_pole/excitation F, the `experiment` metadata) or CSV (t, F, x, theta, r_F).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+from scipy.linalg import expm, solve_discrete_are
+
+from independent_platform import write_mcap
+
+INPUTS = ["F"]
+OUTPUTS = ["x", "theta"]
+STATES = ["x", "xdot", "theta", "thetadot"]
+SYSTEM = "cart_pole"
+
+# The documented values (those of py/tests/data/cart_pole.toml).
+DOCUMENTED = {"M": 1.0, "m": 0.2, "l": 0.3, "J": 0.006, "g": 9.81}
+
+
+@dataclass
+class Plant:
+    """The true cart-pole and its switchable hidden effects (all off: the nominal class)."""
+
+    M: float = 1.0 * 1.04  # cart mass, kg
+    m: float = 0.2 * 1.02  # pole mass, kg
+    l: float = 0.3 * 1.03  # pivot to pole centre of mass, m
+    J: float = 0.006 * 0.95  # pole inertia about its centre of mass, kg m^2
+    g: float = 9.81
+    b: float = 0.0  # cart viscous friction, N s/m (the model file's declared effect)
+    coulomb: float = 0.0  # Coulomb friction force, N
+    coulomb_v: float = 0.01  # its tanh smoothing speed, m/s
+    tau: float = 0.0  # actuator lag, s
+    td: float = 0.0  # transport delay of the force, s (any value >= 0, fractional exactly)
+    flex_hz: float = 0.0  # flexible appendage on the cart: natural frequency, Hz (0: none)
+    flex_zeta: float = 0.05  # its damping ratio
+    flex_mass: float = 0.05  # its mass, kg
+
+
+def documented_plant() -> Plant:
+    """The plant at the documented values, no effects: the model the controller is designed on."""
+    return Plant(**DOCUMENTED)
+
+
+@dataclass
+class Config:
+    """One identification campaign (default: the issue's 4 experiments x 8300 samples)."""
+
+    plant: Plant = field(default_factory=Plant)
+    sample_rate_hz: float = 100.0
+    period_samples: int = 1000
+    periods: int = 8
+    transient_samples: int = 300
+    experiments: int = 4
+    lines: int = 70  # excited lines 1..lines: 0.1 .. 7 Hz at the defaults
+    r_rms: float = 0.3  # excitation rms, N (the pole stays within 0.05 rad of upright)
+    phase_draws: int = 50
+    force_noise: float = 0.05  # force disturbance per sample (held), N
+    torque_noise: float = 0.002  # pole torque disturbance per sample (held), N m
+    x_sigma: float = 2e-4  # cart position sensor noise, m
+    theta_sigma: float = 5e-4  # pole angle sensor noise, rad
+    theta0: float = 0.01  # initial pole angle, rad (the transient discards it)
+    substeps: int = 4
+    seed: int = 0
+
+
+def nominal_linear(p: Plant) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(A, B, C) of the rigid cart-pole linearised at upright, friction b included."""
+    jp = p.J + p.m * p.l**2
+    d = (p.M + p.m) * jp - (p.m * p.l) ** 2
+    a = np.array([[0.0, 1.0, 0.0, 0.0],
+                  [0.0, -p.b * jp / d, -(p.m * p.l) ** 2 * p.g / d, 0.0],
+                  [0.0, 0.0, 0.0, 1.0],
+                  [0.0, p.b * p.m * p.l / d, (p.M + p.m) * p.m * p.g * p.l / d, 0.0]])
+    b = np.array([[0.0], [jp / d], [0.0], [-p.m * p.l / d]])
+    c = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]])
+    return a, b, c
+
+
+def zoh(a: np.ndarray, b: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+    """(e^{A t}, int_0^t e^{A s} ds B) from one block exponential."""
+    n, m = b.shape
+    big = np.zeros((n + m, n + m))
+    big[:n, :n] = a
+    big[:n, n:] = b
+    e = expm(big * t)
+    return e[:n, :n], e[:n, n:]
+
+
+@dataclass
+class Controller:
+    """xc[k+1] = A xc[k] + B y[k], u[k] = C xc[k] + D y[k] + r[k]."""
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+
+
+def design_controller(cfg: Config) -> Controller:
+    """LQR on the current Kalman estimate, both on the documented nominal model at the rate.
+
+    Kalman filter (current form): xf = xp + M (y - C xp); u_c = -K xf; xp+ = Ad xf + Bd u_c.
+    With xc = xp this is the controller form above: A = (Ad - Bd K)(I - M C),
+    B = (Ad - Bd K) M, C = -K (I - M C), D = -K M.
+    """
+    ts = 1.0 / cfg.sample_rate_hz
+    a, b, c = nominal_linear(documented_plant())
+    ad, bd = zoh(a, b, ts)
+    # Bryson weights: 5 cm cart, 0.5 m/s, 0.2 rad, 0.5 rad/s; 1 N of force. Chosen (from a
+    # grid) for margin: stable with a 30 ms lag plus a 15 ms delay, and with a 5 Hz, 10 %
+    # damped transmission resonance, the nominal loop settling in 0.3 s.
+    q = np.diag([1 / 0.05**2, 1 / 0.5**2, 1 / 0.2**2, 1 / 0.5**2])
+    r = np.array([[1.0]])
+    p = solve_discrete_are(ad, bd, q, r)
+    k = np.linalg.solve(r + bd.T @ p @ bd, bd.T @ p @ ad)
+    # The filter's noise model (fixed, whatever a campaign's noise): a 0.5 N force disturbance
+    # per sample (covering the excitation it does not see), 2 mm and 5 mrad of sensor noise
+    # (ten times the default sensors': a slower filter, for margin).
+    qn = 0.5**2 * bd @ bd.T + 1e-10 * np.eye(4)
+    rn = np.diag([2e-3**2, 5e-3**2])
+    pp = solve_discrete_are(ad.T, c.T, qn, rn)  # prior covariance
+    m = pp @ c.T @ np.linalg.inv(c @ pp @ c.T + rn)
+    acl = ad - bd @ k
+    imc = np.eye(4) - m @ c
+    return Controller(A=acl @ imc, B=acl @ m, C=-k @ imc, D=-k @ m)
+
+
+def controller_toml(ctrl: Controller) -> str:
+    """The matrices of the model file's [controller] section (py/tests/data/cart_pole.toml
+    holds those of design_controller(Config()), printed by this)."""
+    def matrix(m: np.ndarray) -> str:
+        rows = ["[" + ", ".join(repr(float(v)) for v in row) + "]" for row in np.atleast_2d(m)]
+        return "[" + ",\n     ".join(rows) + "]"
+
+    return "".join(f"{n} = {matrix(getattr(ctrl, n))}\n" for n in "ABCD")
+
+
+# --- the nonlinear truth ------------------------------------------------------------------
+
+
+def _extra_states(p: Plant) -> int:
+    return (1 if p.tau > 0 else 0) + (2 if p.flex_hz > 0 else 0)
+
+
+def derivative(p: Plant, s: list[float], f_in: float, w: float, torque: float) -> list[float]:
+    """ds/dt of the state [x, xdot, theta, thetadot, (lag force), (appendage q, q')]."""
+    x, xd, th, thd = s[0], s[1], s[2], s[3]
+    out = [xd, 0.0, thd, 0.0]
+    i = 4
+    f = f_in
+    if p.tau > 0:
+        out.append((f - s[i]) / p.tau)
+        f = s[i]
+        i += 1
+    force = f + w - p.b * xd
+    if p.flex_hz > 0:  # the appendage's spring and damper pull on the cart
+        wn = 2 * math.pi * p.flex_hz
+        spring = p.flex_mass * wn * (wn * s[i] + 2 * p.flex_zeta * s[i + 1])
+        force += spring
+    if p.coulomb > 0:
+        force -= p.coulomb * math.tanh(xd / p.coulomb_v)
+    ml = p.m * p.l
+    cth, sth = math.cos(th), math.sin(th)
+    a11, a12, a22 = p.M + p.m, ml * cth, p.J + ml * p.l
+    rhs1 = force + ml * sth * thd * thd
+    rhs2 = ml * p.g * sth + torque
+    det = a11 * a22 - a12 * a12
+    out[1] = (a22 * rhs1 - a12 * rhs2) / det
+    out[3] = (a11 * rhs2 - a12 * rhs1) / det
+    if p.flex_hz > 0:  # q'' = -x'' - spring / m_f (q relative to the cart)
+        out += [s[i + 1], -out[1] - spring / p.flex_mass]
+    return out
+
+
+def rk4(p: Plant, s: list[float], f_in: float, w: float, torque: float, h: float,
+        n: int) -> list[float]:
+    """n classical RK4 steps of size h with constant inputs."""
+    for _ in range(n):
+        k1 = derivative(p, s, f_in, w, torque)
+        k2 = derivative(p, [a + 0.5 * h * b for a, b in zip(s, k1)], f_in, w, torque)
+        k3 = derivative(p, [a + 0.5 * h * b for a, b in zip(s, k2)], f_in, w, torque)
+        k4 = derivative(p, [a + h * b for a, b in zip(s, k3)], f_in, w, torque)
+        s = [a + h / 6 * (b1 + 2 * b2 + 2 * b3 + b4)
+             for a, b1, b2, b3, b4 in zip(s, k1, k2, k3, k4)]
+    return s
+
+
+def linearised_truth(p: Plant, eps: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+    """(A, B) of the full truth (effect states included) at upright by central differences of
+    `derivative` (Coulomb friction is not differentiable at rest and is left out)."""
+    p = replace(p, coulomb=0.0)
+    n = 4 + _extra_states(p)
+    a = np.zeros((n, n))
+    for j in range(n):
+        e = np.zeros(n)
+        e[j] = eps
+        a[:, j] = (np.array(derivative(p, list(e), 0.0, 0.0, 0.0))
+                   - np.array(derivative(p, list(-e), 0.0, 0.0, 0.0))) / (2 * eps)
+    b = ((np.array(derivative(p, [0.0] * n, eps, 0.0, 0.0))
+          - np.array(derivative(p, [0.0] * n, -eps, 0.0, 0.0))) / (2 * eps))[:, None]
+    return a, b
+
+
+def delay_split(td: float, ts: float) -> tuple[int, float]:
+    """td = d Ts + phi with integer d >= 0 and 0 <= phi < Ts."""
+    d = int(math.floor(td / ts + 1e-12))
+    phi = td - d * ts
+    if phi < 1e-12 * ts:
+        phi = 0.0
+    return d, phi
+
+
+def linear_closed_loop(cfg: Config, ctrl: Controller) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(Az, Bz, Cz) of the linearised truth (delay exact) in the loop with the controller:
+    z[k+1] = Az z[k] + Bz r[k], y[k] = Cz z[k], z = (plant state, xc, u[k-1], ..., u[k-d-1])."""
+    ts = 1.0 / cfg.sample_rate_hz
+    a, b = linearised_truth(cfg.plant)
+    n = a.shape[0]
+    d, phi = delay_split(cfg.plant.td, ts)
+    phi_full, _ = zoh(a, b, ts)
+    e_rest, g0 = zoh(a, b, ts - phi)
+    _, g_phi = zoh(a, b, phi)
+    g1 = e_rest @ g_phi  # effect of u[k-d-1], held over the first phi of the interval
+    c = np.zeros((2, n))
+    c[0, 0] = c[1, 2] = 1.0
+    nc = ctrl.A.shape[0]
+    lags = n + nc  # u[k-1] .. u[k-d-1] at lags .. lags + d
+    nz = lags + d + 1
+    u_row = np.zeros(nz)  # u[k] = u_row z[k] + r[k]
+    u_row[:n] = (ctrl.D @ c)[0]
+    u_row[n:lags] = ctrl.C[0]
+    az = np.zeros((nz, nz))
+    bz = np.zeros(nz)
+    az[:n, :n] = phi_full
+    az[:n] += g1 @ np.eye(nz)[lags + d][None, :]
+    if d == 0:  # u[k] itself is held over the rest of the interval
+        az[:n] += g0 @ u_row[None, :]
+        bz[:n] = g0[:, 0]
+    else:
+        az[:n] += g0 @ np.eye(nz)[lags + d - 1][None, :]
+    az[n:lags, :n] = ctrl.B @ c
+    az[n:lags, n:lags] = ctrl.A
+    az[lags] = u_row
+    bz[lags] = 1.0
+    for i in range(1, d + 1):
+        az[lags + i, lags + i - 1] = 1.0
+    cz = np.zeros((2, nz))
+    cz[:, :n] = c
+    return az, bz, cz
+
+
+def sampled_frf(p: Plant, freqs_hz: np.ndarray, ts: float) -> np.ndarray:
+    """The exact sampled FRF from F to (x, theta) of the linearised truth with its delay:
+    (lines, 2 outputs)."""
+    a, b = linearised_truth(p)
+    n = a.shape[0]
+    d, phi = delay_split(p.td, ts)
+    phi_full, _ = zoh(a, b, ts)
+    e_rest, g0 = zoh(a, b, ts - phi)
+    _, g_phi = zoh(a, b, phi)
+    g1 = e_rest @ g_phi
+    c = np.zeros((2, n))
+    c[0, 0] = c[1, 2] = 1.0
+    z = np.exp(2j * np.pi * np.asarray(freqs_hz) * ts)[:, None, None]
+    rhs = (g0 + g1 / z) * z ** -d
+    return (c @ np.linalg.solve(z * np.eye(n) - phi_full, rhs))[:, :, 0]
+
+
+def closed_loop_radius(cfg: Config, ctrl: Controller) -> float:
+    """Spectral radius of the linearised truth in the loop (below 1: the loop is stable)."""
+    return float(np.abs(np.linalg.eigvals(linear_closed_loop(cfg, ctrl)[0])).max())
+
+
+# --- excitation and runs ------------------------------------------------------------------
+
+
+def one_period(spec: np.ndarray, period: int) -> np.ndarray:
+    """sum_k |X_k| cos(2 pi k n / N + arg X_k), n = 0..N-1, lines k = 1..len(spec) < N/2."""
+    z = np.zeros(period // 2 + 1, complex)
+    z[1:len(spec) + 1] = spec * (period / 2)
+    return np.fft.irfft(z, period)
+
+
+def multisine(cfg: Config, rng: np.random.Generator) -> np.ndarray:
+    """One period of a flat multisine on lines 1..lines with the lowest-crest-factor random
+    phases of phase_draws draws, scaled to r_rms."""
+    best, best_crest = None, np.inf
+    for _ in range(cfg.phase_draws):
+        s = one_period(np.exp(1j * rng.uniform(0, 2 * np.pi, cfg.lines)), cfg.period_samples)
+        crest = np.abs(s).max() / np.sqrt(np.mean(s**2))
+        if crest < best_crest:
+            best, best_crest = s, crest
+    return best * cfg.r_rms / np.sqrt(np.mean(best**2))
+
+
+@dataclass
+class Run:
+    """One experiment: logged command F, excitation r, measured outputs (x, theta)."""
+
+    index: int
+    t: np.ndarray
+    u: np.ndarray  # (samples, 1)
+    r: np.ndarray  # (samples, 1)
+    y: np.ndarray  # (samples, 2)
+    state: np.ndarray  # true (x, xdot, theta, thetadot) at the samples
+
+
+def samples(cfg: Config) -> int:
+    return cfg.transient_samples + cfg.periods * cfg.period_samples
+
+
+def simulate(cfg: Config) -> list[Run]:
+    """The campaign's closed-loop experiments, each from rest with the pole at theta0."""
+    ts = 1.0 / cfg.sample_rate_hz
+    ctrl = design_controller(cfg)
+    radius = closed_loop_radius(cfg, ctrl)
+    if radius >= 1.0:
+        raise ValueError(f"the controller does not stabilise this truth (radius {radius:.4f})")
+    p = cfg.plant
+    rng = np.random.default_rng(cfg.seed)
+    count = samples(cfg)
+    n = np.arange(count)
+    d, phi = delay_split(p.td, ts)
+    # Sub-intervals of a sample: [0, phi) holds u[k-d-1], [phi, Ts) holds u[k-d].
+    parts = [(phi, -d - 1), (ts - phi, -d)] if phi > 0 else [(ts, -d)]
+    steps = [(h / max(1, math.ceil(cfg.substeps * h / ts - 1e-9)),
+              max(1, math.ceil(cfg.substeps * h / ts - 1e-9)), lag) for h, lag in parts]
+    ac, bc, cc, dc = (np.asarray(m, float) for m in (ctrl.A, ctrl.B, ctrl.C, ctrl.D))
+    runs = []
+    for e in range(1, cfg.experiments + 1):
+        r = multisine(cfg, rng)[n % cfg.period_samples]
+        w = rng.standard_normal(count) * cfg.force_noise
+        tq = rng.standard_normal(count) * cfg.torque_noise
+        noise = rng.standard_normal((count, 2)) * [cfg.x_sigma, cfg.theta_sigma]
+        s = [0.0, 0.0, cfg.theta0, 0.0] + [0.0] * _extra_states(p)
+        xc = np.zeros(ac.shape[0])
+        u = np.zeros(count)
+        y = np.zeros((count, 2))
+        state = np.zeros((count, 4))
+        for k in range(count):
+            state[k] = s[:4]
+            y[k] = (s[0], s[2])
+            y[k] += noise[k]
+            u[k] = (cc @ xc + dc @ y[k])[0] + r[k]
+            xc = ac @ xc + bc @ y[k]
+            for h, m_steps, lag in steps:
+                j = k + lag
+                s = rk4(p, s, u[j] if j >= 0 else 0.0, w[k], tq[k], h, m_steps)
+        runs.append(Run(e, n * ts, u[:, None], r[:, None], y, state))
+    return runs
+
+
+# --- logs ---------------------------------------------------------------------------------
+
+
+def metadata(cfg: Config) -> dict[str, str]:
+    """The DESIGN.md `experiment` record: strings only."""
+    return {
+        "sample_rate_hz": f"{cfg.sample_rate_hz:g}",
+        "period_samples": str(cfg.period_samples),
+        "periods": str(cfg.periods),
+        "transient_samples": str(cfg.transient_samples),
+        "excited": ",".join(INPUTS),
+    }
+
+
+def run_topics(run: Run, excitation_topic: bool = True):
+    """The DESIGN.md topics of one run."""
+    topics = {
+        f"/{SYSTEM}/input": (run.t, INPUTS, run.u),
+        f"/{SYSTEM}/output": (run.t, OUTPUTS, run.y),
+    }
+    if excitation_topic:
+        topics[f"/{SYSTEM}/excitation"] = (run.t, INPUTS, run.r)
+    return topics
+
+
+def write_runs(cfg: Config, runs: list[Run], directory: Path) -> list[Path]:
+    """One MCAP file per experiment in `directory`."""
+    directory.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for run in runs:
+        path = directory / f"exp_{run.index:02d}.mcap"
+        write_mcap(path, run_topics(run), metadata(cfg))
+        paths.append(path)
+    return paths
+
+
+def write_csv(run: Run, path: Path) -> None:
+    """CSV: a header row t, F, x, theta, r_F (the excitation of F)."""
+    table = np.column_stack([run.t, run.u, run.y, run.r])
+    np.savetxt(path, table, delimiter=",", header="t,F,x,theta,r_F", comments="", fmt="%.10g")
+
+
+def campaign(directory: Path, **kw) -> tuple[Config, list[Path]]:
+    """Simulates Config(**kw) (plant effects as Plant fields under `plant`) into directory."""
+    cfg = Config(**kw)
+    return cfg, write_runs(cfg, simulate(cfg), Path(directory))
+
+
+if __name__ == "__main__":
+    # python independent_cartpole.py DIR [seed]: a default campaign (nominal truth) into DIR;
+    # python independent_cartpole.py --controller: the model file's controller matrices.
+    import sys
+
+    if sys.argv[1] == "--controller":
+        print(controller_toml(design_controller(Config())), end="")
+    else:
+        seed = int(sys.argv[2]) if len(sys.argv) > 2 else 0
+        print("\n".join(map(str, campaign(Path(sys.argv[1]), seed=seed)[1])))
