@@ -6,7 +6,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 need_apt=()
-for pkg in libopenblas-dev libgfortran-12-dev pkg-config; do
+# chromium: the headless browser that renders the HTML report in py/tests/test_report_browser.py.
+for pkg in libopenblas-dev libgfortran-12-dev pkg-config chromium; do
     dpkg -s "$pkg" >/dev/null 2>&1 || need_apt+=("$pkg")
 done
 # Debian's python3 ships venv (ensurepip) separately.

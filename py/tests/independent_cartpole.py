@@ -41,9 +41,11 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-from scipy.linalg import expm, solve_discrete_are
+from scipy.linalg import solve_discrete_are
 
-from independent_platform import write_mcap
+# (e^{A t}, int_0^t e^{A s} ds B): the zero-order hold over t.
+from independent_platform import _integral_expm as zoh
+from independent_platform import design_topics, write_experiments
 
 INPUTS = ["F"]
 OUTPUTS = ["x", "theta"]
@@ -111,16 +113,6 @@ def nominal_linear(p: Plant) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     b = np.array([[0.0], [jp / d], [0.0], [-p.m * p.l / d]])
     c = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]])
     return a, b, c
-
-
-def zoh(a: np.ndarray, b: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
-    """(e^{A t}, int_0^t e^{A s} ds B) from one block exponential."""
-    n, m = b.shape
-    big = np.zeros((n + m, n + m))
-    big[:n, :n] = a
-    big[:n, n:] = b
-    e = expm(big * t)
-    return e[:n, :n], e[:n, n:]
 
 
 @dataclass
@@ -403,24 +395,12 @@ def metadata(cfg: Config) -> dict[str, str]:
 
 def run_topics(run: Run, excitation_topic: bool = True):
     """The DESIGN.md topics of one run."""
-    topics = {
-        f"/{SYSTEM}/input": (run.t, INPUTS, run.u),
-        f"/{SYSTEM}/output": (run.t, OUTPUTS, run.y),
-    }
-    if excitation_topic:
-        topics[f"/{SYSTEM}/excitation"] = (run.t, INPUTS, run.r)
-    return topics
+    return design_topics(SYSTEM, INPUTS, OUTPUTS, run, excitation_topic)
 
 
 def write_runs(cfg: Config, runs: list[Run], directory: Path) -> list[Path]:
-    """One MCAP file per experiment in `directory`."""
-    directory.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for run in runs:
-        path = directory / f"exp_{run.index:02d}.mcap"
-        write_mcap(path, run_topics(run), metadata(cfg))
-        paths.append(path)
-    return paths
+    """One MCAP file per experiment in `directory` (exp_01.mcap, ...)."""
+    return write_experiments(Path(directory), runs, run_topics, lambda run: metadata(cfg))
 
 
 def write_csv(run: Run, path: Path) -> None:
@@ -436,12 +416,16 @@ def campaign(directory: Path, **kw) -> tuple[Config, list[Path]]:
 
 
 if __name__ == "__main__":
-    # python independent_cartpole.py DIR [seed]: a default campaign (nominal truth) into DIR;
+    # python independent_cartpole.py DIR [SEED] [FIELD=VALUE ...]: a default campaign into DIR,
+    #   the truth's hidden effects as Plant fields, e.g. b=1.2 tau=0.03 td=0.015 flex_hz=4;
     # python independent_cartpole.py --controller: the model file's controller matrices.
     import sys
 
     if sys.argv[1] == "--controller":
         print(controller_toml(design_controller(Config())), end="")
     else:
-        seed = int(sys.argv[2]) if len(sys.argv) > 2 else 0
-        print("\n".join(map(str, campaign(Path(sys.argv[1]), seed=seed)[1])))
+        args = sys.argv[2:]
+        seed = int(args.pop(0)) if args and "=" not in args[0] else 0
+        hidden = {k: float(v) for k, v in (a.split("=", 1) for a in args)}
+        plant = replace(Plant(), **hidden)
+        print("\n".join(map(str, campaign(Path(sys.argv[1]), plant=plant, seed=seed)[1])))

@@ -343,26 +343,37 @@ def write_mcap(path: Path, topics: dict[str, tuple[np.ndarray, list[str], np.nda
         writer.finish()
 
 
-def run_topics(run: Run, excitation_topic: bool = True):
-    """The DESIGN.md topics of one run."""
+def design_topics(system: str, inputs: list[str], outputs: list[str], run,
+                  excitation_topic: bool = True):
+    """The DESIGN.md topics of one run (`run` has t, u, y, r) of `system`."""
     topics = {
-        "/flying_platform/input": (run.t, INPUTS, run.u),
-        "/flying_platform/output": (run.t, OUTPUTS, run.y),
+        f"/{system}/input": (run.t, inputs, run.u),
+        f"/{system}/output": (run.t, outputs, run.y),
     }
     if excitation_topic:
-        topics["/flying_platform/excitation"] = (run.t, INPUTS, run.r)
+        topics[f"/{system}/excitation"] = (run.t, inputs, run.r)
     return topics
 
 
-def write_runs(cfg: Config, runs: list[Run], directory: Path) -> list[Path]:
-    """One MCAP file per experiment in `directory`."""
+def write_experiments(directory: Path, runs, topics, meta) -> list[Path]:
+    """One MCAP file per run in `directory`, exp_<index>.mcap, with topics(run), meta(run)."""
     directory.mkdir(parents=True, exist_ok=True)
     paths = []
     for run in runs:
         path = directory / f"exp_{run.index:02d}.mcap"
-        write_mcap(path, run_topics(run), metadata(cfg, run))
+        write_mcap(path, topics(run), meta(run))
         paths.append(path)
     return paths
+
+
+def run_topics(run: Run, excitation_topic: bool = True):
+    """The DESIGN.md topics of one run."""
+    return design_topics("flying_platform", INPUTS, OUTPUTS, run, excitation_topic)
+
+
+def write_runs(cfg: Config, runs: list[Run], directory: Path) -> list[Path]:
+    """One MCAP file per experiment in `directory`."""
+    return write_experiments(directory, runs, run_topics, lambda run: metadata(cfg, run))
 
 
 def write_csv(run: Run, path: Path, reverse: bool = False) -> None:

@@ -9,6 +9,7 @@ use super::cubli::{CubliDiscovery, CubliStep, CHANNELS as CUBLI_CHANNELS};
 use super::discover::{Discovery, Step};
 use super::fit::ParamEstimate;
 use super::frf::CMatrix;
+use super::model::Parameter;
 use super::Workbench;
 use crate::error::{Result, SimError};
 use crate::output;
@@ -308,6 +309,16 @@ const FREQUENCY: XAxis<'static> = XAxis {
     log: true,
 };
 
+const TIME: XAxis<'static> = XAxis {
+    label: "time (s)",
+    log: false,
+};
+
+const LAG: XAxis<'static> = XAxis {
+    label: "lag (samples)",
+    log: false,
+};
+
 /// One series per step, coloured by step.
 fn per_step<S>(
     steps: &[S],
@@ -381,14 +392,14 @@ fn chart(title: &str, x_axis: XAxis<'_>, y_label: &str, series: &[Series<'_>]) -
         r#"<text x="{l}" y="16" font-size="13">{}</text>"#,
         escape(title)
     );
-    for i in 0..=4 {
-        let y = ymin + (ymax - ymin) * i as f64 / 4.0;
+    let (ystep, yticks) = nice_ticks(ymin, ymax);
+    for y in yticks {
         let _ = write!(
             s,
             r#"<text x="{}" y="{:.1}" text-anchor="end">{}</text>"#,
             l - 4.0,
             py(y) + 4.0,
-            fmt_tick(y, (ymax - ymin) / 4.0)
+            fmt_tick(y, ystep)
         );
     }
     let ticks: Vec<f64> = if x_axis.log {
@@ -397,15 +408,13 @@ fn chart(title: &str, x_axis: XAxis<'_>, y_label: &str, series: &[Series<'_>]) -
             .filter(|x| *x >= xmin * 0.8 && *x <= xmax * 1.25)
             .collect()
     } else {
-        (0..=4)
-            .map(|i| xmin + (xmax - xmin) * i as f64 / 4.0)
-            .collect()
+        nice_ticks(xmin, xmax).1
     };
     for x in ticks {
         let label = if x_axis.log {
-            fmt_num(x)
+            format!("{x}")
         } else {
-            fmt_tick(x, (xmax - xmin) / 4.0)
+            fmt_tick(x, nice_ticks(xmin, xmax).0)
         };
         let _ = write!(
             s,
@@ -485,21 +494,48 @@ fn chart(title: &str, x_axis: XAxis<'_>, y_label: &str, series: &[Series<'_>]) -
     s
 }
 
-/// A tick label with enough decimals to tell ticks `step` apart.
+/// Ticks at multiples of 1, 2 or 5 times a power of ten, four to ten over `[lo, hi]`, and
+/// their spacing.
+fn nice_ticks(lo: f64, hi: f64) -> (f64, Vec<f64>) {
+    let raw = ((hi - lo) / 5.0).max(1e-300);
+    let power = 10f64.powf(raw.log10().floor());
+    let step = [1.0, 2.0, 5.0, 10.0]
+        .into_iter()
+        .map(|m| m * power)
+        .find(|s| *s >= raw)
+        .unwrap_or(10.0 * power);
+    let first = (lo / step).ceil() as i64;
+    let last = (hi / step).floor() as i64;
+    (step, (first..=last).map(|i| i as f64 * step).collect())
+}
+
+/// A tick label with the decimals its spacing needs (plain, or in exponent form for very
+/// large or small steps).
 fn fmt_tick(v: f64, step: f64) -> String {
-    if v.abs() >= 1e4 || (v != 0.0 && v.abs() < 1e-2) || step.is_nan() || step <= 0.0 {
+    if !(step > 0.0) {
         return fmt_num(v);
     }
-    let decimals = (1.0 - step.log10().floor()).clamp(0.0, 6.0) as usize;
+    if v.abs() < 1e-6 * step {
+        return "0".into();
+    }
+    if step >= 1e4 || step < 1e-3 {
+        let digits = ((v.abs().log10().floor() - step.log10().floor()).max(0.0)) as usize;
+        return format!("{v:.digits$e}");
+    }
+    let decimals = (-step.log10().floor()).clamp(0.0, 6.0) as usize;
     format!("{v:.decimals$}")
 }
 
+/// Four significant digits.
 fn fmt_num(v: f64) -> String {
-    if v.abs() >= 1e4 || (v != 0.0 && v.abs() < 1e-2) {
-        format!("{v:.1e}")
-    } else {
-        format!("{v:.1}")
+    if v == 0.0 {
+        return "0".into();
     }
+    if v.abs() >= 1e5 || v.abs() < 1e-3 {
+        return format!("{v:.3e}");
+    }
+    let decimals = (3.0 - v.abs().log10().floor()).clamp(0.0, 6.0) as usize;
+    format!("{v:.decimals$}")
 }
 
 fn escape(s: &str) -> String {
@@ -554,6 +590,9 @@ fn html(wb: &Workbench, d: &Discovery) -> String {
         .map(|s| (s.added.clone().unwrap_or_else(|| "start".into()), s.cost))
         .collect();
     body.push_str(&cost_bars(&bars, wb.noise().mean()));
+    body.push_str(&parameter_table(wb, d));
+    body.push_str(&time_series(wb, d));
+    body.push_str(&autocorrelation(d));
     // Residuals per line and step.
     let series = per_step(
         &d.steps,
@@ -641,6 +680,198 @@ fn html(wb: &Workbench, d: &Discovery) -> String {
         );
     }
     page(&body)
+}
+
+/// Parameters per step: documented value, then value ± standard error per step (held ones
+/// marked), so that `fit` reports show nominal against fitted.
+fn parameter_table(wb: &Workbench, d: &Discovery) -> String {
+    let documented: Vec<Parameter> = d
+        .steps
+        .last()
+        .and_then(|st| {
+            st.effects
+                .iter()
+                .try_fold(
+                    crate::workbench::Model::new(wb.model().structure().clone()),
+                    |m, e| m.with_effect(e),
+                )
+                .ok()
+        })
+        .and_then(|m| m.parameters().ok())
+        .unwrap_or_default();
+    let mut names: Vec<String> = Vec::new();
+    for st in &d.steps {
+        for p in &st.params {
+            if !names.contains(&p.name) {
+                names.push(p.name.clone());
+            }
+        }
+    }
+    let mut out = String::from(
+        "<h2>Parameters</h2><table><tr><th>parameter</th><th>unit</th><th>documented</th>",
+    );
+    for st in &d.steps {
+        let _ = write!(
+            out,
+            "<th>{}</th>",
+            escape(st.added.as_deref().unwrap_or("fitted, no effect added"))
+        );
+    }
+    out.push_str("</tr>");
+    for name in &names {
+        let doc = documented.iter().find(|p| &p.name == name);
+        let _ = write!(
+            out,
+            "<tr><td>{}</td><td>{}</td><td>{}</td>",
+            escape(name),
+            escape(doc.map_or("", |p| p.unit.as_str())),
+            doc.map_or_else(|| "-".to_string(), |p| fmt_num(p.value))
+        );
+        for st in &d.steps {
+            let cell = match st.params.iter().find(|p| &p.name == name) {
+                None => "-".to_string(),
+                Some(p) if p.held => format!("{} (held)", fmt_num(p.value)),
+                Some(p) => match p.std {
+                    Some(sd) => format!("{} &plusmn; {}", fmt_num(p.value), fmt_num(sd)),
+                    None => fmt_num(p.value),
+                },
+            };
+            let _ = write!(out, "<td>{cell}</td>");
+        }
+        out.push_str("</tr>");
+    }
+    out.push_str("</table>");
+    for (name, value, why) in wb.model().structure().fixed() {
+        let _ = write!(
+            out,
+            "<p>{} = {} held: {}</p>",
+            escape(&name),
+            fmt_num(value),
+            escape(&why)
+        );
+    }
+    out
+}
+
+/// Samples of the measured-against-predicted time series.
+const SERIES_SAMPLES: usize = 600;
+
+/// Measured outputs against the Kalman predictor's k-step predictions of the first and the
+/// last model (first experiment, first samples).
+fn time_series(wb: &Workbench, d: &Discovery) -> String {
+    let (Some(first), Some(last)) = (d.steps.first(), d.steps.last()) else {
+        return String::new();
+    };
+    let k = last.time_fit.horizon_samples;
+    let data = wb.data();
+    let t = 1.0 / data.sample_rate_hz;
+    let mut out = format!(
+        "<h2>Time domain</h2><p>Measured outputs (deviations from the record mean) and the {k}-step prediction ({:.3} s) of the stationary Kalman predictor, experiment 1. Fit % per output and step is in the summary.</p>",
+        k as f64 * t
+    );
+    let mut predicted = Vec::new();
+    for st in [first, last] {
+        let model = st.effects.iter().try_fold(
+            crate::workbench::Model::new(wb.model().structure().clone()),
+            |m, e| m.with_effect(e),
+        );
+        let series = model
+            .and_then(|m| m.state_space(&st.theta))
+            .and_then(|ss| super::timedomain::kalman_series(data, &ss, k, 0, SERIES_SAMPLES));
+        match series {
+            Ok(s) => predicted.push((st.added.clone().unwrap_or_else(|| "start".into()), s)),
+            Err(e) => {
+                let _ = write!(out, "<p>no prediction: {}</p>", escape(&e.to_string()));
+                return out;
+            }
+        }
+    }
+    for (o, name) in data.outputs.iter().enumerate() {
+        let (y, _) = &predicted[0].1;
+        let mut series = vec![Series {
+            name: "measured".into(),
+            color: "#000000",
+            points: (0..y.nrows()).map(|i| (i as f64 * t, y[(i, o)])).collect(),
+            markers: false,
+            band: None,
+        }];
+        for (j, (label, (_, yk))) in predicted.iter().enumerate() {
+            if j == 1 && d.steps.len() == 1 {
+                break;
+            }
+            series.push(Series {
+                name: format!("{label}, {k}-step"),
+                color: COLORS[(if j == 0 { 0 } else { d.steps.len() - 1 }) % COLORS.len()],
+                points: (k..yk.nrows())
+                    .map(|i| (i as f64 * t, yk[(i, o)]))
+                    .collect(),
+                markers: false,
+                band: None,
+            });
+        }
+        out.push_str(&chart(
+            &format!("{name}: measured and predicted"),
+            TIME,
+            name,
+            &series,
+        ));
+    }
+    out
+}
+
+/// Autocorrelation of the last step's residual per output with its 99% band.
+fn autocorrelation(d: &Discovery) -> String {
+    let Some(st) = d.steps.last() else {
+        return String::new();
+    };
+    let r = &st.residual_tests;
+    let mut out = format!(
+        "<h2>Residual autocorrelation</h2><p>{} of the last model, lags 1-{}; dashed: the 99% band for white noise (&plusmn;{:.4}).</p>",
+        escape(&r.residual),
+        r.lags,
+        r.channels.first().map_or(0.0, |c| c.whiteness.band)
+    );
+    for c in &r.channels {
+        let band = c.whiteness.band;
+        let lags = 1..c.whiteness.correlation.len();
+        let series = [
+            Series {
+                name: if c.not_white {
+                    "not white".into()
+                } else {
+                    "white".into()
+                },
+                color: COLORS[0],
+                points: lags
+                    .clone()
+                    .map(|l| (l as f64, c.whiteness.correlation[l]))
+                    .collect(),
+                markers: true,
+                band: None,
+            },
+            Series {
+                name: "+99% band".into(),
+                color: "#999999",
+                points: lags.clone().map(|l| (l as f64, band)).collect(),
+                markers: false,
+                band: None,
+            },
+            Series {
+                name: "-99% band".into(),
+                color: "#999999",
+                points: lags.map(|l| (l as f64, -band)).collect(),
+                markers: false,
+                band: None,
+            },
+        ];
+        out.push_str(&chart(
+            &format!("{}: autocorrelation", c.output),
+            LAG,
+            "correlation",
+            &series,
+        ));
+    }
+    out
 }
 
 /// The HTML page around `body` (inline style, no scripts).
@@ -758,4 +989,21 @@ fn cubli_html(d: &CubliDiscovery) -> String {
         chart(&format!("{} residual / noise", CUBLI_CHANNELS[worst]), time_axis, "residual / std", &series)
     );
     page(&body)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ticks_are_round_and_labels_carry_the_digits_they_need() {
+        let (step, ticks) = nice_ticks(-0.047, 0.042);
+        assert_eq!(step, 0.02);
+        let labels: Vec<String> = ticks.iter().map(|t| fmt_tick(*t, step)).collect();
+        assert_eq!(labels, ["-0.04", "-0.02", "0", "0.02", "0.04"]);
+        assert_eq!(nice_ticks(0.0, 5.99).1, [0.0, 2.0, 4.0]);
+        assert_eq!(fmt_num(0.030113), "0.03011");
+        assert_eq!(fmt_num(123592.1), "1.236e5");
+        assert_eq!(fmt_num(-4.98e-5), "-4.980e-5");
+    }
 }

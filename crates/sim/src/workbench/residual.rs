@@ -97,6 +97,8 @@ pub struct BandTest {
     pub p_value: f64,
     /// `p_value < 0.01`: the sequence is not what a white, input-independent residual gives.
     pub fails: bool,
+    /// The correlation at every lag from 0 (for plots).
+    pub correlation: Vec<f64>,
 }
 
 impl BandTest {
@@ -123,6 +125,7 @@ impl BandTest {
             peak,
             p_value,
             fails: p_value < LEVEL,
+            correlation: r.to_vec(),
         }
     }
 }

@@ -551,6 +551,32 @@ pub fn time_fit(
     ))
 }
 
+/// Measured outputs and the Kalman predictor's `k`-step predictions of `ss` on the first
+/// `samples` samples of experiment `index` (deviations from the record means), for plots.
+pub fn kalman_series(
+    data: &Dataset,
+    ss: &StateSpace,
+    k: usize,
+    index: usize,
+    samples: usize,
+) -> Result<(DMatrix<f64>, DMatrix<f64>)> {
+    let disc = ss.discretize(1.0 / data.sample_rate_hz)?;
+    let centred: Vec<(DMatrix<f64>, DMatrix<f64>)> = data
+        .experiments
+        .iter()
+        .map(|e| (demeaned(&e.u), demeaned(&e.y)))
+        .collect();
+    let pairs: Vec<(&DMatrix<f64>, &DMatrix<f64>)> = centred.iter().map(|(u, y)| (u, y)).collect();
+    let kp = Predictor::design(&disc, &pairs)?;
+    let (u, y) = centred
+        .get(index)
+        .ok_or_else(|| SimError::invalid("experiment", index, "no such experiment"))?;
+    let (_, xs) = kp.run(u, y);
+    let yk = kp.predict(u, &xs, k.max(1));
+    let n = samples.min(y.nrows());
+    Ok((y.rows(0, n).into_owned(), yk.rows(0, n).into_owned()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
