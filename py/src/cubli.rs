@@ -16,6 +16,7 @@ use pyo3::types::{PyComplex, PyDict};
 use sim::scenarios::cubli::{learn_jump as learn_jump_trials, Jump, JumpSetup};
 
 use crate::errors::{to_py_err, Error, IntoPyError};
+use crate::real::Real;
 
 impl IntoPyError for CubliError {
     fn into_py_error(self) -> PyErr {
@@ -54,15 +55,15 @@ impl PyParams {
     #[new]
     #[pyo3(signature = (theta0=None, theta_w=None, m=None, gravity=None))]
     fn new(
-        theta0: Option<Vec<Vec<f64>>>,
-        theta_w: Option<Vec<f64>>,
-        m: Option<Vec<f64>>,
+        theta0: Option<Real<Vec<Vec<f64>>>>,
+        theta_w: Option<Real<Vec<f64>>>,
+        m: Option<Real<Vec<f64>>>,
         gravity: Option<f64>,
     ) -> PyResult<Self> {
         let r = Params::reference();
         let theta0 = match theta0 {
             None => *r.theta0(),
-            Some(rows) => {
+            Some(Real(rows)) => {
                 if rows.len() != 3 || rows.iter().any(|row| row.len() != 3) {
                     return Err(PyValueError::new_err("theta0 must be a 3 x 3 matrix"));
                 }
@@ -70,10 +71,10 @@ impl PyParams {
             }
         };
         let theta_w = theta_w
-            .map(|v| vec3("theta_w", v))
+            .map(|v| vec3("theta_w", v.0))
             .transpose()?
             .unwrap_or(*r.theta_w());
-        let m = m.map(|v| vec3("m", v)).transpose()?.unwrap_or(*r.m());
+        let m = m.map(|v| vec3("m", v.0)).transpose()?.unwrap_or(*r.m());
         let inner =
             Params::new(theta0, theta_w, m, gravity.unwrap_or(r.gravity())).map_err(to_py_err)?;
         Ok(Self { inner })
@@ -121,11 +122,16 @@ fn params(p: Option<&PyParams>) -> Params {
     p.map(|p| p.inner).unwrap_or_else(Params::reference)
 }
 
-fn reduced(p: &Params, g: Vec<f64>, p_h: Vec<f64>, p_w: Vec<f64>) -> PyResult<ReducedState> {
+fn reduced(
+    p: &Params,
+    g: Real<Vec<f64>>,
+    p_h: Real<Vec<f64>>,
+    p_w: Real<Vec<f64>>,
+) -> PyResult<ReducedState> {
     let x = ReducedState {
-        g: vec3("g", g)?,
-        p_h: vec3("p_h", p_h)?,
-        p_w: vec3("p_w", p_w)?,
+        g: vec3("g", g.0)?,
+        p_h: vec3("p_h", p_h.0)?,
+        p_w: vec3("p_w", p_w.0)?,
     };
     x.validate(p).map_err(to_py_err)?;
     Ok(x)
@@ -136,15 +142,15 @@ fn reduced(p: &Params, g: Vec<f64>, p_h: Vec<f64>, p_w: Vec<f64>) -> PyResult<Re
 #[pyo3(signature = (g, p_h, p_w, torque, params=None))]
 fn reduced_derivative<'py>(
     py: Python<'py>,
-    g: Vec<f64>,
-    p_h: Vec<f64>,
-    p_w: Vec<f64>,
-    torque: Vec<f64>,
+    g: Real<Vec<f64>>,
+    p_h: Real<Vec<f64>>,
+    p_w: Real<Vec<f64>>,
+    torque: Real<Vec<f64>>,
     params: Option<&PyParams>,
 ) -> PyResult<(Array<'py>, Array<'py>, Array<'py>)> {
     let p = self::params(params);
     let x = reduced(&p, g, p_h, p_w)?;
-    let d = model::reduced_derivative(&p, &x, &vec3("torque", torque)?);
+    let d = model::reduced_derivative(&p, &x, &vec3("torque", torque.0)?);
     Ok((array(py, &d.g), array(py, &d.p_h), array(py, &d.p_w)))
 }
 
@@ -154,9 +160,9 @@ fn reduced_derivative<'py>(
 #[pyo3(signature = (g, p_h, p_w, params=None))]
 fn invariants<'py>(
     py: Python<'py>,
-    g: Vec<f64>,
-    p_h: Vec<f64>,
-    p_w: Vec<f64>,
+    g: Real<Vec<f64>>,
+    p_h: Real<Vec<f64>>,
+    p_w: Real<Vec<f64>>,
     params: Option<&PyParams>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let p = self::params(params);
@@ -175,12 +181,12 @@ fn invariants<'py>(
 #[pyo3(signature = (omega_h, omega_w, params=None))]
 fn momenta<'py>(
     py: Python<'py>,
-    omega_h: Vec<f64>,
-    omega_w: Vec<f64>,
+    omega_h: Real<Vec<f64>>,
+    omega_w: Real<Vec<f64>>,
     params: Option<&PyParams>,
 ) -> PyResult<(Array<'py>, Array<'py>)> {
     let p = self::params(params);
-    let (ph, pw) = p.momenta(&vec3("omega_h", omega_h)?, &vec3("omega_w", omega_w)?);
+    let (ph, pw) = p.momenta(&vec3("omega_h", omega_h.0)?, &vec3("omega_w", omega_w.0)?);
     Ok((array(py, &ph), array(py, &pw)))
 }
 
@@ -212,16 +218,21 @@ impl PyBackstepping {
     fn control<'py>(
         &self,
         py: Python<'py>,
-        g: Vec<f64>,
-        p_h: Vec<f64>,
-        p_w: Vec<f64>,
+        g: Real<Vec<f64>>,
+        p_h: Real<Vec<f64>>,
+        p_w: Real<Vec<f64>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let x = reduced(self.inner.params(), g, p_h, p_w)?;
         Ok(array(py, &self.inner.control(&x).map_err(to_py_err)?))
     }
 
     /// Lyapunov function V (1.11).
-    fn lyapunov(&self, g: Vec<f64>, p_h: Vec<f64>, p_w: Vec<f64>) -> PyResult<f64> {
+    fn lyapunov(
+        &self,
+        g: Real<Vec<f64>>,
+        p_h: Real<Vec<f64>>,
+        p_w: Real<Vec<f64>>,
+    ) -> PyResult<f64> {
         let x = reduced(self.inner.params(), g, p_h, p_w)?;
         Ok(self.inner.lyapunov(&x))
     }
@@ -309,14 +320,14 @@ impl PyGuiding {
     fn control<'py>(
         &self,
         py: Python<'py>,
-        quaternion: Vec<f64>,
-        p_h: Vec<f64>,
-        p_w: Vec<f64>,
+        quaternion: Real<Vec<f64>>,
+        p_h: Real<Vec<f64>>,
+        p_w: Real<Vec<f64>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let x = FullState {
-            attitude: attitude(quaternion)?,
-            p_h: vec3("p_h", p_h)?,
-            p_w: vec3("p_w", p_w)?,
+            attitude: attitude(quaternion.0)?,
+            p_h: vec3("p_h", p_h.0)?,
+            p_w: vec3("p_w", p_w.0)?,
         };
         Ok(array(py, &self.inner.control(&x).map_err(to_py_err)?))
     }

@@ -58,6 +58,7 @@ impl IntoPyError for sim::SimError {
             | E::BadMessage { .. } => LogError::new_err(message),
             E::ModelFile { .. } => ModelError::new_err(message),
             E::InvalidParameter { .. } | E::Domain { .. } => SimError::new_err(message),
+            E::UnsafeOutput { .. } => Error::new_err(message),
         }
     }
 }

@@ -97,6 +97,7 @@ fn system(model: &Bound<'_, PyDict>, covariances: bool) -> PyResult<System> {
 /// the uniform noise half-widths noise_output, noise_input.
 #[pyfunction]
 fn platoon_model(py: Python<'_>, vehicles: usize) -> PyResult<Bound<'_, PyDict>> {
+    sim::scenarios::platoon::check_vehicles(vehicles).map_err(to_py_err)?;
     let (sys, noise) = platoon(vehicles).map_err(to_py_err)?;
     let d = PyDict::new(py);
     d.set_item("A", to_numpy(py, &sys.a))?;

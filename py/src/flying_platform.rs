@@ -16,6 +16,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyComplex, PyDict};
 
 use crate::errors::{to_py_err, Error, IntoPyError, SimError};
+use crate::real::Real;
 
 impl IntoPyError for fp::Error {
     fn into_py_error(self) -> PyErr {
@@ -130,8 +131,8 @@ impl PyModel {
     }
 
     /// Sets the flat parameter vector (length and bounds checked).
-    fn set_parameter_vector(&mut self, theta: Vec<f64>) -> PyResult<()> {
-        self.inner.set_parameter_vector(&theta).map_err(to_py_err)
+    fn set_parameter_vector(&mut self, theta: Real<Vec<f64>>) -> PyResult<()> {
+        self.inner.set_parameter_vector(&theta.0).map_err(to_py_err)
     }
 
     /// A named effect parameter.
@@ -155,10 +156,10 @@ impl PyModel {
     fn state_space<'py>(
         &self,
         py: Python<'py>,
-        theta: Option<Vec<f64>>,
+        theta: Option<Real<Vec<f64>>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let ss = match theta {
-            Some(t) => self.inner.state_space_at(&t),
+            Some(Real(t)) => self.inner.state_space_at(&t),
             None => self.inner.state_space(),
         }
         .map_err(to_py_err)?;
@@ -177,12 +178,12 @@ impl PyModel {
     fn frequency_response<'py>(
         &self,
         py: Python<'py>,
-        omegas: Vec<f64>,
-        theta: Option<Vec<f64>>,
+        omegas: Real<Vec<f64>>,
+        theta: Option<Real<Vec<f64>>>,
     ) -> PyResult<Bound<'py, PyArray3<Complex<f64>>>> {
         let g = match theta {
-            Some(t) => self.inner.frequency_response_at(&t, &omegas),
-            None => self.inner.frequency_response(&omegas),
+            Some(Real(t)) => self.inner.frequency_response_at(&t, &omegas.0),
+            None => self.inner.frequency_response(&omegas.0),
         }
         .map_err(to_py_err)?;
         Ok(Array3::from_shape_fn((g.len(), 6, 9), |(f, i, j)| g[f][(i, j)]).into_pyarray(py))
@@ -261,6 +262,14 @@ fn controller(py: Python<'_>, l3: f64) -> PyResult<Bound<'_, PyDict>> {
 }
 
 fn design(seed: u64, lambda: Option<[f64; 3]>, periods: usize) -> PyResult<fp::ExperimentDesign> {
+    // The 18 experiments of 200 + 250 periods samples are returned together.
+    sim::limits::check(
+        "periods",
+        periods,
+        18.0 * (200.0 + 250.0 * periods as f64),
+        sim::limits::BYTES_PER_SAMPLE,
+    )
+    .map_err(to_py_err)?;
     let lambda = lambda.unwrap_or(fp::ExperimentDesign::LAMBDA_WITHIN_LIMITS);
     fp::ExperimentDesign::new(
         lambda,
@@ -397,8 +406,9 @@ fn simulate<'py>(
         log_delay_samples,
         set,
     )?;
+    let samples = sim::scenarios::samples(duration, cfg.sample_rate_hz).map_err(to_py_err)?;
     let mut sc = fp::Scenario {
-        samples: (duration * cfg.sample_rate_hz).round() as usize,
+        samples,
         ..Default::default()
     };
     match scenario {

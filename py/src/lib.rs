@@ -10,6 +10,7 @@ mod flying_platform;
 mod geometry;
 mod log;
 mod pmpc;
+mod real;
 mod sim;
 mod tilt;
 mod workbench;

@@ -12,6 +12,7 @@ use pyo3::types::PyDict;
 use pyo3::IntoPyObjectExt;
 
 use crate::errors::{to_py_err, Error, IntoPyError};
+use crate::real::Real;
 
 impl IntoPyError for TiltError {
     fn into_py_error(self) -> PyErr {
@@ -199,16 +200,16 @@ impl PyEstimator {
     fn fisher<'py>(
         &self,
         py: Python<'py>,
-        omega: [f64; 3],
-        omega_dot: [f64; 3],
-        g: [f64; 3],
+        omega: Real<[f64; 3]>,
+        omega_dot: Real<[f64; 3]>,
+        g: Real<[f64; 3]>,
         sigma: f64,
     ) -> PyResult<Bound<'py, PyDict>> {
         let f = ::tilt::fisher_information(
             self.inner.layout(),
-            &vector3(omega, "omega")?,
-            &vector3(omega_dot, "omega_dot")?,
-            &vector3(g, "g")?,
+            &vector3(omega.0, "omega")?,
+            &vector3(omega_dot.0, "omega_dot")?,
+            &vector3(g.0, "g")?,
             sigma,
         )
         .map_err(to_py_err)?;
@@ -252,9 +253,12 @@ impl PyEstimator {
     }
 
     /// D-criterion (2.64) of this layout for gravity `g` in the body frame.
-    #[pyo3(signature = (g = [0.0, 0.0, -::tilt::G0]))]
-    fn d_criterion(&self, g: [f64; 3]) -> PyResult<f64> {
-        Ok(::tilt::d_criterion(self.inner.layout(), &vector3(g, "g")?))
+    #[pyo3(signature = (g = Real([0.0, 0.0, -::tilt::G0])))]
+    fn d_criterion(&self, g: Real<[f64; 3]>) -> PyResult<f64> {
+        Ok(::tilt::d_criterion(
+            self.inner.layout(),
+            &vector3(g.0, "g")?,
+        ))
     }
 
     fn __repr__(&self) -> String {

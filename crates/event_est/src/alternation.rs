@@ -117,10 +117,10 @@ fn patterns(sys: &System, stability: Stability) -> Result<Vec<Pattern>, EventEst
             v
         }
         Stability::Thm11 => {
-            return Err(EventEstError::Parameter {
-                name: "stability condition of the alternation",
-                value: f64::NAN,
-                reason: "the alternation certifies gains with a common P (none, cor12, cor13)",
+            return Err(EventEstError::Name {
+                what: "stability condition of the alternation",
+                given: "thm11".into(),
+                reason: "the alternation certifies gains with a common P; use none, cor12 or cor13",
             })
         }
     })

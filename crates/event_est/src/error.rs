@@ -46,6 +46,16 @@ pub enum EventEstError {
         /// Which input.
         name: &'static str,
     },
+    /// A name (of a stability condition, a solver) that is unknown or not accepted here.
+    #[error("{what} {given:?} is not accepted: {reason}")]
+    Name {
+        /// What the name selects.
+        what: &'static str,
+        /// The name as given.
+        given: String,
+        /// The names accepted.
+        reason: &'static str,
+    },
     /// A scalar parameter is outside its valid range.
     #[error("{name} = {value} is invalid: {reason}")]
     Parameter {

@@ -65,10 +65,10 @@ impl Solver {
         match s.to_ascii_lowercase().as_str() {
             "clarabel" => Ok(Self::Clarabel),
             "schur" | "schur_ipm" => Ok(Self::SchurIpm),
-            _ => Err(EventEstError::Parameter {
-                name: "solver (clarabel, schur)",
-                value: f64::NAN,
-                reason: "unknown name",
+            _ => Err(EventEstError::Name {
+                what: "solver",
+                given: s.to_string(),
+                reason: "unknown; known: clarabel, schur",
             }),
         }
     }

@@ -46,10 +46,10 @@ impl Stability {
             "cor13" => Self::Cor13,
             "cor13h" => Self::Cor13WithH,
             _ => {
-                return Err(EventEstError::Parameter {
-                    name: "stability condition (none, thm11, cor12, cor13, cor13h)",
-                    value: f64::NAN,
-                    reason: "unknown name",
+                return Err(EventEstError::Name {
+                    what: "stability condition",
+                    given: s.to_string(),
+                    reason: "unknown; known: none, thm11, cor12, cor13, cor13h",
                 })
             }
         })
@@ -129,10 +129,10 @@ pub fn step1_relaxed(
     weight: f64,
 ) -> Result<RelaxedStep1, EventEstError> {
     if matches!(stability, Stability::None | Stability::Cor13WithH) {
-        return Err(EventEstError::Parameter {
-            name: "stability condition of the relaxed Step 1 (thm11, cor12, cor13)",
-            value: f64::NAN,
-            reason: "nothing to relax, or the H form (use cor13)",
+        return Err(EventEstError::Name {
+            what: "stability condition of the relaxed Step 1",
+            given: format!("{stability:?}").to_ascii_lowercase(),
+            reason: "nothing to relax, or the H form; use thm11, cor12 or cor13",
         });
     }
     let (step1, lambda_bar) = step1_with(sys, stability, Some(weight), Solver::Clarabel)?;

@@ -113,7 +113,7 @@ fn relaxation_needs_a_positive_weight_and_a_relaxable_condition() {
     for s in [Stability::None, Stability::Cor13WithH] {
         assert!(matches!(
             step1_relaxed(&sys, s, 1.0).unwrap_err(),
-            EventEstError::Parameter { .. }
+            EventEstError::Name { .. }
         ));
     }
 }

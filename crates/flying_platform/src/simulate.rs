@@ -373,6 +373,30 @@ pub fn simulate(config: &SimConfig, scenario: &Scenario) -> Result<SimLog> {
             expected: scenario.samples,
         });
     }
+    if let Some((k, i)) = scenario
+        .excitation
+        .iter()
+        .enumerate()
+        .find_map(|(k, r)| r.iter().position(|v| !v.is_finite()).map(|i| (k, i)))
+    {
+        return Err(Error::Invalid {
+            name: "excitation",
+            reason: format!(
+                "sample {k}, input {i} is {}; every value must be finite",
+                scenario.excitation[k][i]
+            ),
+        });
+    }
+    if scenario.samples > 0 && config.log_delay_samples >= scenario.samples {
+        // Every logged output would be the first measurement.
+        return Err(Error::Invalid {
+            name: "log_delay_samples",
+            reason: format!(
+                "{} is not shorter than the run ({} samples)",
+                config.log_delay_samples, scenario.samples
+            ),
+        });
+    }
     let ts = 1.0 / config.sample_rate_hz;
     let h = ts / config.substeps as f64;
     let delay_steps = config.in_loop_delay_steps();

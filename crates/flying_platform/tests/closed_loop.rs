@@ -253,3 +253,30 @@ fn noise_free_experiments_recover_the_truth_frequency_response() {
         );
     }
 }
+
+#[test]
+fn non_finite_excitation_and_an_over_long_log_delay_are_named_errors() {
+    let cfg = SimConfig::reference(ref_truth(0.015), Dynamics::Linear, 0).unwrap();
+    let mut excitation = vec![[0.0; 9]; 50];
+    excitation[7][4] = f64::NAN;
+    let scenario = Scenario {
+        samples: 50,
+        excitation,
+        ..Default::default()
+    };
+    let err = simulate(&cfg, &scenario).unwrap_err().to_string();
+    assert!(
+        err.contains("excitation") && err.contains("sample 7, input 4"),
+        "{err}"
+    );
+    let mut delayed = cfg.clone();
+    delayed.log_delay_samples = 50;
+    let scenario = Scenario {
+        samples: 50,
+        ..Default::default()
+    };
+    let err = simulate(&delayed, &scenario).unwrap_err().to_string();
+    assert!(err.contains("log_delay_samples"), "{err}");
+    delayed.log_delay_samples = 49;
+    assert!(simulate(&delayed, &scenario).is_ok());
+}

@@ -35,11 +35,30 @@ fn controller(tuning: &Tuning) -> CascadedController {
 }
 
 #[test]
-fn paper_tuning_is_unchanged() {
+fn paper_tuning_gives_the_papers_gains_and_the_specs_rate_poles() {
+    // Spec §5.2 [paper]: d = 1 everywhere, w_xy = 3, p_xy = 1, w_z = 2, p_z = 2 rad/s.
+    let paper = controller(&Tuning::paper());
+    let g = paper.gains;
     assert_eq!(
-        controller(&Tuning::paper()),
-        CascadedController::paper().unwrap()
+        (g.d_xy, g.w_xy, g.p_xy, g.d_z, g.w_z, g.p_z),
+        (1.0, 3.0, 1.0, 1.0, 2.0, 2.0)
     );
+    // Spec §5.1 [derived]: Q = 512 I on the nominal structure (l3 = 0.079) puts the continuous
+    // rate-loop poles at -50.1, -50.1, -29.1 rad/s (printed to 0.1 rad/s).
+    let mut poles: Vec<f64> = paper
+        .inner
+        .closed_loop()
+        .complex_eigenvalues()
+        .iter()
+        .map(|p| {
+            assert!(p.im.abs() < 1e-9, "complex rate pole {p}");
+            p.re
+        })
+        .collect();
+    poles.sort_by(f64::total_cmp);
+    for (pole, spec) in poles.iter().zip([-50.1, -50.1, -29.1]) {
+        assert!((pole - spec).abs() <= 0.05, "poles {poles:?}");
+    }
 }
 
 #[test]

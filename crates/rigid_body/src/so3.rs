@@ -48,7 +48,19 @@ fn rodrigues_coefficients(theta: f64) -> (f64, f64) {
 }
 
 /// Exponential map `exp([w]x)`: the rotation by angle `|w|` about `w / |w|` (Rodrigues).
+///
+/// Beyond an angle of 1 rad it works with the unit axis, `I + sin θ [n]x + (1 - cos θ) [n]x²`,
+/// and a norm scaled by the largest component, so that a rotation vector too large to square
+/// (|w| above 1e154) is still the rotation by `|w|` (mod 2 pi) rather than NaN.
 pub fn exp(w: &Vector3<f64>) -> Rotation3<f64> {
+    let largest = w.amax();
+    if largest > 1.0 && largest.is_finite() {
+        let n = w / largest;
+        let theta = largest * n.norm();
+        let k = hat(&(n / n.norm()));
+        let (s, c) = (ComplexField::sin(theta), ComplexField::cos(theta));
+        return Rotation3::from_matrix_unchecked(Matrix3::identity() + k * s + k * k * (1.0 - c));
+    }
     let (a, b) = rodrigues_coefficients(w.norm());
     let k = hat(w);
     Rotation3::from_matrix_unchecked(Matrix3::identity() + k * a + k * k * b)

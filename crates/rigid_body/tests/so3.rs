@@ -161,3 +161,19 @@ fn rotation_check_names_the_problem() {
     let r = so3::rotation("R", so3::exp(&Vector3::new(0.3, 0.2, 0.1)).matrix()).unwrap();
     assert!((so3::log(&r) - Vector3::new(0.3, 0.2, 0.1)).norm() < 1e-15);
 }
+
+#[test]
+fn exp_of_a_rotation_vector_too_large_to_square_is_still_a_rotation() {
+    // 1e300 squared overflows; the rotation by 1e300 rad about x is still defined (the angle
+    // reduced mod 2 pi by the sine and cosine themselves), and the closed form is the reference.
+    for angle in [1e300, -3e200, 1e155, 12.5] {
+        let r = so3::exp(&Vector3::new(angle, 0.0, 0.0));
+        let diff = (r.matrix() - rx(angle)).amax();
+        assert!(diff < 1e-15, "angle {angle}: {diff}");
+        let off_axis = so3::exp(&Vector3::new(0.0, 0.6 * angle, 0.8 * angle));
+        let m = off_axis.matrix();
+        assert!(m.iter().all(|v| v.is_finite()), "angle {angle}: {m}");
+        assert!((m.transpose() * m - Matrix3::identity()).amax() < 1e-14);
+        assert!((m * Vector3::new(0.0, 0.6, 0.8) - Vector3::new(0.0, 0.6, 0.8)).amax() < 1e-14);
+    }
+}

@@ -115,6 +115,15 @@ pub enum SimError {
         /// What is wrong.
         reason: String,
     },
+    /// An output path that would overwrite or delete an input or something this program did
+    /// not write (see [`crate::output`]).
+    #[error("refusing to write {}: {reason}", path.display())]
+    UnsafeOutput {
+        /// The output path as given.
+        path: PathBuf,
+        /// Why it is refused.
+        reason: String,
+    },
     /// A domain crate (cubli, tilt, ...) reported an error; `context` says what was being done.
     #[error("{context}: {source}")]
     Domain {

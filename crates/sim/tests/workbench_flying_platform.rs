@@ -262,22 +262,45 @@ fn drag_and_slow_actuator_lag_are_both_found() {
     );
 }
 
-/// Within-limits amplitudes (no command clipped), seed 1: the gyroscopic step is small
-/// against the total (the remaining cost is at the noise level before it is added) but its
-/// nested F test and its cost reduction stand above the noise, so it is found.
+/// Within-limits amplitudes (no command clipped): the gyroscopic step is small against the
+/// total (3-6 % of the remaining cost, close to the noise) but its nested F test and its cost
+/// reduction stand above the noise in most seeds. Over seeds 1-4 drag is always found and the
+/// gyroscopic torque in 3 of 4 (seed 3 misses it: its step, 33 cost units, is below the noise
+/// sd of 37); a miss rate above one in four fails. Nothing else is ever claimed.
 #[test]
-fn within_limits_paper_fan_inertia_finds_gyroscopic() {
-    let (data, _) = data_tuned(
-        &[(Effect::MomentumDrag, &[]), (Effect::FanGyroscopic, &[])],
-        1,
-        &Tuning::paper(),
-        ExperimentDesign::within_limits(1).unwrap(),
+fn within_limits_paper_fan_inertia_finds_gyroscopic_in_most_seeds() {
+    let seeds = [1, 2, 3, 4];
+    let mut found_gyroscopic = 0;
+    for seed in seeds {
+        let (data, _) = data_tuned(
+            &[(Effect::MomentumDrag, &[]), (Effect::FanGyroscopic, &[])],
+            seed,
+            &Tuning::paper(),
+            ExperimentDesign::within_limits(seed).unwrap(),
+        );
+        let d = workbench_discover(data);
+        assert_eq!(d.found[0], "momentum_drag", "seed {seed}: {:?}", d.found);
+        assert!(
+            d.found[1..].iter().all(|e| e == "fan_gyroscopic"),
+            "seed {seed}: {:?}",
+            d.found
+        );
+        explained(&d);
+        if d.found.len() == 2 {
+            found_gyroscopic += 1;
+            let total = d.steps.last().unwrap().reduction_percent;
+            assert!(total >= 95.0, "seed {seed}: total cost reduction {total}%");
+        }
+    }
+    println!(
+        "fan_gyroscopic found in {found_gyroscopic} of {} seeds",
+        seeds.len()
     );
-    let d = workbench_discover(data);
-    assert_eq!(d.found, ["momentum_drag", "fan_gyroscopic"]);
-    explained(&d);
-    let total = d.steps.last().unwrap().reduction_percent;
-    assert!(total >= 95.0, "total cost reduction {total}%");
+    assert!(
+        found_gyroscopic >= 3,
+        "fan_gyroscopic found in only {found_gyroscopic} of {} seeds",
+        seeds.len()
+    );
 }
 
 /// The same flights with the fan's angular momentum at a quarter of the paper's: its effect

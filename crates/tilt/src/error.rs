@@ -39,6 +39,12 @@ pub enum TiltError {
         /// Measurements supplied.
         got: usize,
     },
+    /// The measurements are so large that the cost or the estimate overflows f64.
+    #[error("the estimate overflows (its cost or state is not finite): the largest measurement component, {largest:e} m/s^2, is too large")]
+    Overflow {
+        /// Largest absolute measurement component.
+        largest: f64,
+    },
     /// A measurement contains NaN or infinity.
     #[error("measurement of sensor {sensor} is not finite")]
     NonFiniteMeasurement {

@@ -259,6 +259,19 @@ impl Estimator {
             }
         });
         let omega_along_plane_normal = plane_alignment.is_some_and(|s| s < plane_alignment_tol);
+        let cost = self.layout.cost(measurements, &omega, &g)?;
+        let finite = cost.is_finite()
+            && omega_norm.is_finite()
+            && g.iter()
+                .chain(omega.iter())
+                .chain(current.h.iter())
+                .chain(current.w.iter())
+                .all(|v| v.is_finite());
+        if !finite {
+            // Neither converged nor certified: no estimate at all.
+            let largest = measurements.iter().map(|m| m.amax()).fold(0.0, f64::max);
+            return Err(TiltError::Overflow { largest });
+        }
         Ok(Estimate {
             g,
             omega_matrix: omega,
@@ -266,7 +279,7 @@ impl Estimator {
             omega_norm,
             omega: current.w,
             iterations,
-            cost: self.layout.cost(measurements, &omega, &g)?,
+            cost,
             plane_alignment,
             flags: Flags {
                 converged,

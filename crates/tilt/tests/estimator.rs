@@ -635,3 +635,27 @@ fn layout_checks_do_not_depend_on_the_length_unit() {
         assert!((tuning.eigenvalues[1] - 0.94790).abs() < 1e-4);
     }
 }
+
+#[test]
+fn measurements_too_large_for_f64_are_an_error_not_a_certified_estimate() {
+    // 1e300 m/s^2 squared overflows: there is no estimate, so none may claim convergence.
+    let estimator = Estimator::new(simulation_layout());
+    for scale in [1e300, 1e200, 1e160] {
+        let m = [Vector3::new(0.0, 0.0, scale); 4];
+        match estimator.estimate(&m) {
+            Err(TiltError::Overflow { largest }) => assert_eq!(largest, scale),
+            Ok(e) => assert!(
+                e.cost.is_finite() && e.g.iter().all(|v| v.is_finite()),
+                "scale {scale}: cost {} claimed converged {}",
+                e.cost,
+                e.flags.converged
+            ),
+            Err(other) => panic!("scale {scale}: {other}"),
+        }
+    }
+    let huge = [Vector3::new(0.0, 0.0, 1e300); 4];
+    assert!(matches!(
+        estimator.estimate(&huge),
+        Err(TiltError::Overflow { .. })
+    ));
+}

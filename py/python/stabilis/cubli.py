@@ -15,19 +15,20 @@ import numpy as np
 
 from . import _stabilis
 from . import sim as _sim
+from ._arrays import real_arguments
 
 _native = _stabilis.cubli
 
 Params = _native.Params
 Backstepping = _native.Backstepping
 GuidingController = _native.GuidingController
-reduced_derivative = _native.reduced_derivative
-invariants = _native.invariants
-momenta = _native.momenta
-tune = _native.tune
-admissible_gamma = _native.admissible_gamma
-nominal_wheel_speeds = _native.nominal_wheel_speeds
-learn_jump = _native.learn_jump
+reduced_derivative = real_arguments(_native.reduced_derivative)
+invariants = real_arguments(_native.invariants)
+momenta = real_arguments(_native.momenta)
+tune = _native.tune  # poles may be complex
+admissible_gamma = _native.admissible_gamma  # poles may be complex
+nominal_wheel_speeds = real_arguments(_native.nominal_wheel_speeds)
+learn_jump = real_arguments(_native.learn_jump)
 
 
 def _stack(fields, names):

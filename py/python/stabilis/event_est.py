@@ -18,6 +18,8 @@ True
 """
 import numpy as np
 
+from ._arrays import real_array
+
 from . import _stabilis
 
 _native = _stabilis.event_est
@@ -31,7 +33,7 @@ def platoon(vehicles):
 
 
 def _f64(m):
-    return np.asarray(m, dtype=np.float64)
+    return real_array(m, "matrix")
 
 
 _MATRICES = ("A", "B", "C", "F", "W", "V_sqrt")

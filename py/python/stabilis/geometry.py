@@ -14,7 +14,7 @@ True
 """
 from types import SimpleNamespace
 
-import numpy as np
+from ._arrays import real_array
 
 from . import _stabilis
 
@@ -25,7 +25,7 @@ def _float_array_input(function):
     """Wraps a native function so that it accepts anything ``numpy.asarray`` does."""
 
     def call(x, *args, **kwargs):
-        return function(np.asarray(x, dtype=np.float64), *args, **kwargs)
+        return function(real_array(x, function.__name__), *args, **kwargs)
 
     call.__name__ = function.__name__
     call.__doc__ = function.__doc__

@@ -15,7 +15,7 @@ readings in m/s^2 and returns a dict of arrays (``g``, ``omega``, ``omega_dot``,
 >>> bool(np.allclose(e["g"], [0, 0, -G0]))
 True
 """
-import numpy as np
+from ._arrays import real_array
 
 from . import _stabilis
 
@@ -33,9 +33,9 @@ class Estimator:
     """
 
     def __init__(self, positions, q=None, r=None, tol=1e-8, max_iterations=10_000, biases=None):
-        b = None if biases is None else np.asarray(biases, dtype=np.float64)
+        b = None if biases is None else real_array(biases, "biases")
         self._native = _native.Estimator(
-            np.asarray(positions, dtype=np.float64), q, r, tol, max_iterations, b
+            real_array(positions, "positions"), q, r, tol, max_iterations, b
         )
 
     @property
@@ -50,21 +50,24 @@ class Estimator:
 
     def estimate(self, measurements):
         """Estimates from one sample (N, 3) or a batch (T, N, 3)."""
-        return self._native.estimate(np.asarray(measurements, dtype=np.float64))
+        return self._native.estimate(real_array(measurements, "measurements"))
 
     def least_squares(self, measurements):
         """The baseline linear least-squares method on one sample or a batch."""
-        return self._native.least_squares(np.asarray(measurements, dtype=np.float64))
+        return self._native.least_squares(real_array(measurements, "measurements"))
 
     def fisher(self, omega, omega_dot, g=(0.0, 0.0, -G0), sigma=1.0):
         """Fisher information and Cramer-Rao bound at one state (parameters omega, omega_dot, n)."""
         return self._native.fisher(
-            [float(v) for v in omega], [float(v) for v in omega_dot], [float(v) for v in g], float(sigma)
+            real_array(omega, "omega").tolist(),
+            real_array(omega_dot, "omega_dot").tolist(),
+            real_array(g, "g").tolist(),
+            float(real_array(sigma, "sigma").item()),
         )
 
     def d_criterion(self, g=(0.0, 0.0, -G0)):
         """D-criterion (2.64) of the layout for gravity g in the body frame."""
-        return self._native.d_criterion([float(v) for v in g])
+        return self._native.d_criterion(real_array(g, "g").tolist())
 
     def __repr__(self):
         return repr(self._native)

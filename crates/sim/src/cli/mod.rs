@@ -5,6 +5,7 @@
 use clap::{Parser, Subcommand};
 
 use crate::error::{Result, SimError};
+use crate::output;
 use crate::progress::Progress;
 use crate::scenarios::{self, Recording, Scenario};
 
@@ -128,7 +129,39 @@ pub struct Output {
     pub json: serde_json::Value,
 }
 
+/// The `--data` logs and the `--model` file of a workbench verb.
+fn workbench_inputs(common: &workbench::Common) -> Vec<std::path::PathBuf> {
+    common.data.iter().chain(&common.model).cloned().collect()
+}
+
 impl Command {
+    /// The files and directories the verb reads (and, for `sim`, the log it writes): no output
+    /// may replace or go inside any of them.
+    pub fn inputs(&self) -> Vec<std::path::PathBuf> {
+        match self {
+            Self::Sim(system) => match system {
+                SimSystem::FlyingPlatform(args) => args.out.iter().cloned().collect(),
+                other => other.scenario().common().out.iter().cloned().collect(),
+            },
+            Self::Info(args) => vec![args.file.clone()],
+            Self::Tilt(args) => std::iter::once(args.data.clone())
+                .chain(args.out.clone())
+                .collect(),
+            Self::Discover(args) => workbench_inputs(&args.common),
+            Self::Compare(args) | Self::Fit(args) => workbench_inputs(&args.common),
+            Self::Model(model::Command::Check(args)) => vec![args.file.clone()],
+        }
+    }
+
+    /// The `--report DIR` of the workbench verbs.
+    fn report(&self) -> Option<&std::path::Path> {
+        match self {
+            Self::Discover(args) => args.common.report.as_deref(),
+            Self::Compare(args) | Self::Fit(args) => args.common.report.as_deref(),
+            _ => None,
+        }
+    }
+
     /// Runs the verb.
     pub fn run(&self) -> Result<Output> {
         match self {
@@ -213,37 +246,60 @@ where
         eprintln!("error: {error}");
         return error.exit_code();
     }
-    match cli.command.run() {
-        Ok(output) => match cli.json.as_deref() {
+    let inputs = cli.command.inputs();
+    // Outputs are refused before the work, not after it.
+    let json = cli
+        .json
+        .as_deref()
+        .filter(|p| *p != std::path::Path::new("-"));
+    let checked = json
+        .map(|path| output::check_file(path, output::Kind::Json, &inputs))
+        .unwrap_or(Ok(()))
+        .and_then(|()| match cli.command.report() {
+            Some(dir) => output::check_dir(dir, &inputs),
+            None => Ok(()),
+        });
+    if let Err(error) = checked {
+        eprintln!("error: {error}");
+        return error.exit_code();
+    }
+    let result = cli
+        .command
+        .run()
+        .and_then(|output| match cli.json.as_deref() {
             Some(p) if p != std::path::Path::new("-") => {
                 let text = format!("{:#}\n", output.json);
-                match std::fs::write(p, text) {
-                    Ok(()) => {
-                        println!("{}", output.human);
-                        0
-                    }
-                    Err(e) => {
-                        let error = SimError::io(p, e);
-                        eprintln!("error: {error}");
-                        error.exit_code()
-                    }
-                }
+                output::write_atomically(p, output::Kind::Json, &inputs, |tmp| {
+                    std::fs::write(tmp, text).map_err(|e| SimError::io(tmp, e))
+                })?;
+                Ok(output.human)
             }
-            Some(_) => {
-                println!("{}", output.json);
-                0
-            }
-            None => {
-                println!("{}", output.human);
-                0
-            }
-        },
+            Some(_) => Ok(output.json.to_string()),
+            None => Ok(output.human),
+        });
+    match result {
+        Ok(text) => print_quietly(&text),
         Err(error) => {
             if cli.json.is_some() {
-                println!("{}", serde_json::json!({ "error": error.to_string() }));
+                print_quietly(&serde_json::json!({ "error": error.to_string() }).to_string());
             }
             eprintln!("error: {error}");
             error.exit_code()
+        }
+    }
+}
+
+/// Prints `text` and a newline on stdout and returns exit code 0; a reader that closed the pipe
+/// early (`stabilis info x.mcap | head -1`) is not an error, other write failures are (code 1).
+fn print_quietly(text: &str) -> i32 {
+    use std::io::Write;
+    let mut stdout = std::io::stdout().lock();
+    match writeln!(stdout, "{text}").and_then(|()| stdout.flush()) {
+        Ok(()) => 0,
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => 0,
+        Err(e) => {
+            eprintln!("error: cannot write to standard output: {e}");
+            1
         }
     }
 }

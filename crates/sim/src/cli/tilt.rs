@@ -41,7 +41,18 @@ pub struct Args {
 impl Args {
     /// Reads the log, estimates every sample and summarises.
     pub fn run(&self) -> Result<Output> {
+        let inputs = std::slice::from_ref(&self.data);
+        if let Some(path) = &self.out {
+            // Refused before the work, not after it.
+            crate::output::check_file(path, crate::output::Kind::Mcap, inputs)?;
+        }
         let log = read_mcap(&self.data)?;
+        if let Some(problem) = &log.problem {
+            eprintln!(
+                "warning: {} is incomplete ({problem}); estimating what was read",
+                self.data.display()
+            );
+        }
         let estimator = estimator_from_metadata(&log)?;
         let accel = log.topic(ACCEL_TOPIC)?;
         let samples = samples(accel, estimator.layout().len())?;
@@ -67,7 +78,7 @@ impl Args {
             None => None,
         };
         if let Some(path) = &self.out {
-            write_estimates(path, &accel.t, &estimates)?;
+            write_estimates(path, inputs, &accel.t, &estimates)?;
         }
         Ok(summary(self, &estimator, &estimates, truth))
     }
@@ -261,8 +272,13 @@ fn errors(
 }
 
 /// Writes `/tilt/estimate` with `gx gy gz wx wy wz wdx wdy wdz iterations converged`.
-fn write_estimates(path: &PathBuf, t: &[f64], estimates: &[tilt::Estimate]) -> Result<()> {
-    let mut writer = LogWriter::create(path)?;
+fn write_estimates(
+    path: &PathBuf,
+    inputs: &[PathBuf],
+    t: &[f64],
+    estimates: &[tilt::Estimate],
+) -> Result<()> {
+    let mut writer = LogWriter::create_for(path, inputs)?;
     let fields = [
         "gx",
         "gy",

@@ -30,6 +30,15 @@ pub fn read_csv(path: impl AsRef<Path>) -> Result<Table> {
         .iter()
         .map(String::from)
         .collect();
+    for (i, name) in header.iter().enumerate() {
+        if let Some(first) = header[..i].iter().position(|h| h == name) {
+            return Err(csv_error(format!(
+                "column {name:?} appears twice in the header row (columns {} and {})",
+                first + 1,
+                i + 1
+            )));
+        }
+    }
     let t_index = header
         .iter()
         .position(|h| h == "t")

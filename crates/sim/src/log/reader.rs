@@ -1,6 +1,13 @@
 //! Reads an MCAP log into one [`Table`] per topic plus its metadata records. The file is read
 //! front to back, so a log whose writer was killed before the summary still yields every
 //! complete chunk; [`Log::complete`] says whether the data section ended properly.
+//!
+//! Damage is an error, never numbers: every chunk's CRC is checked before any of its messages
+//! is used, every record length is bounded before anything is allocated for it (see
+//! [`record_limit`]), and within a topic `t` must increase. In logs this program wrote, whose
+//! `log_time` is `t` in nanoseconds by construction, the two must agree (other recorders stamp
+//! `log_time` at reception, so there it is not compared). A file that merely stops early (a
+//! killed run) is read up to its last complete chunk, with [`Log::problem`] saying so.
 use std::borrow::Cow;
 use std::collections::{BTreeMap, HashMap};
 use std::fmt;
@@ -51,7 +58,24 @@ struct Channel {
     topic: String,
     /// Fields from the schema; `None` until the first message when the schema names none.
     fields: Option<Vec<String>>,
+    /// `log_time` minus `t` of the first message, s (zero in logs this program wrote; kept
+    /// general so that a rebased log still reads).
+    offset: Option<f64>,
 }
+
+/// The longest record, compressed or not, that a file of `file_len` bytes may hold: a thousand
+/// times the file (zstd and lz4 chunks of numeric logs compress by far less) and at most half
+/// the memory available, so that a corrupt length is a named error rather than an allocation
+/// that aborts the process.
+pub fn record_limit(file_len: usize) -> usize {
+    let by_file = file_len.saturating_mul(1000).max(1 << 20);
+    by_file.min(crate::limits::available_memory() / 2)
+}
+
+/// How far `t` may stray from `log_time` (after the first message's offset), s: the writer
+/// rounds `t` to whole nanoseconds, and a wall-clock `log_time` near 1.7e9 s holds about 0.2 µs
+/// in an f64.
+const LOG_TIME_TOLERANCE_S: f64 = 1e-6;
 
 /// Reads the MCAP file at `path`.
 pub fn read_mcap(path: impl AsRef<Path>) -> Result<Log> {
@@ -73,15 +97,12 @@ pub fn read_mcap_bytes(path: &Path, bytes: &[u8]) -> Result<Log> {
             reason,
         });
     }
-    let records = mcap::read::ChunkFlattener::new_with_options(
-        bytes,
-        mcap::read::Options::IgnoreEndMagic.into(),
-    )
-    .map_err(|source| SimError::Mcap {
-        path: path.to_path_buf(),
-        source,
-    })?;
-
+    let options = mcap::sans_io::LinearReaderOptions::default()
+        .with_skip_end_magic(true)
+        .with_prevalidate_chunk_crcs(true)
+        .with_record_length_limit(record_limit(bytes.len()));
+    let mut reader = mcap::sans_io::LinearReader::new_with_options(options);
+    let mut rest = bytes;
     let mut schemas: HashMap<u16, Option<Vec<String>>> = HashMap::new();
     let mut channels: HashMap<u16, Channel> = HashMap::new();
     let mut log = Log {
@@ -91,15 +112,39 @@ pub fn read_mcap_bytes(path: &Path, bytes: &[u8]) -> Result<Log> {
         complete: false,
         problem: None,
     };
-    for record in records {
-        let record = match record {
-            Ok(record) => record,
-            Err(e) => {
-                log.problem = Some(e.to_string());
+    // Whether `log_time` is `t` in nanoseconds by construction (logs this program wrote).
+    let mut ours = false;
+    let damaged = |source| SimError::Mcap {
+        path: path.to_path_buf(),
+        source,
+    };
+    while let Some(event) = reader.next_event() {
+        let (opcode, data) = match event {
+            Ok(mcap::sans_io::LinearReadEvent::ReadRequest(need)) => {
+                // Never more than the file holds, whatever length a record claims.
+                let n = need.min(rest.len());
+                reader.insert(n).copy_from_slice(&rest[..n]);
+                reader.notify_read(n);
+                rest = &rest[n..];
+                continue;
+            }
+            Ok(mcap::sans_io::LinearReadEvent::Record { opcode, data }) => (opcode, data),
+            // The whole file was read and a record (or the chunk holding it) is incomplete:
+            // a run cut off while writing.
+            Err(
+                e @ (mcap::McapError::UnexpectedEof
+                | mcap::McapError::UnexpectedEoc
+                | mcap::McapError::DecompressionError(_)),
+            ) if rest.is_empty() => {
+                log.problem = Some(format!("the file ends inside a record ({e})"));
                 break;
             }
+            Err(source) => return Err(damaged(source)),
         };
-        match record {
+        match mcap::parse_record(opcode, data).map_err(damaged)? {
+            mcap::records::Record::Header(header) => {
+                ours = header.library.starts_with("stabilis");
+            }
             mcap::records::Record::Schema { header, data } => {
                 let fields = (header.encoding == "jsonschema")
                     .then(|| schema_fields(&data))
@@ -122,6 +167,7 @@ pub fn read_mcap_bytes(path: &Path, bytes: &[u8]) -> Result<Log> {
                     Channel {
                         topic: channel.topic,
                         fields,
+                        offset: None,
                     },
                 );
             }
@@ -136,7 +182,12 @@ pub fn read_mcap_bytes(path: &Path, bytes: &[u8]) -> Result<Log> {
                             ),
                             reason: "its channel was never declared".into(),
                         })?;
-                add_message(&mut log.topics, channel, &data)?;
+                add_message(
+                    &mut log.topics,
+                    channel,
+                    ours.then_some(header.log_time),
+                    &data,
+                )?;
             }
             mcap::records::Record::Metadata(metadata) => {
                 log.metadata.insert(metadata.name, metadata.metadata);
@@ -260,6 +311,7 @@ impl Entries<'_> {
 fn add_message(
     topics: &mut BTreeMap<String, Table>,
     channel: &mut Channel,
+    log_time: Option<u64>,
     data: &[u8],
 ) -> Result<()> {
     let index = topics.get(&channel.topic).map_or(0, Table::len);
@@ -286,6 +338,30 @@ fn add_message(
             .map(|(name, _)| name.to_string())
             .collect()
     });
+    if let Some(log_time) = log_time {
+        let stamped = log_time as f64 * 1e-9;
+        let offset = *channel.offset.get_or_insert(stamped - t);
+        if (stamped - t - offset).abs() > LOG_TIME_TOLERANCE_S {
+            return Err(SimError::BadMessage {
+                context: context(),
+                reason: format!(
+                    "t = {t} s disagrees with its log_time {log_time} ns (expected {:.0} ns)",
+                    (t + offset) * 1e9
+                ),
+            });
+        }
+    }
+    if let Some(&last) = topics.get(&channel.topic).and_then(|table| table.t.last()) {
+        if t <= last {
+            return Err(SimError::BadMessage {
+                context: context(),
+                reason: format!(
+                    "t = {t} s does not increase (the message before is at t = {last} s): \
+                     out of order or duplicated"
+                ),
+            });
+        }
+    }
     let context = || format!("{} at t = {t}", channel.topic);
     let mut values = Vec::with_capacity(fields.len());
     for field in fields.iter() {

@@ -2,6 +2,11 @@
 //! which identification and plotting want measurements.
 use crate::error::{Result, SimError};
 
+/// How far one step of `t` may stray from the mean step of a uniformly sampled table, as a
+/// fraction of that step (timestamps printed to a few digits stay well inside it; a missing or
+/// repeated sample is a whole step off).
+pub const UNIFORM_TOLERANCE: f64 = 0.01;
+
 /// Time-stamped samples of named fields, stored by column.
 ///
 /// ```
@@ -109,6 +114,62 @@ impl Table {
     /// True when the table holds no samples.
     pub fn is_empty(&self) -> bool {
         self.t.is_empty()
+    }
+
+    /// The sample rate of a uniformly sampled table, Hz: a named error unless `t` increases in
+    /// steps that each stay within [`UNIFORM_TOLERANCE`] of their mean, and, when `declared`
+    /// (the `sample_rate_hz` of the experiment record), unless that rate agrees with the steps
+    /// to the same tolerance. The spectral and time-domain fits assume one known step, so
+    /// either problem is an error, not a warning.
+    pub fn sample_rate(&self, declared: Option<f64>, file: &std::path::Path) -> Result<f64> {
+        let t = &self.t;
+        let name = if self.name == file.display().to_string() {
+            self.name.clone()
+        } else {
+            format!("{} in {}", self.name, file.display())
+        };
+        if t.len() < 2 {
+            return Err(SimError::invalid(
+                format!("samples of {name}"),
+                t.len(),
+                "need at least two samples",
+            ));
+        }
+        let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+        for (k, w) in t.windows(2).enumerate() {
+            let step = w[1] - w[0];
+            if step.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+                return Err(SimError::invalid(
+                    format!("t of {name} at sample {}", k + 1),
+                    w[1],
+                    format!("must increase (the sample before is at t = {})", w[0]),
+                ));
+            }
+            if (step - dt).abs() > UNIFORM_TOLERANCE * dt {
+                return Err(SimError::invalid(
+                    format!("t of {name} at sample {}", k + 1),
+                    w[1],
+                    format!(
+                        "uneven sampling: a step of {step} s where the mean step is {dt} s \
+                         (samples missing, repeated or out of order?)"
+                    ),
+                ));
+            }
+        }
+        let rate = 1.0 / dt;
+        match declared {
+            Some(fs)
+                if (fs - rate).abs().is_nan() || (fs - rate).abs() > UNIFORM_TOLERANCE * rate =>
+            {
+                Err(SimError::invalid(
+                    format!("sample_rate_hz of {name}"),
+                    fs,
+                    format!("disagrees with its t column, which steps at {rate:.6} Hz"),
+                ))
+            }
+            Some(fs) => Ok(fs),
+            None => Ok(rate),
+        }
     }
 
     /// First and last sample time, if there are samples.

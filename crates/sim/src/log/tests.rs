@@ -15,7 +15,7 @@ fn temp(name: &str) -> PathBuf {
 
 /// Writes `n` messages of a ramp on one topic (x = 2 t, v = -t) and returns the writer unfinished.
 fn ramp(path: &std::path::Path, n: usize, flush_every: usize) -> LogWriter {
-    let mut log = LogWriter::with_flush_every(path, flush_every).unwrap();
+    let mut log = LogWriter::with_flush_every(path, &[], flush_every).unwrap();
     log.write_metadata(EXPERIMENT, Experiment::new(100.0).to_metadata())
         .unwrap();
     let topic = log.add_topic("/demo/output", &["x", "v"]).unwrap();
@@ -52,18 +52,25 @@ fn finished_log_reads_back_with_metadata() {
     assert_eq!(log.topic("/demo/output").unwrap().fields, ["x", "v"]);
 }
 
-#[test]
-fn dropped_writer_leaves_a_complete_log() {
-    let path = temp("dropped.mcap");
-    drop(ramp(&path, 250, DEFAULT_FLUSH_EVERY));
-    let log = read_mcap(&path).unwrap();
-    assert!(log.complete, "{:?}", log.problem);
-    check_ramp(&log, 250);
+/// The temporary file a writer of `path` fills before renaming it onto `path`.
+fn temporary(path: &std::path::Path) -> PathBuf {
+    let name = path.file_name().unwrap().to_string_lossy();
+    path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
 }
 
 #[test]
-fn panic_while_writing_leaves_a_complete_log() {
+fn dropped_writer_keeps_the_previous_log_and_leaves_no_temporary() {
+    let path = temp("dropped.mcap");
+    ramp(&path, 5, DEFAULT_FLUSH_EVERY).finish().unwrap();
+    drop(ramp(&path, 250, DEFAULT_FLUSH_EVERY));
+    check_ramp(&read_mcap(&path).unwrap(), 5);
+    assert!(!temporary(&path).exists());
+}
+
+#[test]
+fn panic_while_writing_keeps_the_previous_log() {
     let path = temp("panicked.mcap");
+    ramp(&path, 7, DEFAULT_FLUSH_EVERY).finish().unwrap();
     let moved = path.clone();
     let result = std::panic::catch_unwind(move || {
         let _log = ramp(&moved, 120, DEFAULT_FLUSH_EVERY);
@@ -72,22 +79,43 @@ fn panic_while_writing_leaves_a_complete_log() {
     assert!(result.is_err());
     let log = read_mcap(&path).unwrap();
     assert!(log.complete);
-    check_ramp(&log, 120);
+    check_ramp(&log, 7);
+    assert!(!temporary(&path).exists());
 }
 
 #[test]
-fn killed_writer_leaves_every_flushed_chunk() {
+fn killed_writer_keeps_the_previous_log_and_leaves_every_flushed_chunk_beside_it() {
     // Forgetting the writer skips every destructor, as a killed process would: buffered bytes
-    // are lost, chunks already flushed must still read.
+    // are lost, chunks already flushed must still read from the temporary file, and the log
+    // at the target is the previous one.
     let path = temp("killed.mcap");
+    ramp(&path, 3, DEFAULT_FLUSH_EVERY).finish().unwrap();
     std::mem::forget(ramp(&path, 1050, 100));
-    let log = read_mcap(&path).unwrap();
+    check_ramp(&read_mcap(&path).unwrap(), 3);
+    let partial = temporary(&path);
+    let log = read_mcap(&partial).unwrap();
     assert!(!log.complete);
     assert!(log.problem.is_some());
     let n = log.topic("/demo/output").unwrap().len();
     assert!((1000..=1050).contains(&n), "read {n} messages");
     check_ramp(&log, n);
     assert_eq!(log.experiment().unwrap()["sample_rate_hz"], "100");
+    std::fs::remove_file(partial).unwrap();
+}
+
+#[test]
+fn writer_refuses_to_replace_a_file_that_is_not_a_log() {
+    let path = temp("notes.mcap");
+    std::fs::write(&path, "my notes").unwrap();
+    let err = LogWriter::create(&path).unwrap_err();
+    assert!(matches!(err, SimError::UnsafeOutput { .. }), "{err}");
+    assert_eq!(err.exit_code(), 2);
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), "my notes");
+    let log = temp("input.mcap");
+    ramp(&log, 2, DEFAULT_FLUSH_EVERY).finish().unwrap();
+    let err = LogWriter::create_for(&log, std::slice::from_ref(&log)).unwrap_err();
+    assert!(err.to_string().contains("is an input"), "{err}");
+    check_ramp(&read_mcap(&log).unwrap(), 2);
 }
 
 #[test]
@@ -333,4 +361,182 @@ fn tables_check_their_lengths() {
     let mut table = Table::new("/demo/x", ["a"]);
     assert!(table.push(0.0, &[1.0, 2.0]).is_err());
     assert!(table.is_empty() && table.span().is_none());
+}
+
+/// Offsets of the chunk records of an MCAP file (after the magic, top-level records only).
+fn chunk_offsets(bytes: &[u8]) -> Vec<usize> {
+    let mut out = Vec::new();
+    let mut at = 8;
+    while at + 9 <= bytes.len() && bytes[at] != 0x0F {
+        if bytes[at] == 0x06 {
+            out.push(at);
+        }
+        at += 9 + u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap()) as usize;
+    }
+    out
+}
+
+#[test]
+fn a_flipped_bit_in_compressed_data_fails_the_chunk_crc() {
+    let path = temp("crc.mcap");
+    ramp(&path, 1200, 200).finish().unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let chunk = chunk_offsets(&bytes)[2];
+    let compression_len =
+        u32::from_le_bytes(bytes[chunk + 37..chunk + 41].try_into().unwrap()) as usize;
+    let compressed_size = u64::from_le_bytes(
+        bytes[chunk + 41 + compression_len..chunk + 49 + compression_len]
+            .try_into()
+            .unwrap(),
+    ) as usize;
+    let data = chunk + 49 + compression_len;
+    // Every bit of the compressed records: refused by the chunk CRC (or zstd's own check), or,
+    // for the few bits the decompressor ignores, read as exactly the log that was written.
+    let original = read_mcap_bytes(&path, &bytes).unwrap();
+    let (mut crc_errors, mut other_errors, mut unchanged) = (0, 0, 0);
+    for at in data..data + compressed_size {
+        for bit in 0..8 {
+            let mut flipped = bytes.clone();
+            flipped[at] ^= 1 << bit;
+            match read_mcap_bytes(&path, &flipped) {
+                Err(err @ SimError::Mcap { .. }) if err.to_string().contains("CRC") => {
+                    crc_errors += 1
+                }
+                Err(SimError::Mcap { .. }) => other_errors += 1,
+                Err(err) => panic!("byte {at} bit {bit}: {err}"),
+                Ok(log) => {
+                    assert!(log == original, "byte {at} bit {bit}: different numbers");
+                    unchanged += 1;
+                }
+            }
+        }
+    }
+    assert!(
+        crc_errors > 0 && unchanged < crc_errors + other_errors,
+        "{crc_errors} CRC errors, {other_errors} other errors, {unchanged} unchanged"
+    );
+}
+
+#[test]
+fn a_corrupt_chunk_size_is_an_error_before_any_allocation() {
+    let path = temp("size.mcap");
+    ramp(&path, 1200, 200).finish().unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let chunk = chunk_offsets(&bytes)[1];
+    // uncompressed_size: 3.7e18 bytes, the size that aborted the process.
+    let mut huge = bytes.clone();
+    huge[chunk + 25..chunk + 33].copy_from_slice(&3_700_000_000_000_000_000u64.to_le_bytes());
+    let err = read_mcap_bytes(&path, &huge).unwrap_err();
+    assert!(matches!(err, SimError::Mcap { .. }), "{err}");
+    // A record length beyond the file: refused, or read as a file cut off there.
+    let mut long = bytes.clone();
+    long[chunk + 1..chunk + 9].copy_from_slice(&(u64::MAX / 2).to_le_bytes());
+    match read_mcap_bytes(&path, &long) {
+        Err(err) => assert!(matches!(err, SimError::Mcap { .. }), "{err}"),
+        Ok(log) => assert!(log.problem.is_some() && !log.complete),
+    }
+}
+
+#[test]
+fn times_out_of_order_or_off_their_log_time_are_named_errors() {
+    let path = temp("order.mcap");
+    let mut log = LogWriter::create(&path).unwrap();
+    let topic = log.add_topic("/demo/output", &["x"]).unwrap();
+    for t in [0.0, 0.02, 0.01] {
+        log.write(topic, t, &[1.0]).unwrap();
+    }
+    log.finish().unwrap();
+    let err = read_mcap(&path).unwrap_err().to_string();
+    assert!(err.contains("does not increase"), "{err}");
+
+    // t against log_time in a log that says stabilis wrote it, written with the MCAP library
+    // directly: a constant offset (a rebased log) is fine, a message whose t disagrees is not.
+    let write = |path: &std::path::Path, stamps: &[(f64, u64)]| {
+        let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+        let mut w = mcap::WriteOptions::new()
+            .library("stabilis (test)")
+            .create(file)
+            .unwrap();
+        let channel = w
+            .add_channel(0, "/demo/output", "json", &BTreeMap::new())
+            .unwrap();
+        for (k, (t, log_time)) in stamps.iter().enumerate() {
+            let header = mcap::records::MessageHeader {
+                channel_id: channel,
+                sequence: k as u32,
+                log_time: *log_time,
+                publish_time: *log_time,
+            };
+            let data = format!("{{\"t\":{t},\"x\":1}}");
+            w.write_to_known_channel(&header, data.as_bytes()).unwrap();
+        }
+        w.finish().unwrap();
+    };
+    let epoch = 1_700_000_000_000_000_000u64;
+    let wall = temp("wall.mcap");
+    write(&wall, &[(0.0, epoch), (0.5, epoch + 500_000_000)]);
+    assert_eq!(
+        read_mcap(&wall)
+            .unwrap()
+            .topic("/demo/output")
+            .unwrap()
+            .len(),
+        2
+    );
+    let off = temp("off.mcap");
+    write(&off, &[(0.0, epoch), (0.5, epoch + 900_000_000)]);
+    let err = read_mcap(&off).unwrap_err().to_string();
+    assert!(err.contains("log_time"), "{err}");
+}
+
+#[test]
+fn a_csv_with_a_repeated_column_is_refused() {
+    let path = temp("twice.csv");
+    std::fs::write(&path, "t,x,x\n0,1,2\n").unwrap();
+    let err = read_csv(&path).unwrap_err().to_string();
+    assert!(err.contains("\"x\" appears twice"), "{err}");
+}
+
+#[test]
+fn uneven_or_mislabelled_sampling_is_named() {
+    let mut table = Table::new("/demo/x", ["a"]);
+    for t in [0.0, 0.01, 0.02, 0.03] {
+        table.push(t, &[1.0]).unwrap();
+    }
+    let file = std::path::Path::new("run.mcap");
+    assert!((table.sample_rate(None, file).unwrap() - 100.0).abs() < 1e-9);
+    assert_eq!(table.sample_rate(Some(100.0), file).unwrap(), 100.0);
+    let err = table
+        .sample_rate(Some(1000.0), file)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("sample_rate_hz") && err.contains("100.000000 Hz"),
+        "{err}"
+    );
+    table.t[2] = 0.025;
+    let err = table.sample_rate(None, file).unwrap_err().to_string();
+    assert!(
+        err.contains("uneven sampling") && err.contains("run.mcap"),
+        "{err}"
+    );
+}
+
+#[test]
+fn the_same_log_twice_is_refused() {
+    let a = temp("once.mcap");
+    ramp(&a, 3, DEFAULT_FLUSH_EVERY).finish().unwrap();
+    let copy = temp("copy.mcap");
+    std::fs::copy(&a, &copy).unwrap();
+    let other = temp("other.mcap");
+    ramp(&other, 4, DEFAULT_FLUSH_EVERY).finish().unwrap();
+    assert!(refuse_repeats(&[a.clone(), other.clone()]).is_ok());
+    for repeat in [
+        a.clone(),
+        a.parent().unwrap().join(".").join("once.mcap"),
+        copy,
+    ] {
+        let err = refuse_repeats(&[a.clone(), other.clone(), repeat]).unwrap_err();
+        assert!(err.to_string().contains("is the same log as"), "{err}");
+    }
 }

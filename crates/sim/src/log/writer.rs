@@ -1,13 +1,16 @@
 //! MCAP writer for runs: JSON messages with a `t` field, jsonschema schemas, `experiment`
 //! metadata. Messages go out in chunks that are closed every few hundred messages, so a process
-//! that is killed leaves a file whose completed chunks can still be read; dropping the writer
-//! (also while a panic unwinds) writes the summary and footer.
+//! that is killed leaves a file whose completed chunks can still be read. The file is written
+//! beside its target (see [`crate::output`]) and renamed onto it by [`LogWriter::finish`]: a run
+//! that fails or is dropped unfinished removes its temporary file and leaves the target as it was,
+//! a killed run leaves the temporary `.NAME.tmp-PID` with its completed chunks.
 use std::collections::BTreeMap;
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
 use crate::error::{Result, SimError};
+use crate::output::{Kind, Pending};
 
 /// How often the writer closes its chunk and flushes it to disk, in messages.
 pub const DEFAULT_FLUSH_EVERY: usize = 512;
@@ -46,6 +49,8 @@ pub struct LogWriter {
     flush_every: usize,
     since_flush: usize,
     buffer: Vec<u8>,
+    /// Dropped after `inner`, which finishes the file on drop.
+    pending: Pending,
 }
 
 impl std::fmt::Debug for LogWriter {
@@ -58,16 +63,27 @@ impl std::fmt::Debug for LogWriter {
 }
 
 impl LogWriter {
-    /// Creates (or truncates) `path` and writes the MCAP header.
+    /// Starts a log that will replace `path` when finished (an existing MCAP log there is kept
+    /// until then; anything else there is refused, see [`crate::output`]).
     pub fn create(path: impl AsRef<Path>) -> Result<Self> {
-        Self::with_flush_every(path, DEFAULT_FLUSH_EVERY)
+        Self::create_for(path, &[])
     }
 
-    /// Like [`LogWriter::create`], closing a chunk every `flush_every` messages (at least 1).
-    pub fn with_flush_every(path: impl AsRef<Path>, flush_every: usize) -> Result<Self> {
+    /// Like [`LogWriter::create`], refusing a `path` that is one of `inputs` or inside one.
+    pub fn create_for(path: impl AsRef<Path>, inputs: &[PathBuf]) -> Result<Self> {
+        Self::with_flush_every(path, inputs, DEFAULT_FLUSH_EVERY)
+    }
+
+    /// Like [`LogWriter::create_for`], closing a chunk every `flush_every` messages (at least 1).
+    pub fn with_flush_every(
+        path: impl AsRef<Path>,
+        inputs: &[PathBuf],
+        flush_every: usize,
+    ) -> Result<Self> {
         let path = path.as_ref().to_path_buf();
+        let pending = Pending::file(&path, Kind::Mcap, inputs)?;
         // Not `SimError::io`: a missing directory is not a missing input file.
-        let file = File::create(&path).map_err(|source| SimError::Io {
+        let file = File::create_new(pending.path()).map_err(|source| SimError::Io {
             path: path.clone(),
             source,
         })?;
@@ -83,6 +99,7 @@ impl LogWriter {
             flush_every: flush_every.max(1),
             since_flush: 0,
             buffer: Vec::new(),
+            pending,
         })
     }
 
@@ -201,17 +218,20 @@ impl LogWriter {
             .map_err(|source| mcap_error(&self.path, source))
     }
 
-    /// Writes the summary and footer and closes the file. Dropping the writer does the same but
-    /// cannot report errors.
+    /// Writes the summary and footer, closes the file and renames it onto its target. Dropping
+    /// the writer instead removes the unfinished file.
     pub fn finish(mut self) -> Result<()> {
         self.inner
             .finish()
             .map_err(|source| mcap_error(&self.path, source))?;
-        let path = self.path.clone();
-        self.inner
+        let file = self
+            .inner
             .into_inner()
-            .flush()
-            .map_err(|e| SimError::io(path, e))
+            .into_inner()
+            .map_err(|e| SimError::io(&self.path, e.into_error()))?;
+        file.sync_all().map_err(|e| SimError::io(&self.path, e))?;
+        drop(file);
+        self.pending.commit()
     }
 
     /// The file being written.

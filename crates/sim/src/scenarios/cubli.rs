@@ -117,7 +117,7 @@ pub struct Args {
     pub torque_constant: Vec<f64>,
     /// RMS (N m) of a known multisine excitation added to each motor torque at 100 Hz
     /// (0 = none); logged as `/cubli/excitation`.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub excitation_rms: f64,
     /// Excitation period in samples (100 Hz).
     #[arg(long, default_value_t = 200)]
@@ -566,6 +566,7 @@ impl Scenario for Args {
     }
 
     fn run(&self, recorder: &mut Recorder, progress: &mut Progress) -> Result<()> {
+        super::samples(self.common.duration, SAMPLE_RATE_HZ)?;
         let model = Params::reference();
         let gains = Gains::paper();
         let sensors = self.sensors()?;
@@ -612,6 +613,13 @@ impl Scenario for Args {
                     &Vector3::zeros(),
                     &Vector3::zeros(),
                 );
+                if !(self.excitation_rms.is_finite() && self.excitation_rms >= 0.0) {
+                    return Err(SimError::invalid(
+                        "excitation-rms",
+                        self.excitation_rms,
+                        "must be a torque RMS >= 0 N m (0 for no excitation)",
+                    ));
+                }
                 let excitation = if self.excitation_rms > 0.0 {
                     let period = self.excitation_period;
                     let ms = Multisine::new(

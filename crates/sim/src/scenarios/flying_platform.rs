@@ -87,7 +87,7 @@ pub struct Args {
     #[arg(long, default_value_t = 10)]
     pub periods: usize,
     /// Simulated time for hover/disturbance/step, s.
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
     pub duration: f64,
     /// Seed of the noise and of the multisine phases.
     #[arg(long, default_value_t = 0)]
@@ -187,6 +187,13 @@ impl Args {
         match &self.out {
             None => Ok(None),
             Some(dir) => {
+                if dir.exists() && !dir.is_dir() {
+                    return Err(SimError::UnsafeOutput {
+                        path: dir.clone(),
+                        reason: "exists and is not a directory (--out names a directory here)"
+                            .into(),
+                    });
+                }
                 std::fs::create_dir_all(dir).map_err(|e| SimError::io(dir, e))?;
                 Ok(Some(dir.as_path()))
             }
@@ -202,6 +209,13 @@ impl Args {
                 "expected three values",
             )
         })?;
+        // One experiment (200 transient samples, then 250 per period) is in memory at a time.
+        crate::limits::check(
+            "periods",
+            self.periods,
+            200.0 + 250.0 * self.periods as f64,
+            crate::limits::BYTES_PER_SAMPLE,
+        )?;
         let bins: Vec<usize> = (1..=20).collect();
         let design = ExperimentDesign::new(
             lambda,
@@ -273,15 +287,8 @@ impl Args {
     }
 
     fn run_single(&self, recorder: &mut Recorder, progress: &mut Progress) -> Result<()> {
-        if !(self.duration.is_finite() && self.duration > 0.0) {
-            return Err(SimError::invalid(
-                "duration",
-                self.duration,
-                "must be positive",
-            ));
-        }
         let cfg = self.config()?;
-        let samples = (self.duration * cfg.sample_rate_hz).round() as usize;
+        let samples = super::samples(self.duration, cfg.sample_rate_hz)?;
         let mut scenario = flying_platform::Scenario {
             samples,
             ..Default::default()

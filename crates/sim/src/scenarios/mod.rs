@@ -19,7 +19,7 @@ pub mod wheel_pendulum;
 #[derive(Debug, Clone, PartialEq, clap::Args)]
 pub struct Common {
     /// Simulated time, s.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
     pub duration: f64,
     /// MCAP file to write.
     #[arg(long)]
@@ -27,6 +27,25 @@ pub struct Common {
     /// Seed of the measurement noise.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+}
+
+/// The number of samples of a run of `duration` seconds at `rate_hz`: a named error unless the
+/// duration is positive and the run fits in memory (see [`crate::limits`]), checked before
+/// anything is allocated.
+pub fn samples(duration: f64, rate_hz: f64) -> Result<usize> {
+    if !(duration.is_finite() && duration > 0.0) {
+        return Err(crate::error::SimError::invalid(
+            "duration",
+            duration,
+            "must be a positive number of seconds",
+        ));
+    }
+    crate::limits::check(
+        "duration",
+        duration,
+        duration * rate_hz,
+        crate::limits::BYTES_PER_SAMPLE,
+    )
 }
 
 /// A simulated system that can be run from the command line or from Python.

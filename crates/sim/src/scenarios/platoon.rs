@@ -57,6 +57,16 @@ pub struct Args {
     pub solver: String,
 }
 
+/// Refuses a platoon whose design cannot fit in memory, before building it. The design's
+/// interior-point method forms a dense matrix over the decision variables (about three
+/// symmetric n x n matrices, n = 2 M - 1 states: 2380 variables at M = 20), so it needs about
+/// 8 v^2 bytes for v variables.
+pub fn check_vehicles(vehicles: usize) -> Result<()> {
+    let n = 2.0 * vehicles as f64 - 1.0;
+    let variables = 3.0 * n * (n + 1.0) / 2.0;
+    crate::limits::check("vehicles", vehicles, variables * variables, 8.0).map(|_| ())
+}
+
 /// How the gains and thresholds are synthesised.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum DesignMethod {
@@ -76,8 +86,7 @@ impl Scenario for Args {
             let what = what.to_string();
             move |e: event_est::EventEstError| SimError::domain(what.clone(), e)
         };
-        let (sys, noise) = platoon(self.vehicles).map_err(domain("platoon model"))?;
-        let m = self.vehicles;
+        check_vehicles(self.vehicles)?;
         if !(self.common.duration.is_finite() && self.common.duration > TS) {
             return Err(SimError::invalid(
                 "duration",
@@ -85,6 +94,15 @@ impl Scenario for Args {
                 "must exceed one sample (0.02 s)",
             ));
         }
+        // Every step records a few numbers per vehicle.
+        crate::limits::check(
+            "duration",
+            self.common.duration,
+            self.common.duration / TS * self.vehicles as f64,
+            crate::limits::BYTES_PER_SAMPLE,
+        )?;
+        let (sys, noise) = platoon(self.vehicles).map_err(domain("platoon model"))?;
+        let m = self.vehicles;
         let stability = match &self.condition {
             Some(name) => Stability::parse(name).map_err(domain("--condition"))?,
             None if m <= 4 => Stability::Cor12,

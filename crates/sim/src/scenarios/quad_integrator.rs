@@ -50,10 +50,7 @@ impl Scenario for Args {
 
     fn run(&self, recorder: &mut Recorder, progress: &mut Progress) -> Result<()> {
         let duration = self.common.duration;
-        if !(duration.is_finite() && duration > 0.0) {
-            return Err(SimError::invalid("duration", duration, "must be > 0"));
-        }
-        let steps = (duration / scenario::TD).round() as usize;
+        let steps = super::samples(duration, 1.0 / scenario::TD)?;
         let sc = scenario::quad_integrator();
         let domain = |e: pmpc::Error| SimError::domain("quadruple-integrator MPC", e);
         let closed_loop = match self.controller {

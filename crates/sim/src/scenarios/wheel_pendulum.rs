@@ -67,6 +67,7 @@ impl Scenario for Args {
                 "must be within (-90, 90) degrees",
             ));
         }
+        super::samples(self.common.duration, self.sample_rate)?;
         let system = WheelPendulum::default();
         let period = 1.0 / self.sample_rate;
         let options = RunOptions {

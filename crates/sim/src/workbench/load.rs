@@ -47,6 +47,7 @@ pub fn expand(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
             "give at least one file or directory",
         ));
     }
+    crate::log::refuse_repeats(&out)?;
     Ok(out)
 }
 
@@ -95,25 +96,6 @@ fn columns(table: &Table, names: &[String], prefix: &str) -> Result<DMatrix<f64>
     }))
 }
 
-fn sample_rate(t: &[f64], what: &Path) -> Result<f64> {
-    if t.len() < 2 {
-        return Err(SimError::invalid(
-            format!("samples of {}", what.display()),
-            t.len(),
-            "need at least two samples",
-        ));
-    }
-    let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
-    if dt.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-        return Err(SimError::invalid(
-            format!("time column of {}", what.display()),
-            dt,
-            "must increase",
-        ));
-    }
-    Ok(1.0 / dt)
-}
-
 /// One experiment and its sample rate from the log `file`.
 fn experiment(
     system: &str,
@@ -127,7 +109,7 @@ fn experiment(
         .is_some_and(|x| x.eq_ignore_ascii_case("csv"));
     Ok(if is_csv {
         let table = read_csv(file)?;
-        let fs = sample_rate(&table.t, file)?;
+        let fs = table.sample_rate(None, file)?;
         let r = if table.fields.iter().any(|f| f.starts_with("r_")) {
             Some(columns(&table, inputs, "r_")?)
         } else {
@@ -143,6 +125,9 @@ fn experiment(
         (e, fs)
     } else {
         let log = read_mcap(file)?;
+        if let Some(problem) = &log.problem {
+            eprintln!("warning: {name} is incomplete ({problem}); using what was read");
+        }
         let input = log.topic(&format!("/{system}/input"))?;
         let output = log.topic(&format!("/{system}/output"))?;
         if input.len() != output.len() {
@@ -166,10 +151,7 @@ fn experiment(
             None => None,
         };
         let meta = log.experiment().map(Meta::from_metadata).transpose()?;
-        let fs = match &meta {
-            Some(m) => m.sample_rate_hz,
-            None => sample_rate(&input.t, file)?,
-        };
+        let fs = input.sample_rate(meta.as_ref().map(|m| m.sample_rate_hz), file)?;
         let periodic = meta.and_then(|m| m.periodic).map(|p| Periodic {
             period: p.period_samples,
             periods: p.periods,

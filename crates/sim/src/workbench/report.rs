@@ -1,7 +1,7 @@
 //! Outputs of a discovery: the terminal table, the JSON document and the offline HTML report
 //! with inline SVG plots (no scripts, no external files).
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde_json::{json, Value};
 
@@ -12,6 +12,7 @@ use super::frf::CMatrix;
 use super::model::Parameter;
 use super::Workbench;
 use crate::error::{Result, SimError};
+use crate::output;
 
 /// Selects parameters for a named list of the summary.
 type Pick = fn(&ParamEstimate) -> bool;
@@ -258,52 +259,35 @@ pub fn json(wb: &Workbench, d: &Discovery) -> Value {
     })
 }
 
-/// Writes `value` to `path` through a temporary file renamed at the end.
+/// Writes `value` to `path` through a temporary file renamed at the end (see
+/// [`crate::output`]: an existing file that is not JSON is refused).
 pub fn write_json(path: &Path, value: &Value) -> Result<()> {
     let text = serde_json::to_string_pretty(value)
         .map_err(|e| SimError::invalid("json", "serialisation", e.to_string()))?;
-    let tmp = sibling(path, "tmp");
-    std::fs::write(&tmp, text).map_err(|e| SimError::io(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| SimError::io(path, e))
-}
-
-fn sibling(path: &Path, tag: &str) -> PathBuf {
-    let name = path
-        .file_name()
-        .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
-    path.with_file_name(format!(".{name}.{tag}-{}", std::process::id()))
+    output::write_atomically(path, output::Kind::Json, &[], |tmp| {
+        std::fs::write(tmp, text).map_err(|e| SimError::io(tmp, e))
+    })
 }
 
 /// Writes the HTML report into `dir`: built in a temporary sibling directory and renamed into
-/// place only when complete, so a failure never leaves a half report.
+/// place only when complete, so a failure never leaves a half report. A `dir` that holds
+/// anything this program did not write is refused (see [`crate::output`]).
 pub fn write_report(dir: &Path, wb: &Workbench, d: &Discovery) -> Result<()> {
     publish(dir, &html(wb, d), &json(wb, d))
 }
 
-/// Writes the Cubli HTML report into `dir` (same temporary-directory rule).
+/// Writes the Cubli HTML report into `dir` (same rules).
 pub fn write_cubli_report(dir: &Path, d: &CubliDiscovery) -> Result<()> {
     publish(dir, &cubli_html(d), &d.json())
 }
 
-/// Writes `index.html` and `discover.json` into a temporary sibling of `dir` and renames it
-/// into place.
+/// Writes `index.html` and `discover.json` into a new directory `dir`.
 fn publish(dir: &Path, html: &str, json: &Value) -> Result<()> {
-    if let Some(parent) = dir.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent).map_err(|e| SimError::io(parent, e))?;
-    }
-    let tmp = sibling(dir, "tmp");
-    std::fs::create_dir_all(&tmp).map_err(|e| SimError::io(&tmp, e))?;
-    let index = tmp.join("index.html");
-    std::fs::write(&index, html).map_err(|e| SimError::io(&index, e))?;
-    write_json(&tmp.join("discover.json"), json)?;
-    if dir.exists() {
-        let old = sibling(dir, "old");
-        std::fs::rename(dir, &old).map_err(|e| SimError::io(dir, e))?;
-        std::fs::rename(&tmp, dir).map_err(|e| SimError::io(dir, e))?;
-        std::fs::remove_dir_all(&old).map_err(|e| SimError::io(&old, e))
-    } else {
-        std::fs::rename(&tmp, dir).map_err(|e| SimError::io(dir, e))
-    }
+    output::write_dir_atomically(dir, &[], |tmp| {
+        let index = tmp.join("index.html");
+        std::fs::write(&index, html).map_err(|e| SimError::io(&index, e))?;
+        write_json(&tmp.join("discover.json"), json)
+    })
 }
 
 const COLORS: [&str; 6] = [

@@ -197,11 +197,7 @@ pub const LOWER_EDGE_BIN: usize = 3;
 /// Segment length that puts `f_low` on bin [`LOWER_EDGE_BIN`]: `3 fs / f_low`, rounded up to
 /// even.
 pub fn segment_length(sample_rate_hz: f64, f_low: f64) -> usize {
-    let bin = std::env::var("STUDY_BIN")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(LOWER_EDGE_BIN);
-    let l = (bin as f64 * sample_rate_hz / f_low).ceil() as usize;
+    let l = (LOWER_EDGE_BIN as f64 * sample_rate_hz / f_low).ceil() as usize;
     l + l % 2
 }
 

@@ -1,0 +1,469 @@
+//! Every file or directory the program writes goes through this module, so that no output can
+//! destroy a user's data:
+//!
+//! - an output may not be one of the inputs, lie inside an input directory, or (for a directory)
+//!   contain an input;
+//! - an existing file is replaced only when it is of the kind being written (an MCAP log by an
+//!   MCAP log, JSON by JSON) or empty; anything else (a directory, a CSV, a device) is refused;
+//! - an existing directory is replaced only when it is empty or was written by this module (it
+//!   holds the [`MARKER`] file listing its contents, and nothing else was added);
+//! - the output is written to a temporary path beside the target (`.NAME.tmp-PID`) and renamed
+//!   into place when complete, so the target is either the old version or the complete new one.
+//!   A run killed midway leaves only that temporary path.
+//!
+//! Refusals are [`SimError::UnsafeOutput`] (exit code 2) naming the path.
+//!
+//! ```
+//! use sim::output::{write_atomically, Kind};
+//! let path = std::env::temp_dir().join(format!("sim_doc_output_{}.json", std::process::id()));
+//! write_atomically(&path, Kind::Json, &[], |tmp| {
+//!     std::fs::write(tmp, "{}").map_err(|e| sim::SimError::io(tmp, e))
+//! })
+//! .unwrap();
+//! // The output can never be an input.
+//! let err = write_atomically(&path, Kind::Json, &[path.clone()], |_| Ok(())).unwrap_err();
+//! assert!(err.to_string().contains("is an input"));
+//! std::fs::remove_file(&path).unwrap();
+//! ```
+use std::io::Read;
+use std::path::{Component, Path, PathBuf};
+
+use crate::error::{Result, SimError};
+
+/// Name of the file that marks a directory as written by this program; it lists the entries
+/// written, one per line.
+pub const MARKER: &str = ".stabilis-output";
+
+/// What a file output holds; an existing file at the target must be of the same kind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    /// An MCAP log (starts with the MCAP magic).
+    Mcap,
+    /// A JSON document (starts with `{` or `[` after white space).
+    Json,
+}
+
+impl Kind {
+    fn name(self) -> &'static str {
+        match self {
+            Self::Mcap => "an MCAP log",
+            Self::Json => "a JSON file",
+        }
+    }
+
+    /// Whether `head`, the first bytes of an existing file, is of this kind.
+    fn matches(self, head: &[u8]) -> bool {
+        match self {
+            Self::Mcap => head.starts_with(b"\x89MCAP"),
+            Self::Json => head
+                .iter()
+                .find(|b| !b.is_ascii_whitespace())
+                .is_some_and(|b| matches!(b, b'{' | b'[')),
+        }
+    }
+}
+
+fn refuse(path: &Path, reason: impl Into<String>) -> SimError {
+    SimError::UnsafeOutput {
+        path: path.to_path_buf(),
+        reason: reason.into(),
+    }
+}
+
+/// `path` made absolute and free of `.`, `..` and symbolic links as far as it exists.
+fn resolve(path: &Path) -> PathBuf {
+    if let Ok(p) = path.canonicalize() {
+        return p;
+    }
+    let absolute = if path.is_absolute() {
+        path.to_path_buf()
+    } else {
+        std::env::current_dir().unwrap_or_default().join(path)
+    };
+    let mut clean = PathBuf::new();
+    for c in absolute.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir => {
+                clean.pop();
+            }
+            c => clean.push(c),
+        }
+    }
+    match (clean.parent(), clean.file_name()) {
+        (Some(parent), Some(name)) => resolve_parent(parent).join(name),
+        _ => clean,
+    }
+}
+
+fn resolve_parent(parent: &Path) -> PathBuf {
+    parent
+        .canonicalize()
+        .unwrap_or_else(|_| match (parent.parent(), parent.file_name()) {
+            (Some(p), Some(n)) => resolve_parent(p).join(n),
+            _ => parent.to_path_buf(),
+        })
+}
+
+#[cfg(unix)]
+fn same_file(a: &Path, b: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        (Ok(a), Ok(b)) => a.dev() == b.dev() && a.ino() == b.ino(),
+        _ => false,
+    }
+}
+
+#[cfg(not(unix))]
+fn same_file(_: &Path, _: &Path) -> bool {
+    false
+}
+
+/// Refuses `target` when it is an input, lies inside an input directory or contains an input.
+fn check_inputs(target: &Path, inputs: &[PathBuf]) -> Result<()> {
+    let out = resolve(target);
+    for input in inputs {
+        let input_path = resolve(input);
+        if out == input_path || same_file(target, input) {
+            return Err(refuse(target, format!("is an input ({})", input.display())));
+        }
+        if out.starts_with(&input_path) {
+            return Err(refuse(
+                target,
+                format!("is inside the input directory {}", input.display()),
+            ));
+        }
+        if input_path.starts_with(&out) {
+            return Err(refuse(
+                target,
+                format!("contains the input {}", input.display()),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The temporary path beside `target` (`.NAME.tmp-PID`) and `target` made absolute, so that
+/// `.` and `dir/..` have a name to rename onto.
+fn temporary(target: &Path, tag: &str) -> Result<(PathBuf, PathBuf)> {
+    let target = resolve(target);
+    let name = target
+        .file_name()
+        .ok_or_else(|| refuse(&target, "has no file name"))?
+        .to_string_lossy()
+        .into_owned();
+    let tmp = target.with_file_name(format!(".{name}.{tag}-{}", std::process::id()));
+    Ok((target, tmp))
+}
+
+/// Checks that a file of `kind` may be written at `target` given the `inputs` of the run.
+pub fn check_file(target: &Path, kind: Kind, inputs: &[PathBuf]) -> Result<()> {
+    check_inputs(target, inputs)?;
+    let meta = match std::fs::symlink_metadata(target) {
+        Ok(meta) => meta,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(SimError::io(target, e)),
+    };
+    if meta.is_dir() {
+        return Err(refuse(target, "is a directory"));
+    }
+    if !meta.is_file() {
+        return Err(refuse(
+            target,
+            format!(
+                "exists and is not a regular file (expected {})",
+                kind.name()
+            ),
+        ));
+    }
+    let mut head = [0u8; 64];
+    let mut file = std::fs::File::open(target).map_err(|e| SimError::io(target, e))?;
+    let n = file.read(&mut head).map_err(|e| SimError::io(target, e))?;
+    if n > 0 && !kind.matches(&head[..n]) {
+        return Err(refuse(
+            target,
+            format!("exists and is not {}; not overwriting it", kind.name()),
+        ));
+    }
+    Ok(())
+}
+
+/// A file being written beside its target; [`Pending::commit`] renames it into place, dropping
+/// it uncommitted removes it.
+#[derive(Debug)]
+pub struct Pending {
+    target: PathBuf,
+    tmp: PathBuf,
+    committed: bool,
+}
+
+impl Pending {
+    /// Checks `target` (see [`check_file`]) and reserves its temporary path.
+    pub fn file(target: &Path, kind: Kind, inputs: &[PathBuf]) -> Result<Self> {
+        check_file(target, kind, inputs)?;
+        let (target, tmp) = temporary(target, "tmp")?;
+        Ok(Self {
+            target,
+            tmp,
+            committed: false,
+        })
+    }
+
+    /// The temporary path to write to.
+    pub fn path(&self) -> &Path {
+        &self.tmp
+    }
+
+    /// The final path.
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+
+    /// Renames the finished temporary file onto the target.
+    pub fn commit(mut self) -> Result<()> {
+        std::fs::rename(&self.tmp, &self.target).map_err(|e| SimError::io(&self.target, e))?;
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for Pending {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+/// Writes a file of `kind` at `path`: `write` fills the temporary path it is given, which is
+/// renamed onto `path` when `write` succeeds and removed when it fails.
+pub fn write_atomically(
+    path: &Path,
+    kind: Kind,
+    inputs: &[PathBuf],
+    write: impl FnOnce(&Path) -> Result<()>,
+) -> Result<()> {
+    let pending = Pending::file(path, kind, inputs)?;
+    write(pending.path())?;
+    pending.commit()
+}
+
+/// The names listed in the marker of `dir`, if it is a directory this module wrote.
+fn marked_entries(dir: &Path) -> Option<Vec<String>> {
+    let text = std::fs::read_to_string(dir.join(MARKER)).ok()?;
+    Some(text.lines().map(String::from).collect())
+}
+
+/// Checks that a directory may be written at `target`: not an input, not containing one, and
+/// either absent, empty, or written by this module with nothing added since.
+pub fn check_dir(target: &Path, inputs: &[PathBuf]) -> Result<()> {
+    check_inputs(target, inputs)?;
+    let meta = match std::fs::symlink_metadata(target) {
+        Ok(meta) => meta,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(SimError::io(target, e)),
+    };
+    if !meta.is_dir() {
+        return Err(refuse(target, "exists and is not a directory"));
+    }
+    let entries: Vec<String> = std::fs::read_dir(target)
+        .map_err(|e| SimError::io(target, e))?
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    if entries.is_empty() {
+        return Ok(());
+    }
+    let Some(listed) = marked_entries(target) else {
+        return Err(refuse(
+            target,
+            "is a non-empty directory this program did not write; give a new or empty one",
+        ));
+    };
+    if let Some(extra) = entries
+        .iter()
+        .find(|e| e.as_str() != MARKER && !listed.contains(e))
+    {
+        return Err(refuse(
+            target,
+            format!("holds {extra:?}, which this program did not write; not replacing it"),
+        ));
+    }
+    Ok(())
+}
+
+/// Writes a directory at `dir`: `write` fills the empty temporary directory it is given; when it
+/// succeeds the directory is marked (see [`MARKER`]) and renamed onto `dir`. An old `dir` that
+/// this module wrote is moved aside and deleted only after the new one is in place.
+pub fn write_dir_atomically(
+    dir: &Path,
+    inputs: &[PathBuf],
+    write: impl FnOnce(&Path) -> Result<()>,
+) -> Result<()> {
+    check_dir(dir, inputs)?;
+    let (target, tmp) = temporary(dir, "tmp")?;
+    if let Some(parent) = target.parent() {
+        std::fs::create_dir_all(parent).map_err(|e| SimError::io(parent, e))?;
+    }
+    std::fs::create_dir(&tmp).map_err(|e| SimError::io(&tmp, e))?;
+    let built = write(&tmp).and_then(|()| mark(&tmp));
+    if let Err(e) = built {
+        let _ = std::fs::remove_dir_all(&tmp);
+        return Err(e);
+    }
+    let old = if target.exists() {
+        let (_, old) = temporary(&target, "old")?;
+        std::fs::rename(&target, &old).map_err(|e| SimError::io(&target, e))?;
+        Some(old)
+    } else {
+        None
+    };
+    if let Err(e) = std::fs::rename(&tmp, &target) {
+        if let Some(old) = &old {
+            let _ = std::fs::rename(old, &target);
+        }
+        let _ = std::fs::remove_dir_all(&tmp);
+        return Err(SimError::io(&target, e));
+    }
+    if let Some(old) = old {
+        // Only what the marker listed (checked above) is in there.
+        std::fs::remove_dir_all(&old).map_err(|e| SimError::io(&old, e))?;
+    }
+    Ok(())
+}
+
+fn mark(dir: &Path) -> Result<()> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .map_err(|e| SimError::io(dir, e))?
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    let marker = dir.join(MARKER);
+    std::fs::write(&marker, names.join("\n") + "\n").map_err(|e| SimError::io(&marker, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("sim_output_{name}_{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    fn write_text(text: &'static str) -> impl FnOnce(&Path) -> Result<()> {
+        move |p: &Path| std::fs::write(p, text).map_err(|e| SimError::io(p, e))
+    }
+
+    #[test]
+    fn a_directory_holding_the_inputs_is_never_replaced() {
+        let dir = scratch("inputs_dir");
+        let input = dir.join("run.mcap");
+        std::fs::write(&input, b"\x89MCAP0\r\n").unwrap();
+        let err = write_dir_atomically(&dir, std::slice::from_ref(&dir), |d| {
+            write_text("x")(&d.join("index.html"))
+        })
+        .unwrap_err();
+        assert!(err.to_string().contains("is an input"), "{err}");
+        assert_eq!(err.exit_code(), 2);
+        // Even when the inputs are not named, a directory this program did not make is kept.
+        let err = write_dir_atomically(&dir, &[], |d| write_text("x")(&d.join("index.html")))
+            .unwrap_err();
+        assert!(err.to_string().contains("did not write"), "{err}");
+        assert!(input.exists());
+        let names: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
+        assert_eq!(names.len(), 1, "no temporary left behind");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_directory_it_wrote_is_replaced_unless_something_was_added() {
+        let root = scratch("own_dir");
+        let dir = root.join("report");
+        write_dir_atomically(&dir, &[], |d| write_text("1")(&d.join("index.html"))).unwrap();
+        write_dir_atomically(&dir, &[], |d| write_text("2")(&d.join("index.html"))).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(dir.join("index.html")).unwrap(),
+            "2"
+        );
+        std::fs::write(dir.join("notes.txt"), "mine").unwrap();
+        let err = write_dir_atomically(&dir, &[], |d| write_text("3")(&d.join("index.html")))
+            .unwrap_err();
+        assert!(err.to_string().contains("notes.txt"), "{err}");
+        assert_eq!(
+            std::fs::read_to_string(dir.join("notes.txt")).unwrap(),
+            "mine"
+        );
+        // Only the report itself is left in the parent (no temporaries, no old copies).
+        assert_eq!(std::fs::read_dir(&root).unwrap().count(), 1);
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    #[test]
+    fn the_current_directory_is_refused_when_not_empty() {
+        let dir = scratch("dot");
+        std::fs::write(dir.join("keep.txt"), "x").unwrap();
+        let dot = dir.join(".");
+        let err = write_dir_atomically(&dot, &[], |d| write_text("x")(&d.join("a"))).unwrap_err();
+        assert_eq!(err.exit_code(), 2);
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        let leftovers = std::fs::read_dir(dir.parent().unwrap())
+            .unwrap()
+            .filter(|e| {
+                let name = e.as_ref().unwrap().file_name();
+                let name = name.to_string_lossy();
+                name.starts_with(".sim_output_dot_") || name.starts_with(".out.tmp-")
+            })
+            .count();
+        assert_eq!(leftovers, 0);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn files_of_another_kind_and_inputs_are_refused() {
+        let dir = scratch("kinds");
+        let csv = dir.join("data.csv");
+        std::fs::write(&csv, "t,x\n0,1\n").unwrap();
+        for kind in [Kind::Mcap, Kind::Json] {
+            let err = write_atomically(&csv, kind, &[], write_text("{}")).unwrap_err();
+            assert!(err.to_string().contains("not overwriting"), "{err}");
+        }
+        let err = write_atomically(&dir, Kind::Json, &[], write_text("{}")).unwrap_err();
+        assert!(err.to_string().contains("is a directory"), "{err}");
+        let log = dir.join("run.mcap");
+        std::fs::write(&log, b"\x89MCAP0\r\nrest").unwrap();
+        let via_dots = dir.join("sub").join("..").join("run.mcap");
+        let err = write_atomically(
+            &via_dots,
+            Kind::Mcap,
+            std::slice::from_ref(&log),
+            write_text("x"),
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("is an input"), "{err}");
+        assert_eq!(std::fs::read(&log).unwrap(), b"\x89MCAP0\r\nrest");
+        assert_eq!(std::fs::read_to_string(&csv).unwrap(), "t,x\n0,1\n");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_failed_write_keeps_the_old_file_and_leaves_no_temporary() {
+        let dir = scratch("failed");
+        let path = dir.join("out.json");
+        std::fs::write(&path, "[1]").unwrap();
+        let err = write_atomically(&path, Kind::Json, &[], |tmp| {
+            std::fs::write(tmp, "[2").unwrap();
+            Err(SimError::invalid("x", 1, "failed on purpose"))
+        })
+        .unwrap_err();
+        assert!(err.to_string().contains("on purpose"));
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "[1]");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        write_atomically(&path, Kind::Json, &[], write_text("[3]")).unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "[3]");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
