@@ -72,3 +72,42 @@ pub(crate) fn check_vector(name: &'static str, v: &[f64], len: usize) -> Result<
     }
     check_finite(name, v)
 }
+
+/// Largest dense problem the offline set-ups accept: their SVD / eigen-decompositions cost
+/// O(N³) and hold a few N×N matrices.
+pub(crate) const MAX_DENSE_DIM: usize = 1500;
+
+/// Refuse a dense set-up of dimension `size` (holding about `matrices` such N×N f64 matrices)
+/// before allocating: beyond [`MAX_DENSE_DIM`] it would take minutes, and beyond the memory
+/// available (Linux `MemAvailable`) it would abort.
+pub(crate) fn check_dense_size(what: &'static str, size: usize, matrices: usize) -> Result<()> {
+    if size > MAX_DENSE_DIM {
+        return Err(Error::TooLarge {
+            what,
+            size,
+            limit: MAX_DENSE_DIM,
+            reason: "the dense O(N^3) set-up would take minutes",
+        });
+    }
+    if let Some(avail) = available_memory() {
+        let per = 8.0 * matrices.max(1) as f64;
+        let limit = (avail as f64 / per).sqrt() as usize;
+        if size > limit {
+            return Err(Error::TooLarge {
+                what,
+                size,
+                limit,
+                reason: "the dense set-up would not fit in the available memory",
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Bytes of memory available now (Linux /proc/meminfo), if known.
+fn available_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}

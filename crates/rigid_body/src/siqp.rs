@@ -32,6 +32,7 @@
 
 mod check;
 mod factor;
+mod polish;
 
 use crate::laguerre::{check_len, Laguerre};
 use crate::Error;
@@ -112,6 +113,9 @@ pub struct Settings {
     pub refine: bool,
     /// Relative Schur-complement threshold below which a new instant counts as dependent.
     pub dependence_tol: f64,
+    /// Newton moves of the active instants towards their extrema after each addition
+    /// (0 turns them off: the plain exchange of the dual method).
+    pub polish_steps: usize,
 }
 
 impl Default for Settings {
@@ -123,6 +127,7 @@ impl Default for Settings {
             max_check_steps: 10_000,
             refine: true,
             dependence_tol: 1e-10,
+            polish_steps: 3,
         }
     }
 }
@@ -158,6 +163,8 @@ pub struct Stats {
     pub drops: usize,
     /// Taylor steps over all checks.
     pub taylor_steps: usize,
+    /// Accepted Newton moves of the working set's instants.
+    pub moves: usize,
 }
 
 /// Problem data borrowed from the caller (precomputed offline).
@@ -237,7 +244,10 @@ impl<'a> Problem<'a> {
     /// Number of `f64` and [`Active`] slots a [`Workspace`] needs.
     pub fn workspace_len(&self) -> (usize, usize) {
         let (d, c, s) = (self.dim(), self.max_active, self.basis.dim());
-        (4 * d + c * d + c * c + 4 * c + c * s + 6 * s, c)
+        (
+            4 * d + 2 * c * d + 5 * c * c + 8 * c + 2 * c * s + 6 * s,
+            2 * c,
+        )
     }
 
     fn beta(&self, a: &Active) -> f64 {
@@ -286,6 +296,13 @@ pub struct Workspace<'a> {
     d3: &'a mut [f64],
     active: &'a mut [Active],
     n_active: usize,
+    dtau: &'a mut [f64],
+    up: &'a mut [f64],
+    jac: &'a mut [f64],
+    rhs: &'a mut [f64],
+    f2: &'a mut [f64],
+    g2: &'a mut [f64],
+    backup: &'a mut [Active],
 }
 
 impl<'a> Workspace<'a> {
@@ -314,7 +331,14 @@ impl<'a> Workspace<'a> {
         let (y, rest) = rest.split_at_mut(s);
         let (y2, rest) = rest.split_at_mut(s);
         let (d1, rest) = rest.split_at_mut(s);
-        let (d2, d3) = rest.split_at_mut(s);
+        let (d2, rest) = rest.split_at_mut(s);
+        let (d3, rest) = rest.split_at_mut(s);
+        let (dtau, rest) = rest.split_at_mut(c * s);
+        let (up, rest) = rest.split_at_mut(c * d);
+        let (jac, rest) = rest.split_at_mut(4 * c * c);
+        let (rhs, rest) = rest.split_at_mut(2 * c);
+        let (f2, g2) = rest.split_at_mut(c);
+        let (active, backup) = active.split_at_mut(c);
         Ok(Self {
             dim: d,
             s,
@@ -341,6 +365,13 @@ impl<'a> Workspace<'a> {
             d3,
             active,
             n_active: 0,
+            dtau,
+            up,
+            jac,
+            rhs,
+            f2,
+            g2,
+            backup,
         })
     }
 
@@ -792,6 +823,7 @@ fn run(
                 ws.taus[p * s..(p + 1) * s].copy_from_slice(ws.tau);
                 ws.n_active = p + 1;
                 stats.adds += 1;
+                polish::polish(problem, settings, ws, stats);
                 break;
             }
             ws.lambda[jstar] = 0.0;
