@@ -3,8 +3,9 @@ stabilis.pmpc against DAQP, OSQP and ProxQP on the condensed discrete-time probl
 DARE terminal cost, |u| <= 0.5, x_1 >= 0 at k = 1..N), all in one process and one run.
 
 How each contender is called (the fastest way its Python API allows):
-  * stabilis.pmpc: `Controller.step(x)`, warm-started from the shifted working set, with the
-    per-step iteration budget given by --budget (shifted previous plan as fallback).
+  * stabilis.pmpc: `Controller.step(x)`, warm-started from the shifted working set, without
+    and with the per-step iteration budgets given by --budget (default 8 and 15; the shifted
+    previous plan is applied when a budget runs out).
   * DAQP: one `daqp.Model`, `setup` once, then per step `update(f=, bupper=, blower=)` and
     `solve()`: H is factorised once and the working set carries over (hot start).
   * OSQP: one `osqp.OSQP`, `setup` once, per step `update(q=, u=)` and `solve()`; warm start
@@ -18,19 +19,25 @@ Python call overhead included for every contender; the first step of every loop 
 (set-up / cold start). Trajectory sets: x0 = 0.3*1 for 1000 steps, and 10 starts drawn
 uniformly from [0, 0.2]^4 (seed 14) for 250 steps each. The plant is exact: the discrete
 inputs are held (ZOH), the pmpc input is its continuous plan u(t) = eta_u' tau(t) over each
-interval (integrated exactly with the Laguerre generator). J_cl = sum_{k>=1} (x'x + u^2)/2 Td
+interval (integrated exactly with the Laguerre generator). J_cl (mean over the starts) = sum_{k>=1} (x'x + u^2)/2 Td
 at the samples; the violation is the largest excess over |u| <= 0.5, x_1 >= 0 on a 0.5 ms grid.
 
     .venv/bin/python -m pip install daqp osqp proxsuite   # the `bench` extra of py/pyproject.toml
-    .venv/bin/python py/bench/pmpc_peers.py [--budget B] [--quick]
+    .venv/bin/python py/bench/pmpc_peers.py [--budget B ...] [--quick]
 """
 import argparse
+import os
 import time
 
-import numpy as np
-import scipy.linalg
+# One BLAS thread: the plant simulation's small expm calls otherwise spin worker threads that
+# compete with the timed steps on a shared machine.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-from stabilis import pmpc
+import numpy as np  # noqa: E402
+import scipy.linalg  # noqa: E402
+
+from stabilis import pmpc  # noqa: E402
 
 TD = 0.02
 NU = 0.7
@@ -68,17 +75,24 @@ def condensed(ad, bd, horizon):
     return (h + h.T) / 2, f, -sel @ su, -sel @ sx
 
 
-class Discrete:
-    """Receding-horizon wrapper: solve, apply U[0], shifted previous sequence on failure."""
+class Stopped(Exception):
+    """A contender that stops its loop at the first failed solve."""
 
-    def __init__(self, solve, horizon):
-        self.solve, self.horizon = solve, horizon
+
+class Discrete:
+    """Receding-horizon wrapper: solve, apply U[0], shifted previous sequence on failure (or
+    stop the loop there, for a solver that then runs to its iteration limit for seconds)."""
+
+    def __init__(self, solve, horizon, stop_on_failure=False):
+        self.solve, self.horizon, self.stop = solve, horizon, stop_on_failure
         self.prev, self.failures, self.inner = None, 0, []
 
     def step(self, x):
         u, inner = self.solve(x)
         if u is None:
             self.failures += 1
+            if self.stop:
+                raise Stopped()
             u = np.append(self.prev[1:], 0.0)
         if inner is not None:
             self.inner.append(inner)
@@ -132,7 +146,9 @@ def proxqp_controller(h, f, g, e, x0):
     qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
     c = np.vstack([np.eye(n), g])
     lo = np.concatenate([np.full(n, -0.5), np.full(n, -1e20)])
+    qp.settings.compute_timings = True
     qp.init(h, f @ x0, None, None, c, lo, np.concatenate([np.full(n, 0.5), -e @ x0]))
+    qp.solve()  # a previous result must exist before the first warm-started update
 
     def solve(x):
         qp.update(g=f @ x, u=np.concatenate([np.full(n, 0.5), -e @ x]))
@@ -140,7 +156,9 @@ def proxqp_controller(h, f, g, e, x0):
         ok = qp.results.info.status == proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
         return (np.array(qp.results.x) if ok else None), qp.results.info.solve_time * 1e-6
 
-    return Discrete(solve, n)
+    # From step ~340 of the x0 = 0.3 loop ProxQP reports failures, and once the shifted
+    # sequence has been applied its solves run for seconds: its loops stop at the first failure.
+    return Discrete(solve, n, stop_on_failure=True)
 
 
 def laguerre_generator(s):
@@ -152,7 +170,10 @@ def run_discrete(ctrl, ad, bd, x0, steps, sub):
     x, times, cost, viol = x0.copy(), [], 0.0, -INF
     for k in range(steps + 1):
         t0 = time.thread_time_ns()
-        u = ctrl.step(x)
+        try:
+            u = ctrl.step(x)
+        except Stopped:
+            return np.array(times[1:]) * 1e-9, float("nan"), viol
         times.append(time.thread_time_ns() - t0)
         if k >= 1:
             cost += 0.5 * (x @ x + u * u) * TD
@@ -200,7 +221,8 @@ def stats(t):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--budget", type=int, default=None, help="pmpc per-step iteration budget")
+    ap.add_argument("--budget", type=int, nargs="*", default=[8, 15],
+                    help="pmpc per-step iteration budgets to run besides the unbudgeted one")
     ap.add_argument("--quick", action="store_true", help="x0 = 0.3 set only")
     args = ap.parse_args()
     ad, bd = zoh(A, B, TD)
@@ -213,16 +235,17 @@ def main():
     for title, starts, steps in sets:
         rows = {}
         for s in (8, 10, 12):
-            ctrl = pmpc.Controller(A, B, np.eye(4), np.eye(1),
-                                   x_bounds=[(0.0, INF)] + [(-INF, INF)] * 3,
-                                   u_bounds=[(-0.5, 0.5)], nu=NU, s=s, td=TD,
-                                   budget=args.budget)
-            out = [run_pmpc(ctrl, s, x0, steps) for x0 in starts]
-            t = np.concatenate([o[0] for o in out])
-            it = np.concatenate([o[4] for o in out])
-            rows[f"stabilis.pmpc s={s}"] = (t, np.mean([o[1] for o in out]), max(o[2] for o in out),
-                                            f"fallbacks {sum(o[3] for o in out)}, iterations "
-                                            f"median {np.median(it):.0f} max {it.max()}")
+            for budget in [None] + args.budget:
+                ctrl = pmpc.Controller(A, B, np.eye(4), np.eye(1),
+                                       x_bounds=[(0.0, INF)] + [(-INF, INF)] * 3,
+                                       u_bounds=[(-0.5, 0.5)], nu=NU, s=s, td=TD, budget=budget)
+                out = [run_pmpc(ctrl, s, x0, steps) for x0 in starts]
+                t = np.concatenate([o[0] for o in out])
+                it = np.concatenate([o[4] for o in out])
+                name = f"stabilis.pmpc s={s}" + (f" budget {budget}" if budget else "")
+                rows[name] = (t, np.mean([o[1] for o in out]), max(o[2] for o in out),
+                              f"fallbacks {sum(o[3] for o in out)}, iterations "
+                              f"median {np.median(it):.0f} max {it.max()}")
         for name, make in (("daqp", daqp_controller), ("osqp", osqp_controller),
                            ("proxqp", proxqp_controller)):
             for hz, (h, f, g, e) in problems.items():
@@ -234,9 +257,11 @@ def main():
                     fails += ctrl.failures
                 t = np.concatenate([o[0] for o in out])
                 note = f"own solve time median {1e6 * np.median(inner):.1f} us; failures {fails}"
+                if ctrl.stop and fails:
+                    note += f" (loops stopped there; {len(np.concatenate([o[0] for o in out]))} steps timed)"
                 rows[f"{name} N={hz}"] = (t, np.mean([o[1] for o in out]),
                                           max(o[2] for o in out), note)
-        print(f"\n{title} (CPU time per step, us)")
+        print(f"\n{title} (CPU time per step, us)", flush=True)
         print(f"| controller | median | mean | p99 | max | J_cl | max violation | note |")
         print("|---|---|---|---|---|---|---|---|")
         for name, (t, cost, viol, note) in rows.items():

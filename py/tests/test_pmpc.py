@@ -67,7 +67,7 @@ def test_plan_before_the_step_and_huge_sizes_are_refused():
     c.step(X0)
     with pytest.raises(ValueError, match="t = -1"):
         c.input_at(-1.0)
-    with pytest.raises(ValueError, match="t = nan"):
+    with pytest.raises(ValueError, match="t = NaN"):
         c.input_at(float("nan"))
     for s in (5000, 100000):
         with pytest.raises(ValueError, match="too large"):

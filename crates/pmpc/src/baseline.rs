@@ -95,7 +95,12 @@ impl DiscreteMpc {
         crate::check_shape("B", b, n, m)?;
         constraints.validate(n, m)?;
         // The condensed matrices are (n·N)×(n·N) and (n·N)×(m·N).
-        crate::check_dense_size("predicted states n*horizon", n.saturating_mul(horizon), 4)?;
+        crate::check_dense_size(
+            "predicted states n*horizon",
+            n.saturating_mul(horizon),
+            crate::MAX_PREDICTED_STATES,
+            4,
+        )?;
         let (ad, bd) = lti::c2d_zoh(a, b, td)?;
         let p = lti::dare(&ad, &bd, q, r)?;
         let nn = horizon;

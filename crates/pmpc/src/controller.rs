@@ -18,6 +18,18 @@ pub enum Source {
     Fallback(Status),
 }
 
+/// Work one step may do, known before running (from the budget and the settings).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct WorkBound {
+    /// Outer iterations: one Taylor-bound check of every constrained row, then one dual step
+    /// per violated row.
+    pub iterations: usize,
+    /// Taylor steps over all checks: iterations × constrained rows × `max_check_steps`.
+    pub taylor_steps: usize,
+    /// Accepted Newton moves of the working set (at most one per dual step).
+    pub moves: usize,
+}
+
 /// Diagnostics of the last step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepInfo {
@@ -130,6 +142,23 @@ impl Pmpc {
     /// The per-step iteration budget, if any.
     pub fn budget(&self) -> Option<usize> {
         self.budget
+    }
+
+    /// Worst-case work of a step after the first, if a budget is set: a step that would
+    /// exceed it stops there and applies the shifted previous plan instead.
+    pub fn work_bound(&self) -> Option<WorkBound> {
+        let iterations = self.budget?.min(self.settings.max_iter);
+        let rows = self
+            .problem
+            .rows()
+            .iter()
+            .filter(|r| r.lower.is_finite() || r.upper.is_finite())
+            .count();
+        Some(WorkBound {
+            iterations,
+            taylor_steps: iterations * rows * self.settings.max_check_steps,
+            moves: iterations * rows,
+        })
     }
 
     /// Enable or disable warm starting from the shifted working set.

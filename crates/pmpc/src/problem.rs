@@ -86,7 +86,7 @@ impl Problem {
         let s = basis.dim();
         let nc = constraints.len();
         let big_n = (n + m).saturating_mul(s);
-        crate::check_dense_size("decision variables (n+m)*s", big_n, 8)?;
+        crate::check_dense_size("decision variables (n+m)*s", big_n, crate::MAX_VARIABLES, 8)?;
         let p = n * s + n;
 
         let mut h = DMatrix::zeros(big_n, big_n);
