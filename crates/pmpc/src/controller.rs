@@ -206,34 +206,26 @@ impl Pmpc {
         let out = siqp::solve(&sp, &settings, &self.w0, warm, &mut ws)?;
         let stats = out.stats;
         let status = out.status;
+        // The working set reached seeds the next step, shifted by T_d, also when this step
+        // stopped early: its work is not lost.
+        self.warm.clear();
+        for a in out.active {
+            if a.t >= self.td {
+                self.warm.push(Active {
+                    t: a.t - self.td,
+                    ..*a
+                });
+            }
+        }
         let source = if status == Status::Optimal {
             out.multiplier_coefficients(&sp, &mut self.tau, &mut self.mu);
-            self.warm.clear();
-            for a in out.active {
-                if a.t >= self.td {
-                    self.warm.push(Active {
-                        t: a.t - self.td,
-                        ..*a
-                    });
-                }
-            }
             let active = out.active.len();
             self.problem.coefficients(x, &self.mu, &mut self.z);
             self.info.active = active;
             Source::Optimal
         } else if self.has_plan {
-            // The shifted previous plan is applied; the working set reached so far seeds the
-            // next step, so the work of this step is not lost.
+            // The shifted previous plan is applied (feasible, with the Lyapunov decrease).
             self.z.copy_from_slice(&self.z_shifted);
-            self.warm.clear();
-            for a in out.active {
-                if a.t >= self.td {
-                    self.warm.push(Active {
-                        t: a.t - self.td,
-                        ..*a
-                    });
-                }
-            }
             Source::Fallback(status)
         } else if status == Status::Infeasible {
             return Err(Error::Infeasible { x: x.to_vec() });
