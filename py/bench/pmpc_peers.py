@@ -25,6 +25,7 @@ at the samples; the violation is the largest excess over |u| <= 0.5, x_1 >= 0 on
     .venv/bin/python -m pip install daqp osqp proxsuite   # measured with 0.11.0, 1.1.3, 0.8.0
     .venv/bin/python py/bench/pmpc_peers.py [--budget B ...] [--quick]
     .venv/bin/python py/bench/pmpc_peers.py --scan-horizons 80 82 83 90 92 93
+    .venv/bin/python py/bench/pmpc_peers.py --chain 7
 """
 import argparse
 import os
@@ -187,8 +188,9 @@ def run_discrete(ctrl, ad, bd, x0, steps, sub):
     return np.array(times[1:]) * 1e-9, cost, viol
 
 
-def run_pmpc(ctrl, s, x0, steps):
+def run_pmpc(ctrl, s, x0, steps, a=A, b=B):
     """Closed loop with the continuous plan: (x, tau) evolves by expm([[A, B U], [0, M]] h)."""
+    n = a.shape[0]
     m = laguerre_generator(s)
     tau0 = np.full(s, np.sqrt(2 * NU))
     x, times, cost, viol, fallbacks, iters = x0.copy(), [], 0.0, -INF, 0, []
@@ -202,17 +204,17 @@ def run_pmpc(ctrl, s, x0, steps):
         iters.append(info["iterations"])
         if k >= 1:
             cost += 0.5 * (x @ x + u * u) * TD
-        eta_u = np.asarray(ctrl.plan)[4 * s:]
-        aug = np.zeros((4 + s, 4 + s))
-        aug[:4, :4] = A
-        aug[:4, 4:] = B @ eta_u[None, :]
-        aug[4:, 4:] = m
+        eta_u = np.asarray(ctrl.plan)[n * s:]
+        aug = np.zeros((n + s, n + s))
+        aug[:n, :n] = a
+        aug[:n, n:] = b @ eta_u[None, :]
+        aug[n:, n:] = m
         e = scipy.linalg.expm(aug * (TD / GRID))
         xi = np.concatenate([x, tau0])
         for _ in range(GRID):
             xi = e @ xi
-            viol = max(viol, -xi[0], abs(eta_u @ xi[4:]) - 0.5)
-        x = xi[:4]
+            viol = max(viol, -xi[0], abs(eta_u @ xi[n:]) - 0.5)
+        x = xi[:n]
     return np.array(times[1:]) * 1e-9, cost, viol, fallbacks, np.array(iters[1:])
 
 
@@ -239,16 +241,43 @@ def scan_horizons(horizons):
 STEPS_SCAN = 1000
 
 
+def chain(n, s, horizon):
+    """Chain of n integrators from x0 = 0.1*1 (spec §8.6): pmpc (s) against DAQP (horizon)."""
+    a = np.diag(np.ones(n - 1), 1)
+    b = np.zeros((n, 1))
+    b[-1, 0] = 1.0
+    x0 = np.full(n, 0.1)
+    ad, bd = zoh(a, b, TD)
+    sub = zoh(a, b, TD / GRID)
+    ctrl = pmpc.Controller(a, b, np.eye(n), np.eye(1), x_bounds=[(0.0, INF)] + [(-INF, INF)] * (n - 1),
+                           u_bounds=[(-0.5, 0.5)], nu=NU, s=s, td=TD)
+    t, cost, viol, fb, it = run_pmpc(ctrl, s, x0, STEPS_SCAN, a, b)
+    print(f"| controller | variables | median | mean | p99 | max (us) | J_cl | violation |\n|---|---|---|---|---|---|---|---|")
+    print(f"| pmpc s={s} | {(n + 1) * s} | " + " | ".join(f"{1e6 * v:.1f}" for v in stats(t))
+          + f" | {cost:.4g} | {viol:.1e} |", flush=True)
+    h, f, g, e = condensed(ad, bd, horizon)
+    d = daqp_controller(h, f, g, e, x0)
+    t, cost, viol = run_discrete(d, ad, bd, x0, STEPS_SCAN, sub)
+    print(f"| daqp N={horizon} | {horizon} (condensed; {(horizon + 1) * n + horizon} sparse) | "
+          + " | ".join(f"{1e6 * v:.1f}" for v in stats(t))
+          + f" | {cost:.4g} | {viol:.1e} | failures {d.failures}", flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--scan-horizons", type=int, nargs="*", default=None,
                     help="only scan the discrete MPC's stabilizing horizons (e.g. 80 81 82 83 92 93)")
+    ap.add_argument("--chain", type=int, default=None,
+                    help="only the chain of n integrators: pmpc s = 12 against DAQP N = 450")
     ap.add_argument("--budget", type=int, nargs="*", default=[8, 15],
                     help="pmpc per-step iteration budgets to run besides the unbudgeted one")
     ap.add_argument("--quick", action="store_true", help="x0 = 0.3 set only")
     args = ap.parse_args()
     if args.scan_horizons:
         scan_horizons(args.scan_horizons)
+        return
+    if args.chain:
+        chain(args.chain, 12, 450)
         return
     ad, bd = zoh(A, B, TD)
     sub = zoh(A, B, TD / GRID)
