@@ -1,29 +1,52 @@
-"""Time one MPC step of the quadruple integrator (spec/pmpc.md §8.5) through the Python
-binding of stabilis.pmpc against DAQP and OSQP on the condensed discrete-time problem
-(horizon N = 100, ZOH, DARE terminal cost, |u| <= 0.5, x_1 >= 0 at k = 1..N).
+"""Time one MPC step of the quadruple integrator (spec/pmpc.md §8.5) through Python:
+stabilis.pmpc against DAQP, OSQP and ProxQP on the condensed discrete-time problem (ZOH,
+DARE terminal cost, |u| <= 0.5, x_1 >= 0 at k = 1..N), all in one process and one run.
 
-Each controller runs its own 20 s closed loop; the time per step (mean, median) and the
-closed-loop cost sum_{k=1}^{1000} (x'x + u^2)/2 * Td are printed. Python call overhead is
-included for every contender.
+How each contender is called (the fastest way its Python API allows):
+  * stabilis.pmpc: `Controller.step(x)`, warm-started from the shifted working set, without
+    and with the per-step iteration budgets given by --budget (default 8 and 15; the shifted
+    previous plan is applied when a budget runs out).
+  * DAQP: one `daqp.Model`, `setup` once, then per step `update(f=, bupper=, blower=)` and
+    `solve()`: H is factorised once and the working set carries over (hot start).
+  * OSQP: one `osqp.OSQP`, `setup` once, per step `update(q=, u=)` and `solve()`; warm start
+    from the previous solution (its default), default iteration limit, eps_abs = eps_rel = 1e-6.
+  * ProxQP (proxsuite dense): `init` once, per step `update(g=, u=)` and `solve()` warm-started
+    from the previous result, default iteration limit, eps_abs = 1e-6.
+On a failed solve a discrete controller applies its shifted previous sequence (counted).
 
-    .venv/bin/pip install daqp osqp   # the `bench` extra of py/pyproject.toml
-    .venv/bin/python py/bench/pmpc_peers.py
+Timing is CPU time of the calling thread (time.thread_time_ns) around the step call only,
+Python call overhead included for every contender; the first step of every loop is excluded
+(set-up / cold start). Trajectory sets: x0 = 0.3*1 for 1000 steps, and 10 starts drawn
+uniformly from [0, 0.2]^4 (seed 14) for 250 steps each. The plant is exact: the discrete
+inputs are held (ZOH), the pmpc input is its continuous plan u(t) = eta_u' tau(t) over each
+interval (integrated exactly with the Laguerre generator). J_cl (mean over the starts) = sum_{k>=1} (x'x + u^2)/2 Td
+at the samples; the violation is the largest excess over |u| <= 0.5, x_1 >= 0 on a 0.5 ms grid.
+
+    .venv/bin/python -m pip install daqp osqp proxsuite   # measured with 0.11.0, 1.1.3, 0.8.0
+    .venv/bin/python py/bench/pmpc_peers.py [--budget B ...] [--quick]
+    .venv/bin/python py/bench/pmpc_peers.py --scan-horizons 80 82 83 90 92 93
+    .venv/bin/python py/bench/pmpc_peers.py --chain 7
 """
+import argparse
+import os
 import time
 
-import numpy as np
-import scipy.linalg
-import scipy.sparse
+# One BLAS thread: the plant simulation's small expm calls otherwise spin worker threads that
+# compete with the timed steps on a shared machine.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-from stabilis import pmpc
+import numpy as np  # noqa: E402
+import scipy.linalg  # noqa: E402
+
+from stabilis import pmpc  # noqa: E402
 
 TD = 0.02
-STEPS = 1000
-N = 100
+NU = 0.7
 INF = float("inf")
 A = np.diag(np.ones(3), 1)
 B = np.array([[0.0], [0.0], [0.0], [1.0]])
-X0 = np.full(4, 0.3)
+GRID = 40  # 0.5 ms
 
 
 def zoh(a, b, h):
@@ -33,7 +56,7 @@ def zoh(a, b, h):
 
 
 def condensed(ad, bd, horizon):
-    """Cost 1/2 U'HU + (F x0)'U and rows G U <= lim - E x0 (u box, then x_1 >= 0)."""
+    """Cost 1/2 U'HU + (F x0)'U; rows g_state U <= -e_state x0 (x_1,k >= 0, k = 1..N)."""
     n = ad.shape[0]
     p = scipy.linalg.solve_discrete_are(ad, bd, np.eye(n), np.eye(1))
     sx = np.zeros((n * horizon, n))
@@ -44,89 +67,261 @@ def condensed(ad, bd, horizon):
         sx[k * n:(k + 1) * n] = powers[k + 1]
         for j in range(k + 1):
             su[k * n:(k + 1) * n, j:j + 1] = powers[k - j] @ bd
-    qbar = np.kron(np.eye(horizon), np.eye(n))
+    qbar = np.eye(n * horizon)
     qbar[-n:, -n:] = p
     h = su.T @ qbar @ su + np.eye(horizon)
     f = su.T @ qbar @ sx
     sel = np.zeros((horizon, n * horizon))
     for k in range(horizon):
         sel[k, k * n] = 1.0
-    g_state = -sel @ su  # -x_1,k <= 0
-    e_state = -sel @ sx
-    return (h + h.T) / 2, f, g_state, e_state
+    return (h + h.T) / 2, f, -sel @ su, -sel @ sx
 
 
-def closed_loop(step, ad, bd):
-    x = X0.copy()
-    times, cost = [], 0.0
-    for k in range(STEPS + 1):
-        t0 = time.perf_counter()
-        u = step(x)
-        times.append(time.perf_counter() - t0)
+class Stopped(Exception):
+    """A contender that stops its loop at the first failed solve."""
+
+
+class Discrete:
+    """Receding-horizon wrapper: solve, apply U[0], shifted previous sequence on failure (or
+    stop the loop there, for a solver that then runs to its iteration limit for seconds)."""
+
+    def __init__(self, solve, horizon, stop_on_failure=False):
+        self.solve, self.horizon, self.stop = solve, horizon, stop_on_failure
+        self.prev, self.failures, self.inner = None, 0, []
+
+    def step(self, x):
+        u, inner = self.solve(x)
+        if u is None:
+            self.failures += 1
+            if self.stop:
+                raise Stopped()
+            u = np.append(self.prev[1:], 0.0)
+        if inner is not None:
+            self.inner.append(inner)
+        self.prev = u
+        return float(u[0])
+
+
+def daqp_controller(h, f, g, e, x0):
+    import daqp
+
+    n = h.shape[0]
+    model = daqp.Model()
+    bl = np.concatenate([np.full(n, -0.5), np.full(n, -1e30)])
+    model.setup(h, f @ x0, g, np.concatenate([np.full(n, 0.5), -e @ x0]), bl)
+
+    def solve(x):
+        model.update(f=f @ x, bupper=np.concatenate([np.full(n, 0.5), -e @ x]), blower=bl)
+        sol, _, flag, info = model.solve()
+        return (np.array(sol) if flag >= 1 else None), info["solve_time"]
+
+    return Discrete(solve, n)
+
+
+def osqp_controller(h, f, g, e, x0):
+    import osqp
+    import scipy.sparse as sp
+
+    n = h.shape[0]
+    solver = osqp.OSQP()
+    solver.setup(sp.csc_matrix(np.triu(h)), f @ x0, sp.csc_matrix(np.vstack([np.eye(n), g])),
+                 np.concatenate([np.full(n, -0.5), np.full(n, -np.inf)]),
+                 np.concatenate([np.full(n, 0.5), -e @ x0]),
+                 verbose=False, eps_abs=1e-6, eps_rel=1e-6)
+
+    def solve(x):
+        solver.update(q=f @ x, u=np.concatenate([np.full(n, 0.5), -e @ x]))
+        res = solver.solve()
+        ok = res.info.status in ("solved", "solved inaccurate")
+        return (np.array(res.x) if ok else None), res.info.solve_time
+
+    return Discrete(solve, n)
+
+
+def proxqp_controller(h, f, g, e, x0):
+    import proxsuite
+
+    n = h.shape[0]
+    qp = proxsuite.proxqp.dense.QP(n, 0, 2 * n)
+    qp.settings.eps_abs = 1e-6
+    qp.settings.verbose = False
+    qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+    c = np.vstack([np.eye(n), g])
+    lo = np.concatenate([np.full(n, -0.5), np.full(n, -1e20)])
+    qp.settings.compute_timings = True
+    qp.init(h, f @ x0, None, None, c, lo, np.concatenate([np.full(n, 0.5), -e @ x0]))
+    qp.solve()  # a previous result must exist before the first warm-started update
+
+    def solve(x):
+        qp.update(g=f @ x, u=np.concatenate([np.full(n, 0.5), -e @ x]))
+        qp.solve()
+        ok = qp.results.info.status == proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
+        return (np.array(qp.results.x) if ok else None), qp.results.info.solve_time * 1e-6
+
+    # From step ~340 of the x0 = 0.3 loop ProxQP reports failures, and once the shifted
+    # sequence has been applied its solves run for seconds: its loops stop at the first failure.
+    return Discrete(solve, n, stop_on_failure=True)
+
+
+def laguerre_generator(s):
+    return np.tril(np.full((s, s), -2.0 * NU), -1) + np.diag(np.full(s, -NU))
+
+
+def run_discrete(ctrl, ad, bd, x0, steps, sub):
+    """Closed loop on the ZOH plant; `sub` = (A_sub, B_sub) propagates one 0.5 ms sub-step."""
+    x, times, cost, viol = x0.copy(), [], 0.0, -INF
+    for k in range(steps + 1):
+        t0 = time.thread_time_ns()
+        try:
+            u = ctrl.step(x)
+        except Stopped:
+            return np.array(times[1:]) * 1e-9, float("nan"), viol
+        times.append(time.thread_time_ns() - t0)
         if k >= 1:
             cost += 0.5 * (x @ x + u * u) * TD
+        viol = max(viol, abs(u) - 0.5)
+        xs = x.copy()
+        for _ in range(GRID):
+            xs = sub[0] @ xs + sub[1][:, 0] * u
+            viol = max(viol, -xs[0])
         x = ad @ x + bd[:, 0] * u
-    return np.array(times), cost
+    return np.array(times[1:]) * 1e-9, cost, viol
+
+
+def run_pmpc(ctrl, s, x0, steps, a=A, b=B):
+    """Closed loop with the continuous plan: (x, tau) evolves by expm([[A, B U], [0, M]] h)."""
+    n = a.shape[0]
+    m = laguerre_generator(s)
+    tau0 = np.full(s, np.sqrt(2 * NU))
+    x, times, cost, viol, fallbacks, iters = x0.copy(), [], 0.0, -INF, 0, []
+    ctrl.reset()
+    for k in range(steps + 1):
+        t0 = time.thread_time_ns()
+        u = float(ctrl.step(x)[0])
+        times.append(time.thread_time_ns() - t0)
+        info = ctrl.last_step()
+        fallbacks += info["fallback"]
+        iters.append(info["iterations"])
+        if k >= 1:
+            cost += 0.5 * (x @ x + u * u) * TD
+        eta_u = np.asarray(ctrl.plan)[n * s:]
+        aug = np.zeros((n + s, n + s))
+        aug[:n, :n] = a
+        aug[:n, n:] = b @ eta_u[None, :]
+        aug[n:, n:] = m
+        e = scipy.linalg.expm(aug * (TD / GRID))
+        xi = np.concatenate([x, tau0])
+        for _ in range(GRID):
+            xi = e @ xi
+            viol = max(viol, -xi[0], abs(eta_u @ xi[n:]) - 0.5)
+        x = xi[:n]
+    return np.array(times[1:]) * 1e-9, cost, viol, fallbacks, np.array(iters[1:])
+
+
+def stats(t):
+    return np.median(t), t.mean(), np.percentile(t, 99), t.max()
+
+
+def scan_horizons(horizons):
+    """Discrete MPC (DAQP) from x0 = 0.3 for 1000 steps at each horizon: does it stabilize?"""
+    ad, bd = zoh(A, B, TD)
+    sub = zoh(A, B, TD / GRID)
+    x0 = np.full(4, 0.3)
+    print("| N | J_cl | failed solves | |x(20 s)| |\n|---|---|---|---|")
+    for hz in horizons:
+        h, f, g, e = condensed(ad, bd, hz)
+        ctrl = daqp_controller(h, f, g, e, x0)
+        x = x0.copy()
+        for _ in range(STEPS_SCAN + 1):
+            x = ad @ x + bd[:, 0] * ctrl.step(x)
+        cost = run_discrete(daqp_controller(h, f, g, e, x0), ad, bd, x0, STEPS_SCAN, sub)[1]
+        print(f"| {hz} | {cost:.4g} | {ctrl.failures} | {np.linalg.norm(x):.2e} |", flush=True)
+
+
+STEPS_SCAN = 1000
+
+
+def chain(n, s, horizon):
+    """Chain of n integrators from x0 = 0.1*1 (spec §8.6): pmpc (s) against DAQP (horizon)."""
+    a = np.diag(np.ones(n - 1), 1)
+    b = np.zeros((n, 1))
+    b[-1, 0] = 1.0
+    x0 = np.full(n, 0.1)
+    ad, bd = zoh(a, b, TD)
+    sub = zoh(a, b, TD / GRID)
+    ctrl = pmpc.Controller(a, b, np.eye(n), np.eye(1), x_bounds=[(0.0, INF)] + [(-INF, INF)] * (n - 1),
+                           u_bounds=[(-0.5, 0.5)], nu=NU, s=s, td=TD)
+    t, cost, viol, fb, it = run_pmpc(ctrl, s, x0, STEPS_SCAN, a, b)
+    print(f"| controller | variables | median | mean | p99 | max (us) | J_cl | violation |\n|---|---|---|---|---|---|---|---|")
+    print(f"| pmpc s={s} | {(n + 1) * s} | " + " | ".join(f"{1e6 * v:.1f}" for v in stats(t))
+          + f" | {cost:.4g} | {viol:.1e} |", flush=True)
+    h, f, g, e = condensed(ad, bd, horizon)
+    d = daqp_controller(h, f, g, e, x0)
+    t, cost, viol = run_discrete(d, ad, bd, x0, STEPS_SCAN, sub)
+    print(f"| daqp N={horizon} | {horizon} (condensed; {(horizon + 1) * n + horizon} sparse) | "
+          + " | ".join(f"{1e6 * v:.1f}" for v in stats(t))
+          + f" | {cost:.4g} | {viol:.1e} | failures {d.failures}", flush=True)
 
 
 def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--scan-horizons", type=int, nargs="*", default=None,
+                    help="only scan the discrete MPC's stabilizing horizons (e.g. 80 81 82 83 92 93)")
+    ap.add_argument("--chain", type=int, default=None,
+                    help="only the chain of n integrators: pmpc s = 12 against DAQP N = 450")
+    ap.add_argument("--budget", type=int, nargs="*", default=[8, 15],
+                    help="pmpc per-step iteration budgets to run besides the unbudgeted one")
+    ap.add_argument("--quick", action="store_true", help="x0 = 0.3 set only")
+    args = ap.parse_args()
+    if args.scan_horizons:
+        scan_horizons(args.scan_horizons)
+        return
+    if args.chain:
+        chain(args.chain, 12, 450)
+        return
     ad, bd = zoh(A, B, TD)
-    h, f, g_state, e_state = condensed(ad, bd, N)
-    results = {}
-
-    # DAQP: simple bounds on U, general rows for the state constraint.
-    def daqp_step(x):
-        import daqp
-
-        bu = np.concatenate([np.full(N, 0.5), -e_state @ x])
-        bl = np.concatenate([np.full(N, -0.5), np.full(N, -1e30)])
-        sol, _, flag, _ = daqp.solve(h, f @ x, g_state, bu, bl)
-        if flag < 1:
-            raise RuntimeError(f"DAQP exit flag {flag}")
-        return float(sol[0])
-
-    results["daqp N=100"] = closed_loop(daqp_step, ad, bd)
-
-    import osqp
-
-    a_osqp = scipy.sparse.csc_matrix(np.vstack([np.eye(N), g_state]))
-    solver = osqp.OSQP()
-    solver.setup(scipy.sparse.csc_matrix(np.triu(h)), f @ X0, a_osqp,
-                 np.concatenate([np.full(N, -0.5), np.full(N, -np.inf)]),
-                 np.concatenate([np.full(N, 0.5), -e_state @ X0]),
-                 verbose=False, eps_abs=1e-6, eps_rel=1e-6, polish=True, max_iter=100000)
-
-    state = {"prev": None, "failures": 0}
-
-    def osqp_step(x):
-        # As the Rust baseline: on failure apply the shifted previous sequence and count it.
-        solver.update(q=f @ x, u=np.concatenate([np.full(N, 0.5), -e_state @ x]))
-        res = solver.solve()
-        if res.info.status in ("solved", "solved inaccurate"):
-            state["prev"] = np.array(res.x)
-        else:
-            state["failures"] += 1
-            state["prev"] = np.append(state["prev"][1:], 0.0)
-        return float(state["prev"][0])
-
-    results["osqp N=100"] = closed_loop(osqp_step, ad, bd)
-    print(f"osqp failures (shifted previous sequence applied): {state['failures']}")
-
-    for s in (8, 12):
-        ctrl = pmpc.Controller(A, B, np.eye(4), np.eye(1),
-                               x_bounds=[(0.0, INF)] + [(-INF, INF)] * 3,
-                               u_bounds=[(-0.5, 0.5)], nu=0.7, s=s, td=TD)
-
-        def pmpc_step(x, ctrl=ctrl):
-            return float(ctrl.step(x)[0])
-
-        # The parametrized plan is continuous in time; here it is applied as a zero-order
-        # hold of u(kTd) on the same ZOH plant as the discrete peers.
-        results[f"stabilis.pmpc s={s}"] = closed_loop(pmpc_step, ad, bd)
-
-    print(f"{'controller':24s} {'mean':>10s} {'median':>10s} {'J_cl':>8s}")
-    for name, (times, cost) in results.items():
-        print(f"{name:24s} {1e6 * times.mean():8.1f}us {1e6 * np.median(times):8.1f}us {cost:8.3f}")
+    sub = zoh(A, B, TD / GRID)
+    rng = np.random.default_rng(14)
+    sets = [("x0 = 0.3, 1000 steps", [np.full(4, 0.3)], 1000)]
+    if not args.quick:
+        sets.append(("10 starts in [0, 0.2]^4, 250 steps", list(rng.uniform(0, 0.2, (10, 4))), 250))
+    problems = {hz: condensed(ad, bd, hz) for hz in (93, 100)}
+    for title, starts, steps in sets:
+        rows = {}
+        for s in (8, 10, 12):
+            for budget in [None] + args.budget:
+                ctrl = pmpc.Controller(A, B, np.eye(4), np.eye(1),
+                                       x_bounds=[(0.0, INF)] + [(-INF, INF)] * 3,
+                                       u_bounds=[(-0.5, 0.5)], nu=NU, s=s, td=TD, budget=budget)
+                out = [run_pmpc(ctrl, s, x0, steps) for x0 in starts]
+                t = np.concatenate([o[0] for o in out])
+                it = np.concatenate([o[4] for o in out])
+                name = f"stabilis.pmpc s={s}" + (f" budget {budget}" if budget else "")
+                rows[name] = (t, np.mean([o[1] for o in out]), max(o[2] for o in out),
+                              f"fallbacks {sum(o[3] for o in out)}, iterations "
+                              f"median {np.median(it):.0f} max {it.max()}")
+        for name, make in (("daqp", daqp_controller), ("osqp", osqp_controller),
+                           ("proxqp", proxqp_controller)):
+            for hz, (h, f, g, e) in problems.items():
+                out, inner, fails = [], [], 0
+                for x0 in starts:
+                    ctrl = make(h, f, g, e, x0)
+                    out.append(run_discrete(ctrl, ad, bd, x0, steps, sub))
+                    inner += ctrl.inner[1:]
+                    fails += ctrl.failures
+                t = np.concatenate([o[0] for o in out])
+                note = f"own solve time median {1e6 * np.median(inner):.1f} us; failures {fails}"
+                if ctrl.stop and fails:
+                    note += f" (loops stopped there; {len(np.concatenate([o[0] for o in out]))} steps timed)"
+                rows[f"{name} N={hz}"] = (t, np.mean([o[1] for o in out]),
+                                          max(o[2] for o in out), note)
+        print(f"\n{title} (CPU time per step, us)", flush=True)
+        print(f"| controller | median | mean | p99 | max | J_cl | max violation | note |")
+        print("|---|---|---|---|---|---|---|---|")
+        for name, (t, cost, viol, note) in rows.items():
+            med, mean, p99, mx = (1e6 * v for v in stats(t))
+            print(f"| {name} | {med:.1f} | {mean:.1f} | {p99:.1f} | {mx:.1f} | {cost:.3f} | "
+                  f"{viol:.1e} | {note} |")
 
 
 if __name__ == "__main__":

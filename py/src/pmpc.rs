@@ -17,7 +17,10 @@ impl IntoPyError for PmpcError {
     fn into_py_error(self) -> PyErr {
         let message = self.to_string();
         match self {
-            PmpcError::Shape { .. } | PmpcError::NonFinite(_) => PyValueError::new_err(message),
+            PmpcError::Shape { .. }
+            | PmpcError::NonFinite(_)
+            | PmpcError::InvalidParameter { .. }
+            | PmpcError::TooLarge { .. } => PyValueError::new_err(message),
             _ => Error::new_err(message),
         }
     }
@@ -58,7 +61,7 @@ pub struct PyController {
 #[pymethods]
 impl PyController {
     #[new]
-    #[pyo3(signature = (a, b, q, r, x_bounds=None, u_bounds=None, cx=None, cu=None, lower=None, upper=None, nu=0.7, s=12, td=0.02, tolerance=1e-6, max_iter=1000))]
+    #[pyo3(signature = (a, b, q, r, x_bounds=None, u_bounds=None, cx=None, cu=None, lower=None, upper=None, nu=0.7, s=12, td=0.02, tolerance=1e-6, max_iter=1000, budget=None))]
     #[allow(clippy::too_many_arguments)] // mirrors the Python keyword signature
     fn new(
         a: Vec<Vec<f64>>,
@@ -76,6 +79,7 @@ impl PyController {
         td: f64,
         tolerance: f64,
         max_iter: usize,
+        budget: Option<usize>,
     ) -> PyResult<Self> {
         let (a, b, q, r) = (
             matrix("A", a)?,
@@ -107,9 +111,17 @@ impl PyController {
             max_iter,
             ..Settings::default()
         };
-        let inner = Pmpc::new(&a, &b, &q, &r, &constraints, basis, td)
+        let mut inner = Pmpc::new(&a, &b, &q, &r, &constraints, basis, td)
             .map_err(to_py_err)?
             .with_settings(settings);
+        if let Some(budget) = budget {
+            if budget == 0 {
+                return Err(PyValueError::new_err(
+                    "budget = 0 is invalid: at least one iteration per step",
+                ));
+            }
+            inner = inner.with_budget(budget);
+        }
         Ok(Self { inner })
     }
 
@@ -119,11 +131,11 @@ impl PyController {
         Ok(PyArray1::from_slice(py, u))
     }
 
-    /// Planned input t seconds after the last step (shape (m,)).
-    fn input_at<'py>(&self, py: Python<'py>, t: f64) -> Bound<'py, PyArray1<f64>> {
+    /// Planned input t >= 0 seconds after the last step (shape (m,)).
+    fn input_at<'py>(&self, py: Python<'py>, t: f64) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let mut out = vec![0.0; self.inner.problem().m()];
-        self.inner.input_at(t, &mut out);
-        PyArray1::from_vec(py, out)
+        self.inner.input_at(t, &mut out).map_err(to_py_err)?;
+        Ok(PyArray1::from_vec(py, out))
     }
 
     /// Coefficients (eta_x, eta_u) of the current plan.
@@ -140,6 +152,7 @@ impl PyController {
         d.set_item("iterations", info.stats.iterations)?;
         d.set_item("active", info.active)?;
         d.set_item("fallback", matches!(info.source, Source::Fallback(_)))?;
+        d.set_item("taylor_steps", info.stats.taylor_steps)?;
         Ok(d)
     }
 

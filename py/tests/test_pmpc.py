@@ -60,3 +60,38 @@ def test_bad_input():
         c.step([0.1, 0.2])
     with pytest.raises(stabilis.Error):
         c.step([-0.1, 0.0, 0.0, 0.0])
+
+
+def test_plan_before_the_step_and_huge_sizes_are_refused():
+    c = controller()
+    c.step(X0)
+    with pytest.raises(ValueError, match="t = -1"):
+        c.input_at(-1.0)
+    with pytest.raises(ValueError, match="t = NaN"):
+        c.input_at(float("nan"))
+    for s in (5000, 100000):
+        with pytest.raises(ValueError, match="too large"):
+            controller(s=s)
+
+
+def test_budget_bounds_every_step_and_keeps_the_constraints():
+    """With a per-step budget of 10 iterations every step after the first stays within it
+    (the shifted previous plan is applied when it runs out) and the input stays in bounds."""
+    c = pmpc.Controller(A, B, np.eye(4), np.eye(1), x_bounds=X_BOUNDS, u_bounds=U_BOUNDS,
+                        nu=0.7, s=10, td=0.02, budget=10)
+    x = np.array(X0)
+    aug = scipy.linalg.expm(np.block([[A, B], [np.zeros((1, 5))]]) * 0.02)
+    ad, bd = aug[:4, :4], aug[:4, 4:]
+    fallbacks = 0
+    for k in range(300):
+        u = c.step(x)
+        info = c.last_step()
+        if k >= 1:
+            assert info["iterations"] <= 10
+        fallbacks += info["fallback"]
+        assert abs(u[0]) <= 0.5 + 1e-6
+        x = ad @ x + bd @ u
+    assert x[0] >= -1e-5
+    assert fallbacks > 0  # the budget binds on this trajectory
+    with pytest.raises(ValueError, match="budget"):
+        pmpc.Controller(A, B, np.eye(4), np.eye(1), u_bounds=U_BOUNDS, budget=0)

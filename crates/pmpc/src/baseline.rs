@@ -94,6 +94,13 @@ impl DiscreteMpc {
         crate::check_shape("A", a, n, n)?;
         crate::check_shape("B", b, n, m)?;
         constraints.validate(n, m)?;
+        // The condensed matrices are (n·N)×(n·N) and (n·N)×(m·N).
+        crate::check_dense_size(
+            "predicted states n*horizon",
+            n.saturating_mul(horizon),
+            crate::MAX_PREDICTED_STATES,
+            4,
+        )?;
         let (ad, bd) = lti::c2d_zoh(a, b, td)?;
         let p = lti::dare(&ad, &bd, q, r)?;
         let nn = horizon;

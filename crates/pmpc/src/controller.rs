@@ -18,6 +18,18 @@ pub enum Source {
     Fallback(Status),
 }
 
+/// Work one step may do, known before running (from the budget and the settings).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct WorkBound {
+    /// Outer iterations: one Taylor-bound check of every constrained row, then one dual step
+    /// per violated row.
+    pub iterations: usize,
+    /// Taylor steps over all checks: iterations × constrained rows × `max_check_steps`.
+    pub taylor_steps: usize,
+    /// Accepted Newton moves of the working set (at most one per dual step).
+    pub moves: usize,
+}
+
 /// Diagnostics of the last step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepInfo {
@@ -52,6 +64,7 @@ pub struct Pmpc {
     td: f64,
     settings: Settings,
     warm_start: bool,
+    budget: Option<usize>,
     storage: WorkspaceStorage,
     warm: Vec<Active>,
     has_plan: bool,
@@ -92,6 +105,7 @@ impl Pmpc {
             td,
             settings: Settings::default(),
             warm_start: true,
+            budget: None,
             storage,
             warm: Vec::with_capacity(cap),
             has_plan: false,
@@ -115,6 +129,36 @@ impl Pmpc {
     pub fn with_settings(mut self, settings: Settings) -> Self {
         self.settings = settings;
         self
+    }
+
+    /// Per-step budget of outer iterations once a plan exists: a step that needs more applies
+    /// the shifted previous plan (feasible, with the Lyapunov decrease) and carries its working
+    /// set to the next step. The first step (no plan yet) uses `settings.max_iter`.
+    pub fn with_budget(mut self, budget: usize) -> Self {
+        self.budget = Some(budget);
+        self
+    }
+
+    /// The per-step iteration budget, if any.
+    pub fn budget(&self) -> Option<usize> {
+        self.budget
+    }
+
+    /// Worst-case work of a step after the first, if a budget is set: a step that would
+    /// exceed it stops there and applies the shifted previous plan instead.
+    pub fn work_bound(&self) -> Option<WorkBound> {
+        let iterations = self.budget?.min(self.settings.max_iter);
+        let rows = self
+            .problem
+            .rows()
+            .iter()
+            .filter(|r| r.lower.is_finite() || r.upper.is_finite())
+            .count();
+        Some(WorkBound {
+            iterations,
+            taylor_steps: iterations * rows * self.settings.max_check_steps,
+            moves: iterations * rows,
+        })
     }
 
     /// Enable or disable warm starting from the shifted working set.
@@ -155,30 +199,33 @@ impl Pmpc {
         if warm {
             ws.set_active(&self.warm);
         }
-        let out = siqp::solve(&sp, &self.settings, &self.w0, warm, &mut ws)?;
+        let mut settings = self.settings;
+        if let (Some(b), true) = (self.budget, self.has_plan) {
+            settings.max_iter = settings.max_iter.min(b);
+        }
+        let out = siqp::solve(&sp, &settings, &self.w0, warm, &mut ws)?;
         let stats = out.stats;
         let status = out.status;
+        // The working set reached seeds the next step, shifted by T_d, also when this step
+        // stopped early: its work is not lost.
+        self.warm.clear();
+        for a in out.active {
+            if a.t >= self.td {
+                self.warm.push(Active {
+                    t: a.t - self.td,
+                    ..*a
+                });
+            }
+        }
         let source = if status == Status::Optimal {
             out.multiplier_coefficients(&sp, &mut self.tau, &mut self.mu);
-            self.warm.clear();
-            for a in out.active {
-                if a.t >= self.td {
-                    self.warm.push(Active {
-                        t: a.t - self.td,
-                        ..*a
-                    });
-                }
-            }
             let active = out.active.len();
             self.problem.coefficients(x, &self.mu, &mut self.z);
             self.info.active = active;
             Source::Optimal
         } else if self.has_plan {
+            // The shifted previous plan is applied (feasible, with the Lyapunov decrease).
             self.z.copy_from_slice(&self.z_shifted);
-            self.warm.retain_mut(|a| {
-                a.t -= self.td;
-                a.t >= 0.0
-            });
             Source::Fallback(status)
         } else if status == Status::Infeasible {
             return Err(Error::Infeasible { x: x.to_vec() });
@@ -211,15 +258,40 @@ impl Pmpc {
         &self.z
     }
 
-    /// Planned input ũ(t), t seconds after the last step, into `out` (length m).
-    pub fn input_at(&self, t: f64, out: &mut [f64]) {
+    /// Planned input ũ(t), t ≥ 0 seconds after the last step, into `out` (length m).
+    pub fn input_at(&self, t: f64, out: &mut [f64]) -> Result<()> {
+        self.check_time(t, out.len(), self.problem.m())?;
         let mut tau = vec![0.0; self.problem.basis().dim()];
         self.problem.input_at(&self.z, t, &mut tau, out);
+        Ok(())
     }
 
-    /// Predicted state x̃(t), t seconds after the last step, into `out` (length n).
-    pub fn state_at(&self, t: f64, out: &mut [f64]) {
+    /// Predicted state x̃(t), t ≥ 0 seconds after the last step, into `out` (length n).
+    pub fn state_at(&self, t: f64, out: &mut [f64]) -> Result<()> {
+        self.check_time(t, out.len(), self.problem.n())?;
         let mut tau = vec![0.0; self.problem.basis().dim()];
         self.problem.state_at(&self.z, t, &mut tau, out);
+        Ok(())
+    }
+
+    /// The plan starts at the last step: earlier times are not part of it.
+    fn check_time(&self, t: f64, len: usize, expected: usize) -> Result<()> {
+        if !t.is_finite() || t < 0.0 {
+            return Err(Error::InvalidParameter {
+                name: "t",
+                value: t,
+                requirement: "the time since the last step must be finite and >= 0",
+            });
+        }
+        if len != expected {
+            return Err(Error::Shape {
+                name: "out",
+                rows: len,
+                cols: 1,
+                expected_rows: expected,
+                expected_cols: 1,
+            });
+        }
+        Ok(())
     }
 }

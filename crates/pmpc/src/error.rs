@@ -75,6 +75,18 @@ pub enum Error {
         /// Its status.
         status: String,
     },
+    /// A problem dimension exceeds what the dense offline set-up can hold or finish promptly.
+    #[error("{what} = {size} is too large: the limit is {limit} ({reason})")]
+    TooLarge {
+        /// Which dimension (e.g. "decision variables (n+m)*s").
+        what: &'static str,
+        /// The size asked for.
+        size: usize,
+        /// The largest size accepted on this machine.
+        limit: usize,
+        /// Why the limit exists.
+        reason: &'static str,
+    },
     /// Error from the shared numerics of `rigid_body`.
     #[error(transparent)]
     Core(#[from] rigid_body::Error),

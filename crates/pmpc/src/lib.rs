@@ -27,7 +27,7 @@ pub mod scenario;
 pub mod simulate;
 
 pub use constraints::Constraints;
-pub use controller::{Pmpc, Source, StepInfo};
+pub use controller::{Pmpc, Source, StepInfo, WorkBound};
 pub use error::{Error, Result};
 pub use problem::Problem;
 
@@ -71,4 +71,52 @@ pub(crate) fn check_vector(name: &'static str, v: &[f64], len: usize) -> Result<
         });
     }
     check_finite(name, v)
+}
+
+/// Largest number of decision variables of the parametrized problem: its set-up (SVD and
+/// eigen-decomposition of N×N matrices, O(N³)) takes about 5 s at N = 1000 on the reference
+/// machine and grows eightfold per doubling.
+pub(crate) const MAX_VARIABLES: usize = 1000;
+
+/// Largest n·N of the condensed discrete MPC (its (n·N)² state weight is the largest matrix).
+pub(crate) const MAX_PREDICTED_STATES: usize = 4000;
+
+/// Refuse a dense set-up of dimension `size` (holding about `matrices` such N×N f64 matrices)
+/// before allocating: beyond `limit` it would take minutes, and beyond the memory available
+/// (Linux `MemAvailable`) it would abort.
+pub(crate) fn check_dense_size(
+    what: &'static str,
+    size: usize,
+    limit: usize,
+    matrices: usize,
+) -> Result<()> {
+    if size > limit {
+        return Err(Error::TooLarge {
+            what,
+            size,
+            limit,
+            reason: "the dense O(N^3) set-up would take minutes",
+        });
+    }
+    if let Some(avail) = available_memory() {
+        let per = 8.0 * matrices.max(1) as f64;
+        let limit = (avail as f64 / per).sqrt() as usize;
+        if size > limit {
+            return Err(Error::TooLarge {
+                what,
+                size,
+                limit,
+                reason: "the dense set-up would not fit in the available memory",
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Bytes of memory available now (Linux /proc/meminfo), if known.
+fn available_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
 }

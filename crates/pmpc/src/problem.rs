@@ -85,7 +85,8 @@ impl Problem {
         constraints.validate(n, m)?;
         let s = basis.dim();
         let nc = constraints.len();
-        let big_n = (n + m) * s;
+        let big_n = (n + m).saturating_mul(s);
+        crate::check_dense_size("decision variables (n+m)*s", big_n, crate::MAX_VARIABLES, 8)?;
         let p = n * s + n;
 
         let mut h = DMatrix::zeros(big_n, big_n);

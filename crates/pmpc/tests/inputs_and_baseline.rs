@@ -101,3 +101,49 @@ fn discrete_baseline_closed_loop_cost() {
     assert!((cl.cost - 12.51).abs() < 0.02 * 12.51, "J_cl = {}", cl.cost);
     assert!(cl.max_violation <= 1e-5);
 }
+
+/// Sizes beyond what the dense set-up can hold or finish promptly are refused by name before
+/// anything is allocated (s = 100000 used to abort, --horizon 1000000 too, s = 5000 to run
+/// for minutes), and the plan is not evaluated before its start.
+#[test]
+fn huge_sizes_and_negative_times_are_refused() {
+    let sc = scenario::quad_integrator();
+    for s in [5000, 100_000] {
+        let t0 = std::time::Instant::now();
+        let err = sc.pmpc(Laguerre::new(s, 0.7).unwrap()).unwrap_err();
+        assert!(
+            matches!(err, Error::TooLarge { size, limit: 1000, .. } if size == 5 * s),
+            "{err}"
+        );
+        assert!(err.to_string().contains("decision variables"), "{err}");
+        assert!(t0.elapsed().as_secs_f64() < 1.0);
+    }
+    let err = sc.discrete(1_000_000, Backend::Clarabel).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            Error::TooLarge {
+                size: 4_000_000,
+                ..
+            }
+        ),
+        "{err}"
+    );
+    let mut c = sc.pmpc(basis()).unwrap();
+    c.step(&sc.x0).unwrap();
+    let mut u = [0.0];
+    let mut x = [0.0; 4];
+    for t in [-1.0, f64::NAN, f64::NEG_INFINITY] {
+        assert!(matches!(
+            c.input_at(t, &mut u),
+            Err(Error::InvalidParameter { name: "t", .. })
+        ));
+        assert!(c.state_at(t, &mut x).is_err());
+    }
+    assert!(matches!(
+        c.input_at(0.0, &mut x),
+        Err(Error::Shape { name: "out", .. })
+    ));
+    c.input_at(0.01, &mut u).unwrap();
+    assert!(u[0].abs() <= 0.5 + 1e-6);
+}

@@ -137,6 +137,16 @@ impl Laguerre {
         }
     }
 
+    /// `out = M x` in O(s) via prefix sums (τ̇(t) = M τ(t): the time derivative of τ).
+    /// `x` and `out` have length s and must not alias.
+    pub fn m_apply(&self, x: &[f64], out: &mut [f64]) {
+        let mut prefix = 0.0;
+        for i in 0..self.s {
+            out[i] = -self.nu * x[i] - 2.0 * self.nu * prefix;
+            prefix += x[i];
+        }
+    }
+
     /// Toeplitz coefficient d (0-based sub-diagonal) of E(h) = e^{Mh}, for all d < s, passed to
     /// `f(d, e_d)`. Closed form e_0 = e^{−νh}, e_d = e^{−νh}(L_d(2νh) − L_{d−1}(2νh)).
     fn for_each_shift_coeff(&self, h: f64, mut f: impl FnMut(usize, f64)) {

@@ -8,9 +8,11 @@
 //! caller precomputes Φ = C_z S C_zᵀ and the unconstrained coefficients w0 = C_z b̂ (see the
 //! `pmpc` crate), then `z` follows from the returned multipliers. It is a range-space dual
 //! active set method of Goldfarb–Idnani type that doubles as a cutting-plane method: the
-//! Taylor-bound check finds a violated instant, one dual step adds it (dropping blocking
-//! instants), and the cost rises monotonically. The working-set matrix K_W is kept as a
-//! Cholesky factor with bordered updates and Givens deletions.
+//! Taylor-bound check finds the first violated instant of every row, one dual step per row
+//! adds them (dropping blocking instants), Newton steps then move the active instants onto
+//! the extrema of their constraint functions (`polish`), and the cost rises monotonically.
+//! The working-set matrix K_W is kept as a Cholesky factor with bordered updates and Givens
+//! deletions.
 //!
 //! Nothing allocates: all memory is a caller-provided [`Workspace`] (or, with `std`, a
 //! [`WorkspaceStorage`] sized once at set-up). The iteration budget is explicit and the
@@ -32,6 +34,7 @@
 
 mod check;
 mod factor;
+mod polish;
 
 use crate::laguerre::{check_len, Laguerre};
 use crate::Error;
@@ -112,6 +115,9 @@ pub struct Settings {
     pub refine: bool,
     /// Relative Schur-complement threshold below which a new instant counts as dependent.
     pub dependence_tol: f64,
+    /// Newton moves of the active instants towards their extrema after each addition
+    /// (0 turns them off: the plain exchange of the dual method).
+    pub polish_steps: usize,
 }
 
 impl Default for Settings {
@@ -123,6 +129,7 @@ impl Default for Settings {
             max_check_steps: 10_000,
             refine: true,
             dependence_tol: 1e-10,
+            polish_steps: 3,
         }
     }
 }
@@ -158,6 +165,8 @@ pub struct Stats {
     pub drops: usize,
     /// Taylor steps over all checks.
     pub taylor_steps: usize,
+    /// Accepted Newton moves of the working set's instants.
+    pub moves: usize,
 }
 
 /// Problem data borrowed from the caller (precomputed offline).
@@ -237,7 +246,11 @@ impl<'a> Problem<'a> {
     /// Number of `f64` and [`Active`] slots a [`Workspace`] needs.
     pub fn workspace_len(&self) -> (usize, usize) {
         let (d, c, s) = (self.dim(), self.max_active, self.basis.dim());
-        (4 * d + c * d + c * c + 4 * c + c * s + 6 * s, c)
+        let nc = self.rows.len();
+        (
+            4 * d + 2 * c * d + 5 * c * c + 8 * c + 2 * c * s + 6 * s + nc,
+            2 * c + nc,
+        )
     }
 
     fn beta(&self, a: &Active) -> f64 {
@@ -286,6 +299,15 @@ pub struct Workspace<'a> {
     d3: &'a mut [f64],
     active: &'a mut [Active],
     n_active: usize,
+    dtau: &'a mut [f64],
+    up: &'a mut [f64],
+    jac: &'a mut [f64],
+    rhs: &'a mut [f64],
+    f2: &'a mut [f64],
+    g2: &'a mut [f64],
+    backup: &'a mut [Active],
+    cands: &'a mut [Active],
+    cand_excess: &'a mut [f64],
 }
 
 impl<'a> Workspace<'a> {
@@ -314,7 +336,16 @@ impl<'a> Workspace<'a> {
         let (y, rest) = rest.split_at_mut(s);
         let (y2, rest) = rest.split_at_mut(s);
         let (d1, rest) = rest.split_at_mut(s);
-        let (d2, d3) = rest.split_at_mut(s);
+        let (d2, rest) = rest.split_at_mut(s);
+        let (d3, rest) = rest.split_at_mut(s);
+        let (dtau, rest) = rest.split_at_mut(c * s);
+        let (up, rest) = rest.split_at_mut(c * d);
+        let (jac, rest) = rest.split_at_mut(4 * c * c);
+        let (rhs, rest) = rest.split_at_mut(2 * c);
+        let (f2, rest) = rest.split_at_mut(c);
+        let (g2, cand_excess) = rest.split_at_mut(c);
+        let (active, rest) = active.split_at_mut(c);
+        let (backup, cands) = rest.split_at_mut(c);
         Ok(Self {
             dim: d,
             s,
@@ -341,6 +372,15 @@ impl<'a> Workspace<'a> {
             d3,
             active,
             n_active: 0,
+            dtau,
+            up,
+            jac,
+            rhs,
+            f2,
+            g2,
+            backup,
+            cands,
+            cand_excess,
         })
     }
 
@@ -493,15 +533,16 @@ impl Outcome<'_> {
     }
 }
 
-/// Largest violation over all rows (earliest on ties), refined towards the local extremum.
-fn find_violation(
+/// The refined first violation of every row into `ws.cands`, largest excess first; returns
+/// how many rows are violated.
+fn find_violations(
     problem: &Problem<'_>,
     settings: &Settings,
     ws: &mut Workspace<'_>,
     stats: &mut Stats,
-) -> Result<Option<(Active, f64)>, ()> {
+) -> Result<usize, ()> {
     let s = ws.s;
-    let mut best: Option<(Active, f64)> = None;
+    let mut found = 0;
     for (k, row) in problem.rows.iter().enumerate() {
         if row.lower == f64::NEG_INFINITY && row.upper == f64::INFINITY {
             continue;
@@ -536,14 +577,20 @@ fn find_violation(
                 } else {
                     (v.t, excess_at(problem, ws, cand, *row, v.t))
                 };
-                let cand = Active { t, ..cand };
-                if best.is_none_or(|(_, e)| excess > e) {
-                    best = Some((cand, excess));
+                // Insertion by decreasing excess (earliest row first on ties).
+                let mut i = found;
+                while i > 0 && ws.cand_excess[i - 1] < excess {
+                    ws.cands[i] = ws.cands[i - 1];
+                    ws.cand_excess[i] = ws.cand_excess[i - 1];
+                    i -= 1;
                 }
+                ws.cands[i] = Active { t, ..cand };
+                ws.cand_excess[i] = excess;
+                found += 1;
             }
         }
     }
-    Ok(best)
+    Ok(found)
 }
 
 /// Signed excess σ g(t) − β of candidate `a` at instant `t` (uses `ws.tau`).
@@ -706,100 +753,131 @@ fn run(
         ws.n_active = 0;
     }
     seed(problem, settings, ws, stats);
-    let d = ws.dim;
-    let s = ws.s;
     for _ in 0..settings.max_iter {
         stats.iterations += 1;
-        let (q, mut cq) = match find_violation(problem, settings, ws, stats) {
+        let found = match find_violations(problem, settings, ws, stats) {
             Err(()) => return Status::CheckStepLimit,
-            Ok(None) => return Status::Optimal,
-            Ok(Some(v)) => v,
+            Ok(0) => return Status::Optimal,
+            Ok(n) => n,
         };
-        let duplicate = ws.active[..ws.n_active]
-            .iter()
-            .any(|a| a.row == q.row && a.side == q.side && fmath::abs(a.t - q.t) < 1e-9);
-        if duplicate {
-            return Status::Optimal;
-        }
-        problem.basis.tau(q.t, ws.tau);
-        problem.phi_v(q.row, q.side.sign(), ws.tau, ws.uq);
-        let sign = q.side.sign();
-        let vqu: f64 = sign
-            * ws.tau
+        // Every violated row's instant is added in this iteration (a block): one check
+        // serves several dual steps. Later candidates are re-evaluated against the updated
+        // iterate and skipped once satisfied.
+        for i in 0..found {
+            let q = ws.cands[i];
+            let mut cq = ws.cand_excess[i];
+            if i > 0 {
+                cq = excess_at(problem, ws, q, problem.rows[q.row], q.t);
+                if cq <= 0.5 * settings.tolerance {
+                    continue;
+                }
+            }
+            let duplicate = ws.active[..ws.n_active]
                 .iter()
-                .zip(&ws.uq[q.row * s..(q.row + 1) * s])
-                .map(|(a, b)| a * b)
-                .sum::<f64>();
-        // Absolute floor of the dependence test: a row fixed by the equalities (e.g. the
-        // state at t = 0) has v_qᵀΦv_q at rounding level, not exactly zero.
-        let tau2: f64 = ws.tau.iter().map(|x| x * x).sum();
-        let dep_floor = settings.dependence_tol * vqu.max(problem.phi_scale * tau2);
-        let mut theta_acc = 0.0;
-        loop {
-            let p = ws.n_active;
-            for j in 0..p {
-                ws.r[j] = ws.v_dot(j, ws.uq);
-            }
-            ws.b[..p].copy_from_slice(&ws.r[..p]);
-            ws.chol.forward(p, ws.r);
-            ws.chol.backward(p, ws.r);
-            ws.dw.copy_from_slice(ws.uq);
-            for j in 0..p {
-                let rj = ws.r[j];
-                for (x, u) in ws.dw.iter_mut().zip(&ws.u[j * d..(j + 1) * d]) {
-                    *x -= rj * u;
+                .any(|a| a.row == q.row && a.side == q.side && fmath::abs(a.t - q.t) < 1e-9);
+            if duplicate {
+                if i == 0 {
+                    return Status::Optimal;
                 }
+                continue;
             }
-            let kappa: f64 = sign
-                * ws.tau
-                    .iter()
-                    .zip(&ws.dw[q.row * s..(q.row + 1) * s])
-                    .map(|(a, b)| a * b)
-                    .sum::<f64>();
-            let dependent = p >= ws.cap || kappa.is_nan() || kappa <= dep_floor;
-            let theta_f = if dependent { f64::INFINITY } else { cq / kappa };
-            let mut theta_p = f64::INFINITY;
-            let mut jstar = usize::MAX;
-            for j in 0..p {
-                if ws.r[j] > 0.0 {
-                    let ratio = ws.lambda[j] / ws.r[j];
-                    if ratio < theta_p {
-                        theta_p = ratio;
-                        jstar = j;
-                    }
-                }
+            if let Err(status) = add(problem, settings, ws, stats, q, cq) {
+                return status;
             }
-            if theta_f == f64::INFINITY && theta_p == f64::INFINITY {
-                return Status::Infeasible;
-            }
-            let theta = theta_f.min(theta_p);
-            for (x, dx) in ws.w.iter_mut().zip(ws.dw.iter()) {
-                *x -= theta * dx;
-            }
-            for j in 0..p {
-                ws.lambda[j] -= theta * ws.r[j];
-            }
-            theta_acc += theta;
-            cq -= theta * kappa;
-            if theta_f <= theta_p {
-                // Bordered Cholesky update with l = L⁻¹ b and Schur complement κ.
-                ws.l[..p].copy_from_slice(&ws.b[..p]);
-                ws.chol.forward(p, ws.l);
-                ws.chol.append(p, ws.l, kappa);
-                ws.active[p] = q;
-                ws.lambda[p] = theta_acc;
-                ws.u[p * d..(p + 1) * d].copy_from_slice(ws.uq);
-                ws.taus[p * s..(p + 1) * s].copy_from_slice(ws.tau);
-                ws.n_active = p + 1;
-                stats.adds += 1;
-                break;
-            }
-            ws.lambda[jstar] = 0.0;
-            ws.remove(jstar);
-            stats.drops += 1;
         }
     }
     Status::IterationLimit
+}
+
+/// One dual step that adds instant `q` (excess `cq` > 0), dropping blocking instants.
+fn add(
+    problem: &Problem<'_>,
+    settings: &Settings,
+    ws: &mut Workspace<'_>,
+    stats: &mut Stats,
+    q: Active,
+    mut cq: f64,
+) -> Result<(), Status> {
+    let d = ws.dim;
+    let s = ws.s;
+    problem.basis.tau(q.t, ws.tau);
+    problem.phi_v(q.row, q.side.sign(), ws.tau, ws.uq);
+    let sign = q.side.sign();
+    let vqu: f64 = sign
+        * ws.tau
+            .iter()
+            .zip(&ws.uq[q.row * s..(q.row + 1) * s])
+            .map(|(a, b)| a * b)
+            .sum::<f64>();
+    // Absolute floor of the dependence test: a row fixed by the equalities (e.g. the
+    // state at t = 0) has v_qᵀΦv_q at rounding level, not exactly zero.
+    let tau2: f64 = ws.tau.iter().map(|x| x * x).sum();
+    let dep_floor = settings.dependence_tol * vqu.max(problem.phi_scale * tau2);
+    let mut theta_acc = 0.0;
+    loop {
+        let p = ws.n_active;
+        for j in 0..p {
+            ws.r[j] = ws.v_dot(j, ws.uq);
+        }
+        ws.b[..p].copy_from_slice(&ws.r[..p]);
+        ws.chol.forward(p, ws.r);
+        ws.chol.backward(p, ws.r);
+        ws.dw.copy_from_slice(ws.uq);
+        for j in 0..p {
+            let rj = ws.r[j];
+            for (x, u) in ws.dw.iter_mut().zip(&ws.u[j * d..(j + 1) * d]) {
+                *x -= rj * u;
+            }
+        }
+        let kappa: f64 = sign
+            * ws.tau
+                .iter()
+                .zip(&ws.dw[q.row * s..(q.row + 1) * s])
+                .map(|(a, b)| a * b)
+                .sum::<f64>();
+        let dependent = p >= ws.cap || kappa.is_nan() || kappa <= dep_floor;
+        let theta_f = if dependent { f64::INFINITY } else { cq / kappa };
+        let mut theta_p = f64::INFINITY;
+        let mut jstar = usize::MAX;
+        for j in 0..p {
+            if ws.r[j] > 0.0 {
+                let ratio = ws.lambda[j] / ws.r[j];
+                if ratio < theta_p {
+                    theta_p = ratio;
+                    jstar = j;
+                }
+            }
+        }
+        if theta_f == f64::INFINITY && theta_p == f64::INFINITY {
+            return Err(Status::Infeasible);
+        }
+        let theta = theta_f.min(theta_p);
+        for (x, dx) in ws.w.iter_mut().zip(ws.dw.iter()) {
+            *x -= theta * dx;
+        }
+        for j in 0..p {
+            ws.lambda[j] -= theta * ws.r[j];
+        }
+        theta_acc += theta;
+        cq -= theta * kappa;
+        if theta_f <= theta_p {
+            // Bordered Cholesky update with l = L⁻¹ b and Schur complement κ.
+            ws.l[..p].copy_from_slice(&ws.b[..p]);
+            ws.chol.forward(p, ws.l);
+            ws.chol.append(p, ws.l, kappa);
+            ws.active[p] = q;
+            ws.lambda[p] = theta_acc;
+            ws.u[p * d..(p + 1) * d].copy_from_slice(ws.uq);
+            ws.taus[p * s..(p + 1) * s].copy_from_slice(ws.tau);
+            ws.n_active = p + 1;
+            stats.adds += 1;
+            polish::polish(problem, settings, ws, stats);
+            return Ok(());
+        }
+        ws.lambda[jstar] = 0.0;
+        ws.remove(jstar);
+        stats.drops += 1;
+    }
 }
 
 #[cfg(test)]

@@ -295,9 +295,13 @@ proptest! {
         let mut mt = vec![0.0; s];
         b.mt_apply(&y[..s], &mut mt);
         let mt_ref = m_dense(&b).transpose() * DVector::from_column_slice(&y[..s]);
+        let mut my = vec![0.0; s];
+        b.m_apply(&y[..s], &mut my);
+        let m_ref = m_dense(&b) * DVector::from_column_slice(&y[..s]);
         for i in 0..s {
             prop_assert!((out[i] - reference[i]).abs() < 1e-14);
             prop_assert!((mt[i] - mt_ref[i]).abs() < 1e-12);
+            prop_assert!((my[i] - m_ref[i]).abs() < 1e-12);
         }
     }
 
