@@ -814,10 +814,7 @@ impl Workbench {
         };
         let paths: Option<Vec<PathBuf>> = match data {
             None => None,
-            Some(d) => match d.extract::<Vec<PathBuf>>() {
-                Ok(p) => Some(p),
-                Err(_) => None,
-            },
+            Some(d) => d.extract::<Vec<PathBuf>>().ok(),
         };
         let arrays: Option<Vec<Bound<'_, PyDict>>> = match (data, &paths) {
             (Some(d), None) => Some(d.extract::<Vec<Bound<'_, PyDict>>>().map_err(|_| {

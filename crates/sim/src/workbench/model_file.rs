@@ -41,7 +41,8 @@ use crate::error::{Result, SimError};
 #[derive(Debug, Clone)]
 enum Entry {
     Number(f64),
-    Expr(Expr),
+    /// Boxed: a parsed expression is large (tens of kilobytes of inline storage).
+    Expr(Box<Expr>),
 }
 
 /// A parameter of the file and where its value lives in the symbol table.
@@ -274,7 +275,7 @@ impl Reader<'_> {
                 ),
             ));
         }
-        Ok(Entry::Expr(e))
+        Ok(Entry::Expr(Box::new(e)))
     }
 
     fn matrix(

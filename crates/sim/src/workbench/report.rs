@@ -524,13 +524,13 @@ fn nice_ticks(lo: f64, hi: f64) -> (f64, Vec<f64>) {
 /// A tick label with the decimals its spacing needs (plain, or in exponent form for very
 /// large or small steps).
 fn fmt_tick(v: f64, step: f64) -> String {
-    if !(step > 0.0) {
+    if step.is_nan() || step <= 0.0 {
         return fmt_num(v);
     }
     if v.abs() < 1e-6 * step {
         return "0".into();
     }
-    if step >= 1e4 || step < 1e-3 {
+    if !(1e-3..1e4).contains(&step) {
         let digits = ((v.abs().log10().floor() - step.log10().floor()).max(0.0)) as usize;
         return format!("{v:.digits$e}");
     }

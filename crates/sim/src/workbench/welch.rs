@@ -63,7 +63,7 @@ pub fn excited_band(data: &Dataset) -> Result<(f64, f64)> {
     } else {
         f64::INFINITY
     };
-    if !(floor < ceiling) {
+    if floor >= ceiling {
         return Err(SimError::invalid(
             "data",
             format!("records of {shortest} samples"),
@@ -149,7 +149,7 @@ pub fn excited_band(data: &Dataset) -> Result<(f64, f64)> {
                 >= MIN_COHERENCE
     };
     let peak = density.iter().cloned().fold(0.0, f64::max);
-    if !(peak > 0.0) {
+    if peak.is_nan() || peak <= 0.0 {
         return Err(SimError::invalid(
             "data",
             if use_r { "excitation" } else { "inputs" },
