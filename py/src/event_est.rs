@@ -274,6 +274,10 @@ fn simulate<'py>(
             input: i.unwrap_or_else(|| vec![0.0; sys.b.ncols()]),
         }),
     };
+    // The run keeps the state trajectory and every agent's estimates per step: bounded by the
+    // memory before anything is allocated.
+    let per_step = 8.0 * (sys.a.nrows() * (1 + sys.agents())) as f64 + 64.0;
+    sim::limits::check("steps", steps, steps as f64, per_step).map_err(to_py_err)?;
     let mut cfg = SimConfig::new(&sys, steps, noise, seed);
     cfg.loss = loss;
     cfg.window_start = window_start;

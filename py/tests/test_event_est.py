@@ -63,6 +63,9 @@ def test_bad_input_raises_named_errors(model, design):
         event_est.simulate(model, {"L": design["L"], "delta": [[[0.1]], [[-0.1]], [[0.1]]]}, steps=10)
     with pytest.raises(stabilis.Error):
         event_est.platoon(1)
+    # A run longer than the memory can hold is refused before it starts, naming the option.
+    with pytest.raises(stabilis.SimError, match="invalid steps = 1000000000000000"):
+        event_est.simulate(model, design, steps=10**15)
 
 
 @pytest.fixture(scope="module")

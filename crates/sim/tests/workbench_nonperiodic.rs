@@ -96,11 +96,12 @@ fn flight(effects: &[Effect], seed: u64) -> Dataset {
 
 fn discover(effects: &[Effect], seed: u64) -> sim::workbench::Discovery {
     // The excitation was designed for 0.2-4 Hz and the experimenter says so: its soft
-    // filters leave power within 20 dB of the peak down to 0.03 Hz and up to 6.3 Hz, the band
-    // the data alone give (582 lines in 4614-sample segments).
+    // filters leave power within 20 dB of the peak, coherent with the inputs, down to
+    // 0.03-0.12 Hz (by seed and truth) and up to 6.3-6.8 Hz: the band the data alone give is
+    // wider than the designed one on both sides.
     let data = flight(effects, seed);
     let found = sim::workbench::welch::excited_band(&data).unwrap();
-    assert!(found.0 < 0.05 && found.1 > 6.0, "{found:?}");
+    assert!(found.0 < 0.2 && found.1 > 6.0, "{found:?}");
     let wb = Workbench::with_options(
         Arc::new(sim::workbench::flying_platform::FlyingPlatform::default()),
         data,
