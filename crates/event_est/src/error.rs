@@ -46,7 +46,9 @@ pub enum EventEstError {
         /// Which input.
         name: &'static str,
     },
-    /// A name (of a stability condition, a solver) that is unknown or not accepted here.
+    /// A name (of a stability condition, a solver) that is unknown or not accepted here
+    /// (names are parsed by the std-only synthesis, so the variant needs `String`).
+    #[cfg(feature = "std")]
     #[error("{what} {given:?} is not accepted: {reason}")]
     Name {
         /// What the name selects.
