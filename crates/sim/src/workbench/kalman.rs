@@ -70,6 +70,10 @@ struct Factors {
 impl Predictor {
     /// Designs the predictor of `disc` for the records `(u, y)` (samples x channels).
     pub fn design(disc: &Discrete, records: &[(&DMatrix<f64>, &DMatrix<f64>)]) -> Result<Self> {
+        // Modes the outputs never see (a yaw angle measured only through its rate) cannot be
+        // estimated and do not change the outputs: the predictor runs on the observable part.
+        let observable = observable_part(disc);
+        let disc = &observable;
         let (n, p) = (disc.phi.nrows(), disc.c.nrows());
         let mut r = vec![0.0; p];
         let mut count = 0usize;
@@ -306,6 +310,46 @@ impl Predictor {
         let invalid = (k.max(1) - 1).min(out.nrows());
         out.rows_mut(0, invalid).fill(0.0);
         out
+    }
+}
+
+/// Relative singular value below which a direction of the observability matrix counts as
+/// unobservable.
+const OBSERVABLE: f64 = 1e-9;
+
+/// The restriction of `disc` to its observable subspace (exact for the outputs: the
+/// unobservable subspace is invariant under Φ and in the kernel of C). The predicted states
+/// are then coordinates of that subspace.
+fn observable_part(disc: &Discrete) -> Discrete {
+    let (n, p) = (disc.phi.nrows(), disc.c.nrows());
+    let mut o = DMatrix::zeros(n * p, n);
+    let mut block = disc.c.clone();
+    for i in 0..n {
+        o.view_mut((i * p, 0), (p, n)).copy_from(&block);
+        block = &block * &disc.phi;
+    }
+    // Normalise so that the rank decision does not depend on the growth of Φ^i.
+    let scale = o.amax().max(1e-300);
+    let svd = (o / scale).svd(false, true);
+    let Some(v_t) = svd.v_t else {
+        return disc.clone();
+    };
+    let top = svd.singular_values.max();
+    let keep: Vec<usize> = (0..svd.singular_values.len())
+        .filter(|&i| svd.singular_values[i] > OBSERVABLE * top)
+        .collect();
+    if keep.len() == n {
+        return disc.clone();
+    }
+    let t = DMatrix::from_fn(keep.len(), n, |r, c| v_t[(keep[r], c)]);
+    Discrete {
+        phi: &t * &disc.phi * t.transpose(),
+        gamma0: &t * &disc.gamma0,
+        gamma1: &t * &disc.gamma1,
+        c: &disc.c * t.transpose(),
+        d: disc.d.clone(),
+        whole: disc.whole,
+        d_shift: disc.d_shift,
     }
 }
 
