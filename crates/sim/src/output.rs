@@ -143,17 +143,50 @@ fn check_inputs(target: &Path, inputs: &[PathBuf]) -> Result<()> {
     Ok(())
 }
 
-/// The temporary path beside `target` (`.NAME.tmp-PID`) and `target` made absolute, so that
-/// `.` and `dir/..` have a name to rename onto.
-fn temporary(target: &Path, tag: &str) -> Result<(PathBuf, PathBuf)> {
+/// A temporary path beside `target` that nothing occupies (`.NAME.tag-PID`, or with `-N`
+/// appended when that exists), and `target` made absolute, so that `.` and `dir/..` have a
+/// name to rename onto. `create` claims the path (an empty file or directory, created only if
+/// absent), so that what is later removed there is always what this program made.
+fn temporary(
+    target: &Path,
+    tag: &str,
+    create: impl Fn(&Path) -> std::io::Result<()>,
+) -> Result<(PathBuf, PathBuf)> {
     let target = resolve(target);
     let name = target
         .file_name()
         .ok_or_else(|| refuse(&target, "has no file name"))?
         .to_string_lossy()
         .into_owned();
-    let tmp = target.with_file_name(format!(".{name}.{tag}-{}", std::process::id()));
-    Ok((target, tmp))
+    let base = format!(".{name}.{tag}-{}", std::process::id());
+    for n in 0..1000 {
+        let tmp = target.with_file_name(if n == 0 {
+            base.clone()
+        } else {
+            format!("{base}-{n}")
+        });
+        match create(&tmp) {
+            Ok(()) => return Ok((target, tmp)),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            // Named after the output: a missing directory is not a missing input file.
+            Err(source) => {
+                return Err(SimError::Io {
+                    path: target,
+                    source,
+                })
+            }
+        }
+    }
+    Err(refuse(&target, "has no free temporary name beside it"))
+}
+
+/// Claims a file path: creates it empty, failing if anything is there.
+fn new_file(path: &Path) -> std::io::Result<()> {
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(path)
+        .map(drop)
 }
 
 /// Checks that a file of `kind` may be written at `target` given the `inputs` of the run.
@@ -201,7 +234,7 @@ impl Pending {
     /// Checks `target` (see [`check_file`]) and reserves its temporary path.
     pub fn file(target: &Path, kind: Kind, inputs: &[PathBuf]) -> Result<Self> {
         check_file(target, kind, inputs)?;
-        let (target, tmp) = temporary(target, "tmp")?;
+        let (target, tmp) = temporary(target, "tmp", new_file)?;
         Ok(Self {
             target,
             tmp,
@@ -301,18 +334,20 @@ pub fn write_dir_atomically(
     write: impl FnOnce(&Path) -> Result<()>,
 ) -> Result<()> {
     check_dir(dir, inputs)?;
-    let (target, tmp) = temporary(dir, "tmp")?;
-    if let Some(parent) = target.parent() {
+    let parent = resolve(dir).parent().map(Path::to_path_buf);
+    if let Some(parent) = &parent {
         std::fs::create_dir_all(parent).map_err(|e| SimError::io(parent, e))?;
     }
-    std::fs::create_dir(&tmp).map_err(|e| SimError::io(&tmp, e))?;
+    let (target, tmp) = temporary(dir, "tmp", |p| std::fs::create_dir(p))?;
     let built = write(&tmp).and_then(|()| mark(&tmp));
     if let Err(e) = built {
         let _ = std::fs::remove_dir_all(&tmp);
         return Err(e);
     }
+    // The old directory is moved aside (onto a name it alone can take: a fresh empty
+    // directory is claimed and replaced) and emptied only after the new one is in place.
     let old = if target.exists() {
-        let (_, old) = temporary(&target, "old")?;
+        let (_, old) = temporary(&target, "old", |p| std::fs::create_dir(p))?;
         std::fs::rename(&target, &old).map_err(|e| SimError::io(&target, e))?;
         Some(old)
     } else {
@@ -326,8 +361,33 @@ pub fn write_dir_atomically(
         return Err(SimError::io(&target, e));
     }
     if let Some(old) = old {
-        // Only what the marker listed (checked above) is in there.
-        std::fs::remove_dir_all(&old).map_err(|e| SimError::io(&old, e))?;
+        remove_marked(&old)?;
+    }
+    Ok(())
+}
+
+/// Removes from `dir` (an output this module wrote, moved aside) the entries its marker lists,
+/// then the marker and `dir`. Anything else (added while the run lasted) stays, with `dir`,
+/// and is named on stderr.
+fn remove_marked(dir: &Path) -> Result<()> {
+    let listed = marked_entries(dir).unwrap_or_default();
+    for name in &listed {
+        let entry = dir.join(name);
+        let removed = match std::fs::symlink_metadata(&entry) {
+            Ok(meta) if meta.is_dir() => std::fs::remove_dir_all(&entry),
+            Ok(_) => std::fs::remove_file(&entry),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+            Err(e) => Err(e),
+        };
+        removed.map_err(|e| SimError::io(&entry, e))?;
+    }
+    let marker = dir.join(MARKER);
+    let _ = std::fs::remove_file(&marker);
+    if std::fs::remove_dir(dir).is_err() {
+        eprintln!(
+            "warning: {} holds files this program did not write (added during the run); kept there",
+            dir.display()
+        );
     }
     Ok(())
 }
@@ -399,6 +459,48 @@ mod tests {
         );
         // Only the report itself is left in the parent (no temporaries, no old copies).
         assert_eq!(std::fs::read_dir(&root).unwrap().count(), 1);
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    /// A file a user adds to an old report while the new one is being written is kept (in the
+    /// moved-aside directory), and a user's file that happens to have the temporary name is
+    /// neither written over nor removed.
+    #[test]
+    fn nothing_added_during_the_run_or_named_like_a_temporary_is_deleted() {
+        let root = scratch("during");
+        let dir = root.join("report");
+        write_dir_atomically(&dir, &[], |d| write_text("1")(&d.join("index.html"))).unwrap();
+        write_dir_atomically(&dir, &[], |d| {
+            std::fs::write(dir.join("added.txt"), "mine").unwrap();
+            write_text("2")(&d.join("index.html"))
+        })
+        .unwrap();
+        assert_eq!(
+            std::fs::read_to_string(dir.join("index.html")).unwrap(),
+            "2"
+        );
+        let kept: Vec<PathBuf> = std::fs::read_dir(&root)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p != &dir)
+            .collect();
+        assert_eq!(kept.len(), 1, "{kept:?}");
+        assert_eq!(
+            std::fs::read_to_string(kept[0].join("added.txt")).unwrap(),
+            "mine"
+        );
+
+        let target = root.join("out.json");
+        let squatter = root.join(format!(".out.json.tmp-{}", std::process::id()));
+        std::fs::write(&squatter, "user data").unwrap();
+        let err = write_atomically(&target, Kind::Json, &[], |_| {
+            Err(SimError::invalid("write", "x", "failed on purpose"))
+        })
+        .unwrap_err();
+        assert!(err.to_string().contains("on purpose"), "{err}");
+        write_atomically(&target, Kind::Json, &[], write_text("{}")).unwrap();
+        assert_eq!(std::fs::read_to_string(&squatter).unwrap(), "user data");
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "{}");
         std::fs::remove_dir_all(&root).unwrap();
     }
 

@@ -82,8 +82,9 @@ impl LogWriter {
     ) -> Result<Self> {
         let path = path.as_ref().to_path_buf();
         let pending = Pending::file(&path, Kind::Mcap, inputs)?;
-        // Not `SimError::io`: a missing directory is not a missing input file.
-        let file = File::create_new(pending.path()).map_err(|source| SimError::Io {
+        // The temporary file is the one `Pending` just created. Not `SimError::io`: a missing
+        // directory is not a missing input file.
+        let file = File::create(pending.path()).map_err(|source| SimError::Io {
             path: path.clone(),
             source,
         })?;
