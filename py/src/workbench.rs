@@ -694,7 +694,32 @@ struct Workbench {
     error: Arc<Mutex<Option<PyErr>>>,
 }
 
+/// Why the Cubli workbench takes no Python effect.
+const CUBLI_USER_EFFECT: &str =
+    "user-defined effects edit a state-space model; the cubli workbench fits its named candidates only";
+
 impl Workbench {
+    /// The user's effect for this workbench, evaluated once at its documented values on top
+    /// of the current model, so that a broken callable fails when it is given, not in a fit.
+    fn checked_effect(&self, py: Python<'_>, user: Bound<'_, Effect>) -> PyResult<Arc<PyEffect>> {
+        let Inner::Frf { wb, .. } = &self.inner else {
+            return Err(PyValueError::new_err(CUBLI_USER_EFFECT));
+        };
+        let effect = Arc::new(PyEffect {
+            effect: user.unbind(),
+            error: Arc::clone(&self.error),
+        });
+        let probe = wb
+            .model()
+            .with_user_effect(effect.clone())
+            .map_err(to_py_err)?;
+        self.run(py, || {
+            let theta: Vec<f64> = probe.parameters()?.iter().map(|p| p.value).collect();
+            probe.state_space(&theta).map(|_| ())
+        })?;
+        Ok(effect)
+    }
+
     /// [`run_with`] on this workbench's error slot.
     fn run<T: Send>(
         &self,
@@ -905,25 +930,11 @@ impl Workbench {
         name: Option<String>,
     ) -> PyResult<()> {
         let user = user_effect(py, effect, params, bounds, units, name)?;
-        let Inner::Frf { wb, .. } = &mut self.inner else {
-            return Err(PyValueError::new_err(
-                "user-defined effects edit a state-space model; the cubli workbench fits its named candidates only",
-            ));
-        };
-        let effect = Arc::new(PyEffect {
-            effect: user.unbind(),
-            error: Arc::clone(&self.error),
-        });
-        // Evaluated once at its documented values, so that a broken callable fails here.
-        let probe = wb
-            .model()
-            .with_user_effect(effect.clone())
-            .map_err(to_py_err)?;
-        run_with(&self.error, py, || {
-            let theta: Vec<f64> = probe.parameters()?.iter().map(|p| p.value).collect();
-            probe.state_space(&theta).map(|_| ())
-        })?;
-        wb.offer(effect).map_err(to_py_err)
+        let effect = self.checked_effect(py, user)?;
+        match &mut self.inner {
+            Inner::Frf { wb, .. } => wb.offer(effect).map_err(to_py_err),
+            Inner::Cubli { .. } => Err(PyValueError::new_err(CUBLI_USER_EFFECT)),
+        }
     }
 
     /// Fits the current model: a dict with `steps` (one), `found` (empty), `unexplained`.
@@ -1009,25 +1020,11 @@ impl Workbench {
             .map_err(to_py_err);
         }
         let user = user_effect(py, effect, params, bounds, units, name)?;
-        let Inner::Frf { wb, .. } = &self.inner else {
-            return Err(PyValueError::new_err(
-                "user-defined effects edit a state-space model; the cubli workbench fits its named candidates only",
-            ));
-        };
-        let mut next = wb.clone();
-        next.add_user_effect(Arc::new(PyEffect {
-            effect: user.clone().unbind(),
-            error: Arc::clone(&self.error),
-        }))
-        .map_err(to_py_err)?;
-        self.run(py, || {
-            let theta: Vec<f64> = next.model().parameters()?.iter().map(|p| p.value).collect();
-            next.model().state_space(&theta).map(|_| ())
-        })?;
-        if let Inner::Frf { wb, .. } = &mut self.inner {
-            *wb = next;
+        let effect = self.checked_effect(py, user)?;
+        match &mut self.inner {
+            Inner::Frf { wb, .. } => wb.add_user_effect(effect).map_err(to_py_err),
+            Inner::Cubli { .. } => Err(PyValueError::new_err(CUBLI_USER_EFFECT)),
         }
-        Ok(())
     }
 
     /// Fits all parameters of the current model (same record as `compare`).
