@@ -27,6 +27,9 @@ pub struct Predictor {
     disc: Discrete,
     /// Predictor gain, states x outputs.
     gain: DMatrix<f64>,
+    /// The designed process and sensor noise covariances `(Q, R)`, in the model's own
+    /// coordinates when every state is observable (`None` otherwise).
+    covariances: Option<(DMatrix<f64>, DMatrix<f64>)>,
     /// Summary for the report.
     pub noise: NoiseEstimate,
 }
@@ -50,7 +53,7 @@ const SEARCH_SAMPLES: usize = 5_000;
 
 /// Samples at the start of each record left out of the search's criterion: the predictor
 /// starts from the zero state, and its start-up would dominate a short record.
-const BURN_IN: usize = 50;
+pub(crate) const BURN_IN: usize = 50;
 
 /// Coarse coordinate-descent sweeps of the noise search after the first, absolute grids
 /// (one fine sweep follows).
@@ -73,6 +76,7 @@ impl Predictor {
         // Modes the outputs never see (a yaw angle measured only through its rate) cannot be
         // estimated and do not change the outputs: the predictor runs on the observable part.
         let observable = observable_part(disc);
+        let whole_state = observable.phi.nrows() == disc.phi.nrows();
         let disc = &observable;
         let (n, p) = (disc.phi.nrows(), disc.c.nrows());
         let mut r = vec![0.0; p];
@@ -142,6 +146,7 @@ impl Predictor {
         let first = Self {
             disc: disc.clone(),
             gain: k0,
+            covariances: None,
             noise: Self::estimate(&r, &f, 0.0),
         };
         let mut motion = vec![0.0; n];
@@ -204,6 +209,12 @@ impl Predictor {
             }
         }
         let (f, gain) = best.1.unwrap_or((f, first.gain));
+        let covariances = whole_state.then(|| {
+            (
+                &qu * f.input + &qx * f.state,
+                DMatrix::from_fn(p, p, |i, j| if i == j { r[i] * f.sensor[i] } else { 0.0 }),
+            )
+        });
         let closed = &disc.phi - &gain * &disc.c;
         let rho = closed
             .complex_eigenvalues()
@@ -213,8 +224,14 @@ impl Predictor {
         Ok(Self {
             disc: disc.clone(),
             gain,
+            covariances,
             noise: Self::estimate(&r, &f, rho),
         })
+    }
+
+    /// The designed noise covariances `(Q, R)` when every state is observable.
+    pub fn covariances(&self) -> Option<&(DMatrix<f64>, DMatrix<f64>)> {
+        self.covariances.as_ref()
     }
 
     fn estimate(r: &[f64], f: &Factors, rho: f64) -> NoiseEstimate {
@@ -242,6 +259,7 @@ impl Predictor {
         let candidate = Self {
             disc: disc.clone(),
             gain: k,
+            covariances: None,
             noise: Self::estimate(r, f, 0.0),
         };
         let mut s = DMatrix::zeros(p, p);
@@ -364,7 +382,7 @@ fn shifted(m: &DMatrix<f64>, s: usize) -> DMatrix<f64> {
 }
 
 /// `K = Φ P Cᵀ (C P Cᵀ + R)^-1`, `P` the stabilizing solution of the filter Riccati equation.
-fn gain(disc: &Discrete, q: &DMatrix<f64>, r: &DMatrix<f64>) -> Result<DMatrix<f64>> {
+pub(crate) fn gain(disc: &Discrete, q: &DMatrix<f64>, r: &DMatrix<f64>) -> Result<DMatrix<f64>> {
     let phi_t = disc.phi.transpose();
     let c_t = disc.c.transpose();
     let p = rigid_body::lti::dare(&phi_t, &c_t, q, r).map_err(|e| {
