@@ -105,6 +105,7 @@ class Config:
     x_sigma: float = 2e-4  # cart position sensor noise, m
     theta_sigma: float = 5e-4  # pole angle sensor noise, rad
     theta0: float = 0.01  # initial pole angle, rad (the transient discards it)
+    x0: float = 0.0  # initial cart position, m
     substeps: int = 4
     seed: int = 0
 
@@ -202,7 +203,7 @@ def derivative(p: Plant, s: list[float], f_in: float, w: float, torque: float) -
         force += spring
     if p.coulomb > 0:
         force -= p.coulomb * (math.tanh(xd / p.coulomb_v) if p.coulomb_v > 0
-                              else float((xd > 0) - (xd < 0)))
+                              else 1.0 if xd > 0 else -1.0 if xd < 0 else 0.0)
     ml = p.m * p.l
     cth, sth = math.cos(th), math.sin(th)
     a11, a12, a22 = p.M + p.m, ml * cth, p.J + ml * p.l
@@ -354,7 +355,7 @@ def samples(cfg: Config) -> int:
 
 
 def simulate(cfg: Config) -> list[Run]:
-    """The campaign's closed-loop experiments, each from rest with the pole at theta0."""
+    """The campaign's closed-loop experiments, each from rest at x0 with the pole at theta0."""
     ts = 1.0 / cfg.sample_rate_hz
     ctrl = design_controller(cfg)
     radius = closed_loop_radius(cfg, ctrl)
@@ -377,7 +378,7 @@ def simulate(cfg: Config) -> list[Run]:
         w = rng.standard_normal(count) * cfg.force_noise
         tq = rng.standard_normal(count) * cfg.torque_noise
         noise = rng.standard_normal((count, 2)) * [cfg.x_sigma, cfg.theta_sigma]
-        s = [0.0, 0.0, cfg.theta0, 0.0] + [0.0] * _extra_states(p)
+        s = [cfg.x0, 0.0, cfg.theta0, 0.0] + [0.0] * _extra_states(p)
         xc = np.zeros(ac.shape[0])
         u = np.zeros(count)
         y = np.zeros((count, 2))

@@ -408,10 +408,11 @@ def test_model_check_names_the_unstable_pole():
 # --- bad model files ----------------------------------------------------------------------
 
 
-def bad_copy(tmp: Path, old: str, new: str) -> tuple[Path, str]:
-    text = MODEL.read_text()
+def bad_copy(tmp: Path, old: str, new: str, model: Path = MODEL) -> tuple[Path, str]:
+    """A copy of `model` in tmp with the one occurrence of `old` replaced by `new`."""
+    text = model.read_text()
     assert text.count(old) == 1, old
-    path = tmp / "bad_cart_pole.toml"
+    path = tmp / f"bad_{model.name}"
     path.write_text(text.replace(old, new))
     return path, path.read_text()
 
