@@ -349,6 +349,20 @@ def test_the_linear_file_keeps_the_frf_path_on_the_same_data(campaigns, tmp_path
     assert doc["found"] == [], why(doc)
 
 
+@pytest.mark.parametrize("case, seed", cases("viscous", "dry"))
+def test_the_linear_file_on_friction_data(campaigns, tmp_path, case, seed):
+    # Through the FRF the linear file finds viscous friction at its level, and on dry friction
+    # (no linear effect describes it) it finds nothing and says a misfit remains: the viscous
+    # effect it tries there (at about 1.5 N s/m, the regression's equivalent) stays tentative.
+    doc = discover(LINEAR, campaigns(case, seed), tmp_path)
+    if case == "viscous":
+        assert doc["found"] == ["cart_friction"], why(doc)
+        b = param(doc, "b", "cart_friction")
+        assert abs(b / B_TRUE - 1) < TOLERANCE, (b, B_TRUE)
+    else:
+        assert doc["found"] == [] and doc["unexplained"] is True, why(doc)
+
+
 @pytest.mark.parametrize("seed", SEEDS["nothing"][:1])
 def test_the_nonlinear_file_through_the_frf_path_is_its_linearisation(campaigns, tmp_path,
                                                                        seed):
