@@ -28,9 +28,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.linalg import solve_discrete_are
 
 import independent_cartpole as ic
-from test_cartpole_independent import (bad_copy, cli, evaluate, param, read_log, refused,
+from test_cartpole_independent import (bad_copy, campaign_cache, check_names_the_unstable_pole,
+                                       cli, evaluate, param, read_log, refused,
                                        require_model_option)
 
 DATA = Path(__file__).parent / "data"
@@ -279,17 +281,7 @@ def test_the_campaign_separates_dry_from_viscous_friction(case):
 @pytest.fixture(scope="module")
 def campaigns(tmp_path_factory):
     """The campaign (4 x 8300 samples, FRICTION_EXCITATION) per (case, seed), simulated once."""
-    cache = {}
-
-    def get(case: str, seed: int) -> Path:
-        if (case, seed) not in cache:
-            out = tmp_path_factory.mktemp(f"nl_{case}_{seed}")
-            ic.campaign(out, plant=replace(ic.Plant(), **CASES[case]), seed=seed,
-                        **ic.FRICTION_EXCITATION)
-            cache[case, seed] = out
-        return cache[case, seed]
-
-    return get
+    return campaign_cache(tmp_path_factory, CASES, **ic.FRICTION_EXCITATION)
 
 
 def discover(model: Path, data: Path, tmp: Path, *options: str) -> dict:
@@ -317,30 +309,22 @@ def test_nothing_hidden_finds_nothing(campaigns, tmp_path, case, seed):
     assert doc["found"] == [] and doc["tentative"] == [], why(doc)
 
 
-@pytest.mark.parametrize("case, seed", cases("viscous"))
-def test_viscous_friction_is_found_as_the_viscous_effect(campaigns, tmp_path, case, seed):
+# The hidden effect, the effect the discovery must name (and no other), its parameter, level.
+FOUND = {"viscous": ("cart_viscous", "b", B_TRUE), "dry": ("cart_coulomb", "fc", FC_TRUE),
+         "offset_theta": ("sensor_bias", "bias_theta", OFFSET_THETA)}
+
+
+@pytest.mark.parametrize("case, seed", cases(*FOUND))
+def test_a_hidden_effect_is_found_as_its_effect_at_its_level(campaigns, tmp_path, case, seed):
+    # Viscous friction as cart_viscous, not cart_coulomb; the dry friction as cart_coulomb, not
+    # cart_viscous (the truth's is unsmoothed, the file's smoothed over 0.05 m/s: the level is
+    # the one the file's law fits best, 8-10 % above the truth's by the references here); the
+    # angle offset as sensor_bias (its bias_x stays unidentified: no test on it).
+    effect, name, level = FOUND[case]
     doc = discover(MODEL, campaigns(case, seed), tmp_path)
-    assert doc["found"] == ["cart_viscous"], why(doc)
-    b = param(doc, "b", "cart_viscous")
-    assert abs(b / B_TRUE - 1) < TOLERANCE, (b, B_TRUE)
-
-
-@pytest.mark.parametrize("case, seed", cases("dry"))
-def test_dry_friction_is_found_as_the_dry_effect_at_its_level(campaigns, tmp_path, case, seed):
-    # The truth's friction is unsmoothed, the file's smoothed over 0.05 m/s: the level is the
-    # one the file's law fits best (the regression above puts it 10 % above the truth's).
-    doc = discover(MODEL, campaigns(case, seed), tmp_path)
-    assert doc["found"] == ["cart_coulomb"], why(doc)
-    fc = param(doc, "fc", "cart_coulomb")
-    assert abs(fc / FC_TRUE - 1) < TOLERANCE, (fc, FC_TRUE)
-
-
-@pytest.mark.parametrize("case, seed", cases("offset_theta"))
-def test_a_pole_angle_offset_is_found_as_sensor_bias(campaigns, tmp_path, case, seed):
-    doc = discover(MODEL, campaigns(case, seed), tmp_path)
-    assert doc["found"] == ["sensor_bias"], why(doc)
-    bias = param(doc, "bias_theta", "sensor_bias")
-    assert abs(bias / OFFSET_THETA - 1) < TOLERANCE, (bias, OFFSET_THETA)
+    assert doc["found"] == [effect], why(doc)
+    got = param(doc, name, effect)
+    assert abs(got / level - 1) < TOLERANCE, (name, got, level)
 
 
 @pytest.mark.parametrize("seed", SEEDS["nothing"])
@@ -380,15 +364,8 @@ def test_the_nonlinear_file_through_the_frf_path_is_its_linearisation(campaigns,
 
 
 def test_model_check_of_the_nonlinear_file_names_the_unstable_pole():
-    done = cli("model", "check", MODEL)
-    require_model_option(done)
-    assert done.returncode == 0, done.stderr
-    p = ic.documented_plant()
-    jp = p.J + p.m * p.l**2
-    pole = math.sqrt((p.M + p.m) * p.m * p.g * p.l / ((p.M + p.m) * jp - (p.m * p.l) ** 2))
-    numbers = [float(x) for x in re.findall(r"[-+]?\d+\.\d+(?:[eE][-+]?\d+)?", done.stdout)]
-    assert any(abs(x - pole) < 1e-3 * pole for x in numbers), (pole, done.stdout)
-    assert "unstable" in done.stdout.lower(), done.stdout
+    # Its linearisation is the linear file's, so the same eigenvalues +-p.
+    check_names_the_unstable_pole(MODEL)
 
 
 # --- named errors -----------------------------------------------------------------------------
@@ -427,3 +404,121 @@ def test_a_diverging_predictor_is_refused_naming_the_sample(campaigns, tmp_path)
     assert "diverg" in done.stderr.lower(), done.stderr
     assert re.search(r"sample\D{0,3}\d+", done.stderr), done.stderr
     assert not out.exists()
+
+
+# --- the logs carry what the acceptance asks: an independent prediction-error fit ---------
+
+
+def cart_pole_rhs(p: dict[str, np.ndarray], s: np.ndarray, force: np.ndarray) -> np.ndarray:
+    """The file's f with both frictions, vectorised: parameters (P, 1), states (P, E, 4)."""
+    m, g = 0.2, 9.81  # fixed in the file
+    xd, th, thd = s[..., 1], s[..., 2], s[..., 3]
+    fc = force - p["b"] * xd - p["fc"] * np.tanh(xd / EPS)
+    jp = p["J"] + m * p["l"] ** 2
+    mlc = m * p["l"] * np.cos(th)
+    px = fc + m * p["l"] * np.sin(th) * thd**2
+    pth = m * g * p["l"] * np.sin(th)
+    det = (p["M"] + m) * jp - mlc**2
+    return np.stack([xd, (jp * px - mlc * pth) / det, thd, ((p["M"] + m) * pth - mlc * px) / det],
+                    axis=-1)
+
+
+def predictor_gain(cfg: ic.Config) -> tuple[np.ndarray, np.ndarray]:
+    """(K, W): the stationary Kalman gain of the documented linearised model for the
+    campaign's force and torque disturbances and sensor noise, and the whitening of its
+    innovations (W' S W = I)."""
+    ts = 1.0 / cfg.sample_rate_hz
+    p = ic.documented_plant()
+    a, b, c = ic.nominal_linear(p)
+    jp = p.J + p.m * p.l**2
+    d = (p.M + p.m) * jp - (p.m * p.l) ** 2
+    torque = np.array([[0.0], [-p.m * p.l / d], [0.0], [(p.M + p.m) / d]])
+    ad, bd = ic.zoh(a, b, ts)
+    _, td = ic.zoh(a, torque, ts)
+    q = cfg.force_noise**2 * bd @ bd.T + cfg.torque_noise**2 * td @ td.T + 1e-14 * np.eye(4)
+    r = np.diag([cfg.x_sigma**2, cfg.theta_sigma**2])
+    pp = solve_discrete_are(ad.T, c.T, q, r)
+    s = c @ pp @ c.T + r
+    return pp @ c.T @ np.linalg.inv(s), np.linalg.cholesky(np.linalg.inv(s))
+
+
+def prediction_errors(params: list[dict[str, float]], u: np.ndarray, y: np.ndarray,
+                      gain: np.ndarray, ts: float, skip: int) -> np.ndarray:
+    """One-step prediction errors (P, samples - skip, E, 2) of a fixed-gain predictor of the
+    nonlinear model, in absolute units from the operating point, for P parameter sets at once:
+    e = y - h(x) - bias, x += K e, then RK4 (two steps) over the sample with the held input."""
+    names = ("M", "l", "J", "b", "fc", "bias_x", "bias_theta")
+    p = {n: np.array([q.get(n, 0.0) for q in params])[:, None] for n in names}
+    bias = np.stack([p["bias_x"], p["bias_theta"]], axis=-1)
+    s = np.zeros((len(params), u.shape[1], 4))
+    out = np.empty((len(params), *y.shape))
+    h = ts / 2
+    for k in range(len(u)):
+        e = y[k] - s[..., [0, 2]] - bias
+        out[:, k] = e
+        s = s + e @ gain.T
+        for _ in range(2):
+            k1 = cart_pole_rhs(p, s, u[k])
+            k2 = cart_pole_rhs(p, s + 0.5 * h * k1, u[k])
+            k3 = cart_pole_rhs(p, s + 0.5 * h * k2, u[k])
+            k4 = cart_pole_rhs(p, s + h * k3, u[k])
+            s = s + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return out[:, skip:]
+
+
+SCALE = {"M": 1.0, "l": 0.3, "J": 0.006, "b": 1.0, "fc": 0.3, "bias_theta": 0.01}
+
+
+def prediction_error_fit(cfg: ic.Config, paths: list[Path], extra: list[str]):
+    """scipy least_squares of the whitened prediction errors over M, l, J and `extra` from
+    the documented values (bias from 0): ({name: value}, cost per residual)."""
+    from scipy.optimize import least_squares
+
+    logs = [read_log(path)[1] for path in paths]
+    u = np.column_stack([log["/cart_pole/input"][:, 0] for log in logs])
+    y = np.stack([log["/cart_pole/output"] for log in logs], axis=1)
+    gain, white = predictor_gain(cfg)
+    names = ["M", "l", "J", *extra]
+    start = {"M": 1.0, "l": 0.3, "J": 0.006, "b": 0.5, "fc": 0.5, "bias_theta": 0.0}
+    scale = np.array([SCALE[n] for n in names])
+    cache = {}
+
+    def batch(x):  # residuals at x and at x + h e_j (the Jacobian's differences), one pass
+        key = x.tobytes()
+        if key not in cache:
+            steps = 1e-6 * scale
+            xs = [x] + [x + steps[j] * np.eye(len(x))[j] for j in range(len(x))]
+            e = prediction_errors([dict(zip(names, v)) for v in xs], u, y, gain,
+                                  1.0 / cfg.sample_rate_hz, cfg.transient_samples)
+            r = (e @ white).reshape(len(xs), -1)
+            cache.clear()
+            cache[key] = r[0], ((r[1:] - r[0]) / steps[:, None]).T
+        return cache[key]
+
+    fit = least_squares(lambda x: batch(x)[0], np.array([start[n] for n in names]),
+                        jac=lambda x: batch(x)[1], x_scale=scale, method="lm")
+    return dict(zip(names, fit.x)), float(np.mean(fit.fun**2))
+
+
+@pytest.mark.parametrize("case, right, wrong", [
+    ("nothing", [], None), ("viscous", ["b"], ["fc"]), ("dry", ["fc"], ["b"]),
+    ("offset_theta", ["bias_theta"], []),
+], ids=["nothing", "viscous", "dry", "offset_theta"])
+def test_the_logs_identify_the_hidden_effect_by_prediction_error(tmp_path, case, right, wrong):
+    # An independent reference for the acceptance, on one experiment of the campaign (the
+    # first seed's settings): a fixed-gain nonlinear predictor in absolute units fitted by
+    # scipy reaches the noise level (cost per whitened residual near 1) with the right effect
+    # and recovers its level within the acceptance's 20 % (measured: b 1.201, fc 0.325, bias
+    # 0.01002), while the wrong effect, or none, stays far above it (measured: 1.9 for dry on
+    # viscous data, 3.9 for viscous on dry, 5.1 without the bias).
+    cfg = ic.Config(plant=replace(ic.Plant(), **CASES[case]), experiments=1,
+                    seed=SEEDS[case][0], **ic.FRICTION_EXCITATION)
+    paths = ic.write_runs(cfg, ic.simulate(cfg), tmp_path)
+    params, cost = prediction_error_fit(cfg, paths, right)
+    assert cost < 1.3, (cost, params)
+    truth = {"b": B_TRUE, "fc": FC_TRUE, "bias_theta": OFFSET_THETA}
+    for name in right:
+        assert abs(params[name] / truth[name] - 1) < TOLERANCE, (name, params)
+    if wrong is not None:
+        other, other_cost = prediction_error_fit(cfg, paths, wrong)
+        assert other_cost > 1.4 * cost, (other_cost, cost, other)
