@@ -4,18 +4,21 @@ data/cart_pole_nonlinear.toml (the full rigid-body equations, viscous and smooth
 as declared effects) and, for the FRF path, by the linear data/cart_pole.toml.
 
 The first group needs no stabilis: the file's f and h are the simulator's equations of motion
-(read with this module's own evaluator, at random states, inputs and parameters, with and
+(read with the issue-12 tests' expression evaluator, at random states, inputs and parameters, with and
 without each effect), the sensor offsets are what the generic `sensor_bias` effect describes,
 the campaign's excitation separates dry from viscous friction (an independent regression on
-the simulator's true states says which law moved the cart), and an offset on x is exactly a
-start elsewhere (the cart-pole is translation invariant), so no tool can find it.
+the simulator's true states says which law moved the cart), an offset on x is exactly a start
+elsewhere (the cart-pole is translation invariant), so no tool can find it, and, at the end of
+this file, an independent prediction-error fit (a fixed-gain predictor of the nonlinear model
+in absolute units, scipy least squares) finds each hidden level in the logs themselves.
 
 The acceptance group runs `stabilis discover --model FILE --data DIR --json OUT` (the
 time-domain prediction-error criterion is the default for a `[nonlinear]` file) on campaigns
 of the issue's size (4 experiments x 8300 samples at 100 Hz, the stronger excitation
 ic.FRICTION_EXCITATION, the truth's M, m, l, J 2-5 % off the documented values), three seeds
 per hidden truth; every seed is its own test case, so the pass rate is the count of passing
-cases (the acceptance asks 3 of 3). It fails (does not skip) on a binary without issue 15.
+cases (the acceptance asks 3 of 3); `stabilis.Model.from_file` must conclude as the CLI on the
+first seed. It fails (does not skip) on a binary without issue 15.
 """
 from __future__ import annotations
 
@@ -32,8 +35,8 @@ from scipy.linalg import solve_discrete_are
 
 import independent_cartpole as ic
 from test_cartpole_independent import (bad_copy, campaign_cache, check_names_the_unstable_pole,
-                                       cli, evaluate, param, read_log, refused,
-                                       require_model_option)
+                                       cli, evaluate, param, python_model, read_log,
+                                       refused, require_model_option)
 
 DATA = Path(__file__).parent / "data"
 MODEL = DATA / "cart_pole_nonlinear.toml"
@@ -325,6 +328,14 @@ def test_a_hidden_effect_is_found_as_its_effect_at_its_level(campaigns, tmp_path
     assert doc["found"] == [effect], why(doc)
     got = param(doc, name, effect)
     assert abs(got / level - 1) < TOLERANCE, (name, got, level)
+
+
+@pytest.mark.parametrize("case", ["nothing", *FOUND])
+def test_python_discover_with_the_nonlinear_file_concludes_as_the_cli(campaigns, tmp_path, case):
+    stabilis = python_model()
+    data = campaigns(case, SEEDS[case][0])
+    wb = stabilis.Workbench(model=stabilis.Model.from_file(str(MODEL)), data=[str(data)])
+    assert wb.discover()["found"] == discover(MODEL, data, tmp_path)["found"]
 
 
 @pytest.mark.parametrize("seed", SEEDS["nothing"])
