@@ -45,19 +45,21 @@ TOLERANCE = 0.20  # the issue's tolerance on a hidden level, relative
 
 # Hidden truths (Plant fields changed from the nominal class).
 B_TRUE = 1.2  # cart viscous friction, N s/m (the file documents 0.5)
-FC_TRUE = 0.3  # cart dry friction, N (the file documents 0.5), unsmoothed in the truth
+FC_TRUE = 0.3  # cart dry friction, N (the file documents 0.5)
+EPS = 0.05  # the file's smoothing speed of the dry friction, m/s
 OFFSET_THETA = 0.01  # pole angle sensor offset, rad (the case)
 OFFSET_X = 0.02  # cart position sensor offset, m
 CASES = {
     "nothing": {},
     "viscous": {"b": B_TRUE},
-    "dry": {"coulomb": FC_TRUE, "coulomb_v": 0.0},
+    "dry": {"coulomb": FC_TRUE, "coulomb_v": EPS},  # the file's law exactly
+    "dry_sharp": {"coulomb": FC_TRUE, "coulomb_v": 0.0},  # unsmoothed: a sign
     "offset_theta": {"offset_theta": OFFSET_THETA},
     "offset_x": {"offset_x": OFFSET_X},
 }
 SEEDS = {"nothing": (101, 102, 103), "viscous": (111, 112, 113), "dry": (121, 122, 123),
-         "offset_theta": (131, 132, 133), "offset_x": (141, 142, 143)}
-EPS = 0.05  # the file's smoothing speed of the dry friction, m/s
+         "dry_sharp": (151, 152, 153), "offset_theta": (131, 132, 133),
+         "offset_x": (141, 142, 143)}
 
 
 # --- the nonlinear model file, read independently -----------------------------------------
@@ -249,14 +251,14 @@ def friction_regression(run: ic.Run, p: ic.Plant, skip: int) -> dict[str, tuple[
     return out
 
 
-@pytest.mark.parametrize("case", ["nothing", "viscous", "dry"])
+@pytest.mark.parametrize("case", ["nothing", "viscous", "dry", "dry_sharp"])
 def test_the_campaign_separates_dry_from_viscous_friction(case):
     # Under FRICTION_EXCITATION the cart moves faster than EPS on most samples (measured over
     # seeds 1-2: 70-76 %; faster than 0.1 m/s: 50-53 %) with the pole within 0.13 rad of
     # upright. An independent check that the motion holds the law: the force the true motion
     # implies beyond the command, regressed on each law, leaves the force disturbance
-    # (0.05 N rms) for the right law and clearly more for the wrong one; the dry level comes
-    # out 10 % high (the file's eps smooths what the truth does not), inside the 20 %.
+    # (0.05 N rms) for the right law and clearly more for the wrong one; the unsmoothed dry
+    # level comes out 10 % high (the file's eps smooths what that truth does not).
     for seed in (1, 2):
         cfg = ic.Config(plant=replace(ic.Plant(), **CASES[case]), experiments=1, seed=seed,
                         **ic.FRICTION_EXCITATION)
@@ -273,6 +275,9 @@ def test_the_campaign_separates_dry_from_viscous_friction(case):
         elif case == "viscous":
             assert fit["viscous"][1] < 1.05 * floor and fit["dry"][1] > 1.5 * floor, fit
             assert fit["viscous"][0] == pytest.approx(B_TRUE, rel=0.02), fit
+        elif case == "dry":  # the file's law exactly
+            assert fit["dry"][1] < 1.05 * floor and fit["viscous"][1] > 1.5 * floor, fit
+            assert fit["dry"][0] == pytest.approx(FC_TRUE, rel=0.02), fit
         else:
             assert fit["dry"][1] < 0.65 * fit["viscous"][1], fit
             assert fit["dry"][0] == pytest.approx(FC_TRUE, rel=0.15), fit
@@ -314,18 +319,25 @@ def test_nothing_hidden_finds_nothing(campaigns, tmp_path, case, seed):
 
 # The hidden effect, the effect the discovery must name (and no other), its parameter, level.
 FOUND = {"viscous": ("cart_viscous", "b", B_TRUE), "dry": ("cart_coulomb", "fc", FC_TRUE),
+         "dry_sharp": ("cart_coulomb", "fc", FC_TRUE),
          "offset_theta": ("sensor_bias", "bias_theta", OFFSET_THETA)}
 
 
 @pytest.mark.parametrize("case, seed", cases(*FOUND))
 def test_a_hidden_effect_is_found_as_its_effect_at_its_level(campaigns, tmp_path, case, seed):
-    # Viscous friction as cart_viscous, not cart_coulomb; the dry friction as cart_coulomb, not
-    # cart_viscous (the truth's is unsmoothed, the file's smoothed over 0.05 m/s: the level is
-    # the one the file's law fits best, 8-10 % above the truth's by the references here); the
-    # angle offset as sensor_bias (its bias_x stays unidentified: no test on it).
+    # Viscous friction as cart_viscous, not cart_coulomb; dry friction as cart_coulomb, not
+    # cart_viscous; the angle offset as sensor_bias (its bias_x stays unidentified: no test on
+    # it). The unsmoothed dry friction is outside the file's class (smoothed over 0.05 m/s):
+    # the best fit of the file's law leaves a misfit (23 % above the noise in the reference
+    # below), so cart_coulomb may be tentative there, but it must be the only effect added,
+    # its level the one the file's law fits best (8-10 % above the truth's by the references
+    # here).
     effect, name, level = FOUND[case]
     doc = discover(MODEL, campaigns(case, seed), tmp_path)
-    assert doc["found"] == [effect], why(doc)
+    if case == "dry_sharp":
+        assert doc["found"] + doc["tentative"] == [effect], why(doc)
+    else:
+        assert doc["found"] == [effect], why(doc)
     got = param(doc, name, effect)
     assert abs(got / level - 1) < TOLERANCE, (name, got, level)
 
@@ -344,7 +356,7 @@ def test_the_linear_file_keeps_the_frf_path_on_the_same_data(campaigns, tmp_path
     assert doc["found"] == [], why(doc)
 
 
-@pytest.mark.parametrize("case, seed", cases("viscous", "dry"))
+@pytest.mark.parametrize("case, seed", cases("viscous", "dry", "dry_sharp"))
 def test_the_linear_file_on_friction_data(campaigns, tmp_path, case, seed):
     # Through the FRF the linear file finds viscous friction at its level, and on dry friction
     # (no linear effect describes it) it finds nothing and says a misfit remains: the viscous
@@ -513,8 +525,8 @@ def prediction_error_fit(cfg: ic.Config, paths: list[Path], extra: list[str]):
 
 @pytest.mark.parametrize("case, right, wrong", [
     ("nothing", [], None), ("viscous", ["b"], ["fc"]), ("dry", ["fc"], ["b"]),
-    ("offset_theta", ["bias_theta"], []),
-], ids=["nothing", "viscous", "dry", "offset_theta"])
+    ("dry_sharp", ["fc"], ["b"]), ("offset_theta", ["bias_theta"], []),
+], ids=["nothing", "viscous", "dry", "dry_sharp", "offset_theta"])
 def test_the_logs_identify_the_hidden_effect_by_prediction_error(tmp_path, case, right, wrong):
     # An independent reference for the acceptance, on one experiment of the campaign (the
     # first seed's settings): a fixed-gain nonlinear predictor in absolute units fitted by
