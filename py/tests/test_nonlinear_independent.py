@@ -523,22 +523,25 @@ def prediction_error_fit(cfg: ic.Config, paths: list[Path], extra: list[str]):
     return dict(zip(names, fit.x)), float(np.mean(fit.fun**2))
 
 
-@pytest.mark.parametrize("case, right, wrong", [
-    ("nothing", [], None), ("viscous", ["b"], ["fc"]), ("dry", ["fc"], ["b"]),
-    ("dry_sharp", ["fc"], ["b"]), ("offset_theta", ["bias_theta"], []),
+@pytest.mark.parametrize("case, right, wrong, most", [
+    ("nothing", [], None, 1.1), ("viscous", ["b"], ["fc"], 1.1), ("dry", ["fc"], ["b"], 1.1),
+    ("dry_sharp", ["fc"], ["b"], 1.5), ("offset_theta", ["bias_theta"], [], 1.1),
 ], ids=["nothing", "viscous", "dry", "dry_sharp", "offset_theta"])
-def test_the_logs_identify_the_hidden_effect_by_prediction_error(tmp_path, case, right, wrong):
+def test_the_logs_identify_the_hidden_effect_by_prediction_error(tmp_path, case, right, wrong,
+                                                                  most):
     # An independent reference for the acceptance, on one experiment of the campaign (the
     # first seed's settings): a fixed-gain nonlinear predictor in absolute units fitted by
-    # scipy reaches the noise level (cost per whitened residual near 1) with the right effect
-    # and recovers its level within the acceptance's 20 % (measured: b 1.201, fc 0.325, bias
-    # 0.01002), while the wrong effect, or none, stays far above it (measured: 1.9 for dry on
-    # viscous data, 3.9 for viscous on dry, 5.1 without the bias).
+    # scipy reaches the noise level (cost per whitened residual near 1; measured 0.97-1.00)
+    # with the right effect and recovers its level within the acceptance's 20 % (measured:
+    # b 1.201, fc 0.300, bias 0.01002), while the wrong effect, or none, stays far above it
+    # (measured: 1.86 for dry on viscous data, 2.51 for viscous on dry, 5.11 without the
+    # bias). The unsmoothed dry friction is outside the file's class: the file's law fits it
+    # at 1.23 with fc 0.325, viscous at 3.87.
     cfg = ic.Config(plant=replace(ic.Plant(), **CASES[case]), experiments=1,
                     seed=SEEDS[case][0], **ic.FRICTION_EXCITATION)
     paths = ic.write_runs(cfg, ic.simulate(cfg), tmp_path)
     params, cost = prediction_error_fit(cfg, paths, right)
-    assert cost < 1.3, (cost, params)
+    assert cost < most, (cost, params)
     truth = {"b": B_TRUE, "fc": FC_TRUE, "bias_theta": OFFSET_THETA}
     for name in right:
         assert abs(params[name] / truth[name] - 1) < TOLERANCE, (name, params)
