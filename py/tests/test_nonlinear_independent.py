@@ -359,8 +359,9 @@ def test_the_linear_file_keeps_the_frf_path_on_the_same_data(campaigns, tmp_path
 @pytest.mark.parametrize("case, seed", cases("viscous", "dry", "dry_sharp"))
 def test_the_linear_file_on_friction_data(campaigns, tmp_path, case, seed):
     # Through the FRF the linear file finds viscous friction at its level, and on dry friction
-    # (no linear effect describes it) it finds nothing and says a misfit remains: the viscous
-    # effect it tries there (at about 1.5 N s/m, the regression's equivalent) stays tentative.
+    # (no linear effect describes it) it finds nothing and says a misfit remains (measured on
+    # the unsmoothed truth: its viscous effect tentative at about 1.5 N s/m, the regression's
+    # equivalent).
     doc = discover(LINEAR, campaigns(case, seed), tmp_path)
     if case == "viscous":
         assert doc["found"] == ["cart_friction"], why(doc)
@@ -416,8 +417,9 @@ def test_bad_nonlinear_file_is_refused_naming_file_and_key(campaigns, tmp_path, 
 
 def test_a_diverging_predictor_is_refused_naming_the_sample(campaigns, tmp_path):
     # f.xdot with a cubic blow-up in xdot: finite (zero) at the operating point, infinite
-    # within a few samples of moving. The prediction error cannot be computed: exit 2 with
-    # the sample where it diverged, no panic, no output.
+    # within a few samples of moving (this file's fixed-gain predictor: from sample 3). The
+    # prediction error cannot be computed: exit 2 with the sample where it diverged, no
+    # panic, no output.
     path, _ = bad_copy(tmp_path, 'f.xdot = "(Jp*Px - mlc*Ptheta)/Delta"',
                        'f.xdot = "(Jp*Px - mlc*Ptheta)/Delta + 1e6*xdot^3"', MODEL)
     out = tmp_path / "out.json"
