@@ -4,8 +4,8 @@ data/cart_pole_nonlinear.toml (the full rigid-body equations, viscous and smooth
 as declared effects) and, for the FRF path, by the linear data/cart_pole.toml.
 
 The first group needs no stabilis: the file's f and h are the simulator's equations of motion
-(read with the issue-12 tests' expression evaluator, at random states, inputs and parameters, with and
-without each effect), the sensor offsets are what the generic `sensor_bias` effect describes,
+(read with the issue-12 tests' expression evaluator, at random states, inputs and parameters,
+with and without each effect), the sensor offsets are what the generic `sensor_bias` effect describes,
 the campaign's excitation separates dry from viscous friction (an independent regression on
 the simulator's true states says which law moved the cart), an offset on x is exactly a start
 elsewhere (the cart-pole is translation invariant), so no tool can find it, and, at the end of
