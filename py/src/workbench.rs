@@ -786,7 +786,7 @@ impl Workbench {
 #[pymethods]
 impl Workbench {
     #[new]
-    #[pyo3(signature = (system = "flying_platform", data = None, estimator = "auto", model = None, sample_rate_hz = None))]
+    #[pyo3(signature = (system = "flying_platform", data = None, estimator = "auto", model = None, sample_rate_hz = None, criterion = None))]
     fn new(
         py: Python<'_>,
         system: &str,
@@ -794,7 +794,18 @@ impl Workbench {
         estimator: &str,
         model: Option<&Bound<'_, PyAny>>,
         sample_rate_hz: Option<f64>,
+        criterion: Option<&str>,
     ) -> PyResult<Self> {
+        let criterion = match criterion {
+            None => None,
+            Some("frf") => Some(sim::workbench::Criterion::Frf),
+            Some("time") => Some(sim::workbench::Criterion::Time),
+            Some(other) => {
+                return Err(PyValueError::new_err(format!(
+                    "unknown criterion {other:?}; use \"frf\" or \"time\" (default: time for a nonlinear model)"
+                )))
+            }
+        };
         let choice = match estimator {
             "auto" => EstimatorChoice::Auto,
             "ls" => EstimatorChoice::LeastSquares,
@@ -878,7 +889,15 @@ impl Workbench {
                             ))
                         }
                     };
-                    sim::workbench::Workbench::new(s, dataset, choice)
+                    sim::workbench::Workbench::with_options(
+                        s,
+                        dataset,
+                        choice,
+                        sim::workbench::DataOptions {
+                            criterion,
+                            ..Default::default()
+                        },
+                    )
                 })?;
                 for e in effects {
                     wb.offer(Arc::new(PyEffect {

@@ -288,3 +288,21 @@ fn dry_friction_and_a_sensor_offset_are_found_as_themselves() {
         assert!((bias / 0.02 - 1.0).abs() < 0.1, "seed {seed}: bias {bias}");
     }
 }
+
+/// The example, verbatim (`examples/models/pendulum_nonlinear.toml`): its
+/// linearization at upright is the closed form, and the dry friction adds
+/// `-tc / (eps Jp)` to `A[1][1]`.
+#[test]
+fn the_documented_example_linearizes_to_the_closed_form() {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/models/pendulum_nonlinear.toml");
+    let m = ModelFile::from_path(&path).unwrap();
+    assert!(m.is_nonlinear());
+    let jp: f64 = 0.02 + 0.5 * 0.4 * 0.4;
+    let ss = m.state_space(&[], &[0.5, 0.4, 0.02]).unwrap();
+    assert!((ss.a[(1, 0)] - 0.5 * 9.81 * 0.4 / jp).abs() < 1e-12);
+    assert!((ss.b[(1, 0)] - 1.0 / jp).abs() < 1e-12);
+    let with = vec!["joint_coulomb".to_string()];
+    let ss = m.state_space(&with, &[0.5, 0.4, 0.02, 0.01]).unwrap();
+    assert!((ss.a[(1, 1)] + 0.01 / 0.05 / jp).abs() < 1e-12);
+}

@@ -21,6 +21,11 @@ the extra terms ``{"A": dA, ...}`` (same shapes) that are added to them::
     wb.add(stabilis.Effect("vz_drag", {"d": 0.1}, vz_drag, bounds={"d": (0.0, 50.0)}))
     wb.fit()["steps"][0]["params"]["vz_drag.d"]
 
+A model file with a ``[nonlinear]`` section (``stabilis.Model.from_file``) is fitted and tested
+by the one-step prediction error of its extended Kalman predictor in absolute units
+(``criterion="time"``, the default for such a file; ``criterion="frf"`` uses its linearization),
+which tells dry from viscous friction and sees sensor offsets (the generic ``sensor_bias``).
+
 Exceptions raised inside the callable reach the caller unchanged; a wrong shape or a
 non-finite entry raises ``ValueError`` naming the effect and the matrix.
 """
