@@ -29,6 +29,10 @@ pub struct Predictor {
     gain: DMatrix<f64>,
     /// Summary for the report.
     pub noise: NoiseEstimate,
+    /// The designed process-noise covariance per sample in the model's own state
+    /// coordinates (zero on unobservable directions), for simulating data at this noise
+    /// level.
+    pub process_covariance: DMatrix<f64>,
 }
 
 /// The estimated noise covariances.
@@ -72,7 +76,7 @@ impl Predictor {
     pub fn design(disc: &Discrete, records: &[(&DMatrix<f64>, &DMatrix<f64>)]) -> Result<Self> {
         // Modes the outputs never see (a yaw angle measured only through its rate) cannot be
         // estimated and do not change the outputs: the predictor runs on the observable part.
-        let observable = observable_part(disc);
+        let (observable, basis) = observable_part(disc);
         let disc = &observable;
         let (n, p) = (disc.phi.nrows(), disc.c.nrows());
         let mut r = vec![0.0; p];
@@ -143,6 +147,7 @@ impl Predictor {
             disc: disc.clone(),
             gain: k0,
             noise: Self::estimate(&r, &f, 0.0),
+            process_covariance: DMatrix::zeros(0, 0),
         };
         let mut motion = vec![0.0; n];
         let mut steps = 0usize;
@@ -210,10 +215,16 @@ impl Predictor {
             .iter()
             .map(|l| l.norm())
             .fold(0.0, f64::max);
+        let process = &qu * f.input + &qx * f.state;
+        let process_covariance = match basis {
+            Some(t) => t.transpose() * process * t,
+            None => process,
+        };
         Ok(Self {
             disc: disc.clone(),
             gain,
             noise: Self::estimate(&r, &f, rho),
+            process_covariance,
         })
     }
 
@@ -243,6 +254,7 @@ impl Predictor {
             disc: disc.clone(),
             gain: k,
             noise: Self::estimate(r, f, 0.0),
+            process_covariance: DMatrix::zeros(0, 0),
         };
         let mut s = DMatrix::zeros(p, p);
         let mut samples = 0usize;
@@ -319,8 +331,9 @@ const OBSERVABLE: f64 = 1e-9;
 
 /// The restriction of `disc` to its observable subspace (exact for the outputs: the
 /// unobservable subspace is invariant under Φ and in the kernel of C). The predicted states
-/// are then coordinates of that subspace.
-fn observable_part(disc: &Discrete) -> Discrete {
+/// are then coordinates of that subspace, with the orthonormal basis `T` (rows) returned when
+/// it is a proper subspace (`z = T x`).
+fn observable_part(disc: &Discrete) -> (Discrete, Option<DMatrix<f64>>) {
     let (n, p) = (disc.phi.nrows(), disc.c.nrows());
     let mut o = DMatrix::zeros(n * p, n);
     let mut block = disc.c.clone();
@@ -332,17 +345,17 @@ fn observable_part(disc: &Discrete) -> Discrete {
     let scale = o.amax().max(1e-300);
     let svd = (o / scale).svd(false, true);
     let Some(v_t) = svd.v_t else {
-        return disc.clone();
+        return (disc.clone(), None);
     };
     let top = svd.singular_values.max();
     let keep: Vec<usize> = (0..svd.singular_values.len())
         .filter(|&i| svd.singular_values[i] > OBSERVABLE * top)
         .collect();
     if keep.len() == n {
-        return disc.clone();
+        return (disc.clone(), None);
     }
     let t = DMatrix::from_fn(keep.len(), n, |r, c| v_t[(keep[r], c)]);
-    Discrete {
+    let part = Discrete {
         phi: &t * &disc.phi * t.transpose(),
         gamma0: &t * &disc.gamma0,
         gamma1: &t * &disc.gamma1,
@@ -350,7 +363,8 @@ fn observable_part(disc: &Discrete) -> Discrete {
         d: disc.d.clone(),
         whole: disc.whole,
         d_shift: disc.d_shift,
-    }
+    };
+    (part, Some(t))
 }
 
 /// `m` moved down by `s` rows (row k holds row k - s), zeros above.

@@ -28,6 +28,7 @@ pub mod load;
 pub mod model;
 pub mod model_file;
 pub mod noise;
+pub mod power;
 pub mod report;
 pub mod residual;
 pub mod spectra;
