@@ -39,6 +39,7 @@ use super::kalman::Predictor;
 use super::model::Model;
 use super::model_file::ModelFile;
 use super::stats::clopper_pearson;
+use super::timedomain::Discrete;
 use super::{DataOptions, EstimatorChoice, Workbench};
 use crate::error::{Result, SimError};
 
@@ -90,6 +91,22 @@ pub struct StudySpec {
     pub estimator: String,
     /// Welch band of the discovery, if the user fixed one.
     pub band_hz: Option<(f64, f64)>,
+    /// Period-to-period noise rms per output of the logs ([`period_noise_rms`]), to compare
+    /// the simulated campaigns' with; `None` for logs that are not periodic.
+    pub measured_noise_rms: Option<Vec<f64>>,
+    /// The factors `(process, sensor)` the Kalman estimate's covariances were scaled by so
+    /// that the simulated period-to-period noise matches the logs' (`None`: not periodic, not
+    /// scaled).
+    pub noise_calibration: Option<(f64, f64)>,
+}
+
+impl StudySpec {
+    /// Every campaign of the study, `(value index, campaign index)`, in order.
+    pub fn jobs(&self) -> Vec<(usize, usize)> {
+        (0..self.values.len())
+            .flat_map(|i| (0..self.campaigns).map(move |c| (i, c)))
+            .collect()
+    }
 }
 
 /// What the discovery made of one simulated campaign.
@@ -109,6 +126,8 @@ pub struct Outcome {
     pub estimate: Option<f64>,
     /// Why the campaign failed (a diverged loop, a failed fit); the rest is then empty.
     pub error: Option<String>,
+    /// Period-to-period noise rms per output of the simulated logs.
+    pub noise_rms: Option<Vec<f64>>,
 }
 
 fn estimator_choice(name: &str) -> Result<EstimatorChoice> {
@@ -249,7 +268,7 @@ pub fn prepare(
     let pairs: Vec<(&DMatrix<f64>, &DMatrix<f64>)> = centred.iter().map(|(u, y)| (u, y)).collect();
     let predictor = Predictor::design(&disc, &pairs)?;
     let data = wb.data();
-    Ok(StudySpec {
+    let mut spec = StudySpec {
         model_text: model_text.to_string(),
         model_path: model_path.display().to_string(),
         effect: options.effect.clone(),
@@ -272,7 +291,45 @@ pub fn prepare(
             .collect(),
         estimator: options.estimator.clone(),
         band_hz: options.band_hz,
-    })
+        measured_noise_rms: period_noise_rms(data),
+        noise_calibration: None,
+    };
+    if let Some(measured) = spec.measured_noise_rms.clone() {
+        let (cq, cr) = Study::new(spec.clone())?.calibration(&disc, &measured)?;
+        spec.process_noise
+            .iter_mut()
+            .flatten()
+            .for_each(|q| *q *= cq);
+        spec.sensor_noise.iter_mut().for_each(|r| *r *= cr);
+        spec.noise_calibration = Some((cq, cr));
+    }
+    Ok(spec)
+}
+
+/// The rms per output of the deviation of each period from the mean period (the noise a
+/// periodic FRF estimate sees), pooled over the experiments and corrected for the mean's own
+/// share (`P / (P - 1)` for `P` periods); `None` unless every experiment is periodic.
+pub fn period_noise_rms(data: &Dataset) -> Option<Vec<f64>> {
+    let (layouts, _) = data.periodic_layouts()?;
+    let p = data.outputs.len();
+    let (mut sum, mut count) = (vec![0.0; p], 0usize);
+    for (e, l) in data.experiments.iter().zip(&layouts) {
+        let periods = l.periods as f64;
+        for i in 0..p {
+            for k in 0..l.period {
+                let at = |j: usize| e.y[(l.transient + j * l.period + k, i)];
+                let mean = (0..l.periods).map(at).sum::<f64>() / periods;
+                sum[i] += (0..l.periods).map(|j| (at(j) - mean).powi(2)).sum::<f64>()
+                    * (periods / (periods - 1.0));
+            }
+        }
+        count += l.period * l.periods;
+    }
+    Some(
+        sum.iter()
+            .map(|s| (s / count.max(1) as f64).sqrt())
+            .collect(),
+    )
 }
 
 fn check_values(values: &[f64], p: &super::model::Parameter) -> Result<()> {
@@ -407,11 +464,9 @@ impl Study {
         &self.spec
     }
 
-    /// Every campaign of the study, `(value index, campaign index)`, in order.
+    /// Every campaign of the study (see [`StudySpec::jobs`]).
     pub fn jobs(&self) -> Vec<(usize, usize)> {
-        (0..self.spec.values.len())
-            .flat_map(|i| (0..self.spec.campaigns).map(move |c| (i, c)))
-            .collect()
+        self.spec.jobs()
     }
 
     /// The random numbers of one campaign (see the module documentation).
@@ -436,29 +491,44 @@ impl Study {
             .with
             .state_space(&theta)?
             .discretize(1.0 / self.spec.sample_rate_hz)?;
-        let (n_true, n_noise) = (disc.phi.nrows(), self.noise_factor.nrows());
         let mut rng = self.rng(value_index, campaign);
+        let label = format!("{} = {value}", self.spec.parameter);
+        self.logs(&disc, &label, &mut rng, &self.noise_factor, &self.sensor_sd)
+    }
+
+    /// Simulated logs of `disc` in the loop, noise drawn from `rng` with the process-noise
+    /// factor `factor` (`factor factorᵀ` the covariance) and sensor standard deviations `sd`;
+    /// `label` names the model in a divergence message.
+    fn logs(
+        &self,
+        disc: &Discrete,
+        label: &str,
+        rng: &mut ChaCha8Rng,
+        factor: &DMatrix<f64>,
+        sd: &DVector<f64>,
+    ) -> Result<Dataset> {
+        let (n_true, n_noise) = (disc.phi.nrows(), factor.nrows());
         let mut z = DVector::zeros(n_noise);
         let mut experiments = Vec::with_capacity(self.excitations.len());
         for (r, e) in self.excitations.iter().zip(&self.spec.experiments) {
             let mut noise = |w: &mut DVector<f64>, v: &mut DVector<f64>| {
                 for zi in z.iter_mut() {
-                    *zi = StandardNormal.sample(&mut rng);
+                    *zi = StandardNormal.sample(&mut *rng);
                 }
                 // The noise enters the nominal model's states; states the effect adds (a lag's)
                 // come after them and get none.
-                let drawn = &self.noise_factor * &z;
+                let drawn = factor * &z;
                 w.rows_mut(0, n_noise.min(n_true))
                     .copy_from(&drawn.rows(0, n_noise.min(n_true)));
-                for (vi, sd) in v.iter_mut().zip(self.sensor_sd.iter()) {
-                    let s: f64 = StandardNormal.sample(&mut rng);
+                for (vi, sd) in v.iter_mut().zip(sd.iter()) {
+                    let s: f64 = StandardNormal.sample(&mut *rng);
                     *vi = sd * s;
                 }
             };
-            let (u, y) = run_loop(&disc, &self.controller, r, &mut noise).map_err(|k| {
+            let (u, y) = run_loop(disc, &self.controller, r, &mut noise).map_err(|k| {
                 SimError::invalid(
                     "closed loop",
-                    format!("{} = {value}", self.spec.parameter),
+                    label,
                     format!(
                         "the simulated loop of the model and the controller diverges in {} at \
                          sample {k}",
@@ -486,6 +556,74 @@ impl Study {
         })
     }
 
+    /// Factors `(process, sensor)` that scale the covariances so that the nominal model's
+    /// simulated period-to-period noise matches the logs' per output (`measured` rms): the
+    /// noise enters linearly, so each output's variance is `cq A_i + cr B_i` with `A`, `B` the
+    /// variances simulated with process noise alone and sensor noise alone (random stream
+    /// `u64::MAX`, which no campaign uses); `(cq, cr) >= 0` minimise the squared relative
+    /// errors.
+    fn calibration(&self, nominal: &Discrete, measured: &[f64]) -> Result<(f64, f64)> {
+        let mut rng = ChaCha8Rng::seed_from_u64(self.spec.seed);
+        rng.set_stream(u64::MAX);
+        let none_q = DMatrix::zeros(self.noise_factor.nrows(), self.noise_factor.ncols());
+        let none_r = DVector::zeros(self.sensor_sd.len());
+        let mut variance = |factor: &DMatrix<f64>, sd: &DVector<f64>| -> Result<Vec<f64>> {
+            let logs = self.logs(nominal, "the nominal model", &mut rng, factor, sd)?;
+            Ok(period_noise_rms(&logs)
+                .unwrap_or_default()
+                .iter()
+                .map(|v| v * v)
+                .collect())
+        };
+        let a = variance(&self.noise_factor, &none_r)?;
+        let b = variance(&none_q, &self.sensor_sd)?;
+        let rel = |v: &[f64]| -> Vec<f64> {
+            v.iter()
+                .zip(measured)
+                .map(|(x, m)| x / (m * m).max(1e-300))
+                .collect()
+        };
+        let (a, b) = (rel(&a), rel(&b));
+        let dot = |x: &[f64], y: &[f64]| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>();
+        let ones = vec![1.0; a.len()];
+        let misfit = |cq: f64, cr: f64| {
+            a.iter()
+                .zip(&b)
+                .map(|(x, y)| (cq * x + cr * y - 1.0).powi(2))
+                .sum::<f64>()
+        };
+        let (aa, ab, bb) = (dot(&a, &a), dot(&a, &b), dot(&b, &b));
+        let det = aa * bb - ab * ab;
+        let mut best = (f64::INFINITY, 1.0, 1.0);
+        let mut consider = |cq: f64, cr: f64| {
+            if cq >= 0.0 && cr >= 0.0 && cq.is_finite() && cr.is_finite() {
+                let m = misfit(cq, cr);
+                if m < best.0 {
+                    best = (m, cq, cr);
+                }
+            }
+        };
+        if det > 1e-12 * aa * bb {
+            let (ya, yb) = (dot(&a, &ones), dot(&b, &ones));
+            consider((bb * ya - ab * yb) / det, (aa * yb - ab * ya) / det);
+        }
+        if aa > 0.0 {
+            consider(dot(&a, &ones) / aa, 0.0);
+        }
+        if bb > 0.0 {
+            consider(0.0, dot(&b, &ones) / bb);
+        }
+        if best.0.is_finite() {
+            Ok((best.1, best.2))
+        } else {
+            Err(SimError::invalid(
+                "noise calibration",
+                "simulated noise",
+                "is zero on every output",
+            ))
+        }
+    }
+
     /// One campaign: simulate, discover, and what was found. Never fails: a failure is the
     /// outcome's `error`.
     pub fn campaign(&self, value_index: usize, campaign: usize) -> Outcome {
@@ -497,8 +635,10 @@ impl Study {
             unexplained: false,
             estimate: None,
             error: None,
+            noise_rms: None,
         };
         let result = self.simulate(value_index, campaign).and_then(|data| {
+            out.noise_rms = period_noise_rms(&data);
             Workbench::with_options(
                 self.structure.clone(),
                 data,
@@ -575,6 +715,7 @@ pub fn run(
                 unexplained: false,
                 estimate: None,
                 error: Some("the campaign's thread failed".into()),
+                noise_rms: None,
             })
         })
         .collect()
@@ -652,6 +793,10 @@ pub struct PowerResult {
     pub min_detectable: MinDetectable,
     /// Failed campaigns.
     pub failures: Vec<Failure>,
+    /// Per output, the simulated campaigns' period-to-period noise rms (mean over the
+    /// campaigns at the smallest value) over the logs': near 1 when the campaigns have the
+    /// logged noise level; `None` for logs that are not periodic.
+    pub noise_ratio: Option<Vec<f64>>,
     /// How the campaigns were simulated.
     pub policy: String,
 }
@@ -760,7 +905,21 @@ pub fn aggregate(spec: &StudySpec, outcomes: &[Outcome]) -> Result<PowerResult> 
             100.0 * (1.0 - ALPHA)
         ),
     };
+    let noise_ratio = spec.measured_noise_rms.as_ref().and_then(|measured| {
+        let sims: Vec<&Vec<f64>> = outcomes
+            .iter()
+            .filter(|o| o.value_index == 0)
+            .filter_map(|o| o.noise_rms.as_ref())
+            .filter(|v| v.len() == measured.len())
+            .collect();
+        (!sims.is_empty()).then(|| {
+            (0..measured.len())
+                .map(|i| sims.iter().map(|v| v[i]).sum::<f64>() / sims.len() as f64 / measured[i])
+                .collect()
+        })
+    });
     Ok(PowerResult {
+        noise_ratio,
         effect: spec.effect.clone(),
         parameter: spec.parameter.clone(),
         campaigns: spec.campaigns,
@@ -778,11 +937,16 @@ pub fn aggregate(spec: &StudySpec, outcomes: &[Outcome]) -> Result<PowerResult> 
              sampled with a zero-order hold at {} Hz, in closed loop with the model file's \
              controller from zero states, driven by the logged excitation of each of the {} \
              experiments, with white Gaussian process and sensor noise of the covariances the \
-             Kalman predictor estimated from the logs; then the full discovery",
+             Kalman predictor estimated from the logs{}; then the full discovery",
             spec.effect,
             spec.parameter,
             spec.sample_rate_hz,
-            spec.experiments.len()
+            spec.experiments.len(),
+            spec.noise_calibration
+                .map_or(String::new(), |(cq, cr)| format!(
+                    ", scaled by {cq:.3} (process) and {cr:.3} (sensor) so that the nominal \
+                 model's simulated period-to-period noise matches the logs' per output"
+                ))
         ),
     })
 }
@@ -845,6 +1009,16 @@ impl PowerResult {
                 100.0 * TARGET_POWER
             ),
         });
+        if let Some(ratio) = &self.noise_ratio {
+            s.push_str(&format!(
+                "simulated / logged period-to-period noise rms per output: {}\n",
+                ratio
+                    .iter()
+                    .map(|r| format!("{r:.2}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
         for f in &self.failures {
             s.push_str(&format!(
                 "failed: {} = {}, campaign {}: {}\n",
@@ -1131,6 +1305,7 @@ K = [[4.0, 3.0]]
             unexplained: false,
             estimate,
             error: None,
+            noise_rms: None,
         }
     }
 
@@ -1150,6 +1325,8 @@ K = [[4.0, 3.0]]
             experiments: Vec::new(),
             estimator: "auto".into(),
             band_hz: None,
+            measured_noise_rms: None,
+            noise_calibration: None,
         }
     }
 
