@@ -311,15 +311,14 @@ pub fn prepare(
 /// share (`P / (P - 1)` for `P` periods); `None` unless every experiment is periodic.
 pub fn period_noise_rms(data: &Dataset) -> Option<Vec<f64>> {
     let (layouts, _) = data.periodic_layouts()?;
-    let p = data.outputs.len();
-    let (mut sum, mut count) = (vec![0.0; p], 0usize);
+    let (mut sum, mut count) = (vec![0.0; data.outputs.len()], 0usize);
     for (e, l) in data.experiments.iter().zip(&layouts) {
         let periods = l.periods as f64;
-        for i in 0..p {
+        for (i, total) in sum.iter_mut().enumerate() {
             for k in 0..l.period {
                 let at = |j: usize| e.y[(l.transient + j * l.period + k, i)];
                 let mean = (0..l.periods).map(at).sum::<f64>() / periods;
-                sum[i] += (0..l.periods).map(|j| (at(j) - mean).powi(2)).sum::<f64>()
+                *total += (0..l.periods).map(|j| (at(j) - mean).powi(2)).sum::<f64>()
                     * (periods / (periods - 1.0));
             }
         }
