@@ -374,6 +374,25 @@ fn demeaned(x: &DMatrix<f64>) -> DMatrix<f64> {
     d
 }
 
+/// Growth of the output rms over a record above which a simulated loop counts as diverged
+/// (a stable loop driven by a stationary excitation and noise keeps its level).
+const GROWTH: f64 = 10.0;
+
+/// The largest ratio over the outputs of the rms over the last quarter of `y` to the rms over
+/// its second quarter (the first holds the start-up).
+fn growth(y: &DMatrix<f64>) -> f64 {
+    let q = y.nrows() / 4;
+    if q == 0 {
+        return 1.0;
+    }
+    y.column_iter()
+        .map(|c| {
+            let rms = |from: usize| c.rows(from, q).norm();
+            rms(y.nrows() - q) / rms(q).max(f64::MIN_POSITIVE)
+        })
+        .fold(0.0, f64::max)
+}
+
 /// A symmetric positive semi-definite matrix's square root factor `L` (`L Lᵀ = S`) from its
 /// eigen-decomposition, negative rounding clipped (the process covariance may be singular).
 fn sqrt_factor(s: &DMatrix<f64>) -> DMatrix<f64> {
@@ -491,17 +510,17 @@ impl Study {
             .state_space(&theta)?
             .discretize(1.0 / self.spec.sample_rate_hz)?;
         let mut rng = self.rng(value_index, campaign);
-        let label = format!("{} = {value}", self.spec.parameter);
+        let label = (self.spec.parameter.as_str(), value.to_string());
         self.logs(&disc, &label, &mut rng, &self.noise_factor, &self.sensor_sd)
     }
 
     /// Simulated logs of `disc` in the loop, noise drawn from `rng` with the process-noise
     /// factor `factor` (`factor factorᵀ` the covariance) and sensor standard deviations `sd`;
-    /// `label` names the model in a divergence message.
+    /// `label` (a parameter and its value) names the model in a divergence message.
     fn logs(
         &self,
         disc: &Discrete,
-        label: &str,
+        label: &(&str, String),
         rng: &mut ChaCha8Rng,
         factor: &DMatrix<f64>,
         sd: &DVector<f64>,
@@ -526,8 +545,8 @@ impl Study {
             };
             let (u, y) = run_loop(disc, &self.controller, r, &mut noise).map_err(|k| {
                 SimError::invalid(
-                    "closed loop",
-                    label,
+                    label.0,
+                    &label.1,
                     format!(
                         "the simulated loop of the model and the controller diverges in {} at \
                          sample {k}",
@@ -535,6 +554,19 @@ impl Study {
                     ),
                 )
             })?;
+            let growth = growth(&y);
+            if growth > GROWTH {
+                return Err(SimError::invalid(
+                    label.0,
+                    &label.1,
+                    format!(
+                        "the simulated loop of the model and the controller diverges in {}: the \
+                         output rms grows {growth:.3e}-fold from the second to the last quarter \
+                         of the record",
+                        e.name
+                    ),
+                ));
+            }
             experiments.push(Experiment {
                 name: format!("{} (simulated)", e.name),
                 u,
@@ -567,7 +599,13 @@ impl Study {
         let none_q = DMatrix::zeros(self.noise_factor.nrows(), self.noise_factor.ncols());
         let none_r = DVector::zeros(self.sensor_sd.len());
         let mut variance = |factor: &DMatrix<f64>, sd: &DVector<f64>| -> Result<Vec<f64>> {
-            let logs = self.logs(nominal, "the nominal model", &mut rng, factor, sd)?;
+            let logs = self.logs(
+                nominal,
+                &("nominal model", "fitted".into()),
+                &mut rng,
+                factor,
+                sd,
+            )?;
             Ok(period_noise_rms(&logs)
                 .unwrap_or_default()
                 .iter()
