@@ -374,6 +374,10 @@ fn demeaned(x: &DMatrix<f64>) -> DMatrix<f64> {
     d
 }
 
+/// Simulated records per noise source the calibration averages over (a short record's
+/// period-to-period noise varies much from one draw to the next).
+const CALIBRATION_DRAWS: usize = 8;
+
 /// Growth of the output rms over a record above which a simulated loop counts as diverged
 /// (a stable loop driven by a stationary excitation and noise keeps its level).
 const GROWTH: f64 = 10.0;
@@ -590,27 +594,28 @@ impl Study {
     /// Factors `(process, sensor)` that scale the covariances so that the nominal model's
     /// simulated period-to-period noise matches the logs' per output (`measured` rms): the
     /// noise enters linearly, so each output's variance is `cq A_i + cr B_i` with `A`, `B` the
-    /// variances simulated with process noise alone and sensor noise alone (random stream
+    /// variances simulated with process noise alone and sensor noise alone, averaged over
+    /// [`CALIBRATION_DRAWS`] records each (random stream
     /// `u64::MAX`, which no campaign uses); `(cq, cr) >= 0` minimise the squared relative
-    /// errors.
+    /// errors, one common factor unless two halve them.
     fn calibration(&self, nominal: &Discrete, measured: &[f64]) -> Result<(f64, f64)> {
         let mut rng = ChaCha8Rng::seed_from_u64(self.spec.seed);
         rng.set_stream(u64::MAX);
         let none_q = DMatrix::zeros(self.noise_factor.nrows(), self.noise_factor.ncols());
         let none_r = DVector::zeros(self.sensor_sd.len());
         let mut variance = |factor: &DMatrix<f64>, sd: &DVector<f64>| -> Result<Vec<f64>> {
-            let logs = self.logs(
-                nominal,
-                &("nominal model", "fitted".into()),
-                &mut rng,
-                factor,
-                sd,
-            )?;
-            Ok(period_noise_rms(&logs)
-                .unwrap_or_default()
-                .iter()
-                .map(|v| v * v)
-                .collect())
+            let mut sum = vec![0.0; measured.len()];
+            for _ in 0..CALIBRATION_DRAWS {
+                let label = ("nominal model", "fitted".to_string());
+                let logs = self.logs(nominal, &label, &mut rng, factor, sd)?;
+                for (s, v) in sum
+                    .iter_mut()
+                    .zip(period_noise_rms(&logs).unwrap_or_default())
+                {
+                    *s += v * v / CALIBRATION_DRAWS as f64;
+                }
+            }
+            Ok(sum)
         };
         let a = variance(&self.noise_factor, &none_r)?;
         let b = variance(&none_q, &self.sensor_sd)?;
@@ -631,11 +636,17 @@ impl Study {
         };
         let (aa, ab, bb) = (dot(&a, &a), dot(&a, &b), dot(&b, &b));
         let det = aa * bb - ab * ab;
-        let mut best = (f64::INFINITY, 1.0, 1.0);
+        // One factor for both keeps the estimate's split between process and sensor noise; a
+        // split of its own replaces it only where it halves the misfit (with one output the
+        // split is not identifiable from the period-to-period noise).
+        let both: Vec<f64> = a.iter().zip(&b).map(|(x, y)| x + y).collect();
+        let c = dot(&both, &ones) / dot(&both, &both).max(f64::MIN_POSITIVE);
+        let mut best = (misfit(c, c), c, c);
+        let common = best.0;
         let mut consider = |cq: f64, cr: f64| {
             if cq >= 0.0 && cr >= 0.0 && cq.is_finite() && cr.is_finite() {
                 let m = misfit(cq, cr);
-                if m < best.0 {
+                if m < best.0 && m < 0.5 * common {
                     best = (m, cq, cr);
                 }
             }
@@ -650,7 +661,7 @@ impl Study {
         if bb > 0.0 {
             consider(0.0, dot(&b, &ones) / bb);
         }
-        if best.0.is_finite() {
+        if best.0.is_finite() && best.1 + best.2 > 0.0 {
             Ok((best.1, best.2))
         } else {
             Err(SimError::invalid(
@@ -1331,6 +1342,19 @@ K = [[4.0, 3.0]]
         // Not exactly 2 sigma^2: the loop feeds the sensor noise back into the state.
         assert!((ms / (2.0 * 4e-6) - 1.0).abs() < 0.25, "{ms}");
         assert!(spec.sensor_noise[0] > 0.0 && spec.process_noise.len() == 2);
+        // Calibrated: the campaigns' period-to-period noise is the logs' (rms over campaigns).
+        let study = Study::new(spec.clone()).unwrap();
+        let measured = spec.measured_noise_rms.clone().unwrap()[0];
+        let draws = 32;
+        let simulated = ((0..draws)
+            .map(|c| period_noise_rms(&study.simulate(0, c).unwrap()).unwrap()[0].powi(2))
+            .sum::<f64>()
+            / draws as f64)
+            .sqrt();
+        assert!(
+            (simulated / measured - 1.0).abs() < 0.15,
+            "{simulated} {measured}"
+        );
     }
 
     fn outcome(v: usize, c: usize, found: bool, estimate: Option<f64>) -> Outcome {
