@@ -870,10 +870,14 @@ fn first_crossing(values: &[f64], curve: &[f64], target: f64) -> Option<f64> {
     Some(v0 + (v1 - v0) * (target - c0) / (c1 - c0))
 }
 
-/// Aggregates the outcomes of a study (in any order; each `(value, campaign)` once).
+/// Aggregates the outcomes of a study (in any order; each `(value, campaign)` once). Sums run
+/// in campaign order, so the result does not depend on the order the outcomes arrived in.
 pub fn aggregate(spec: &StudySpec, outcomes: &[Outcome]) -> Result<PowerResult> {
+    let mut sorted: Vec<&Outcome> = outcomes.iter().collect();
+    sorted.sort_by_key(|o| (o.value_index, o.campaign));
+    let outcomes = sorted;
     let mut seen = vec![vec![false; spec.campaigns]; spec.values.len()];
-    for o in outcomes {
+    for o in &outcomes {
         let slot = seen
             .get_mut(o.value_index)
             .and_then(|s| s.get_mut(o.campaign))
@@ -897,8 +901,11 @@ pub fn aggregate(spec: &StudySpec, outcomes: &[Outcome]) -> Result<PowerResult> 
     let mut failures = Vec::new();
     let mut values = Vec::with_capacity(spec.values.len());
     for (i, &value) in spec.values.iter().enumerate() {
-        let mut mine: Vec<&Outcome> = outcomes.iter().filter(|o| o.value_index == i).collect();
-        mine.sort_by_key(|o| o.campaign);
+        let mine: Vec<&Outcome> = outcomes
+            .iter()
+            .copied()
+            .filter(|o| o.value_index == i)
+            .collect();
         let (ok, bad): (Vec<&Outcome>, Vec<&Outcome>) =
             mine.into_iter().partition(|o| o.error.is_none());
         failures.extend(bad.iter().map(|o| Failure {
@@ -1411,8 +1418,10 @@ K = [[4.0, 3.0]]
             out.push(outcome(1, c, c < 2, (c < 2).then(|| [0.9, 1.3][c])));
             out.push(outcome(2, c, true, Some(2.0)));
         }
+        let in_order = aggregate(&spec, &out).unwrap();
         out.reverse();
         let r = aggregate(&spec, &out).unwrap();
+        assert_eq!(r, in_order);
         let v0 = &r.values[0];
         assert_eq!((v0.completed, v0.failed), (3, 1));
         assert_eq!(v0.detection_rate, 0.0);
