@@ -952,8 +952,8 @@ pub fn aggregate(spec: &StudySpec, outcomes: &[Outcome]) -> Result<PowerResult> 
             first_crossing(&xs, &lower, TARGET_POWER),
         ],
         note: format!(
-            "the detection rate, linearly interpolated between the values studied, first reaches \
-             {:.0} % at value; the interval is where the upper and the lower {:.0} % \
+            "value: where the detection rate, linearly interpolated between the values \
+             studied, first reaches {:.0} %; interval: where the upper and the lower {:.0} % \
              Clopper-Pearson bounds first reach it (null: not within the values studied; the \
              smallest value when already reached there)",
             100.0 * TARGET_POWER,
