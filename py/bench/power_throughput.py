@@ -36,22 +36,32 @@ def main() -> None:
         ic.campaign(Path(tmp), plant=ic.Plant(), seed=1)
         spec = power_study.prepare(MODEL, [tmp], effect="cart_friction", values=[0.0, 0.05],
                                    campaigns=args.campaigns, seed=1)
-    single = []
-    for c in range(args.single):
-        t = time.perf_counter()
-        power_study.run_batch(spec, [(1, c)], 1)
-        single.append(time.perf_counter() - t)
+    def alone(first):
+        times = []
+        for c in range(first, first + args.single // 2):
+            t, cpu = time.perf_counter(), time.process_time()
+            power_study.run_batch(spec, [(1, c)], 1)
+            times.append((time.perf_counter() - t, time.process_time() - cpu))
+        return times
+
+    load = os.getloadavg()[0]
+    single = alone(0)  # half before and half after the 200, as the machine's load may change
     total = 2 * args.campaigns
     t = time.perf_counter()
     power_study.run_study(spec, threads=args.threads, progress=False)
     wall = time.perf_counter() - t
+    single += alone(args.single // 2)
+    cpu = statistics.mean(c for _, c in single)
+    single = [w for w, _ in single]
     mean = statistics.mean(single)
     ideal = total * mean / args.threads
-    print(f"cores {os.cpu_count()}, load average before {os.getloadavg()[0]:.2f}")
+    print(f"cores {os.cpu_count()}, load average {load:.2f} before, {os.getloadavg()[0]:.2f} after")
     print(f"one campaign alone ({args.single} runs): mean {mean:.3f} s, median "
-          f"{statistics.median(single):.3f} s, max {max(single):.3f} s")
+          f"{statistics.median(single):.3f} s, max {max(single):.3f} s; CPU {cpu:.3f} s "
+          f"(its discovery's own threads)")
     print(f"{total} campaigns on {args.threads} threads: {wall:.1f} s = {wall / total:.3f} s per "
-          f"campaign; 200 x one / threads = {ideal:.1f} s; ratio {wall / ideal:.2f}")
+          f"campaign; {total} x one / threads = {ideal:.1f} s; ratio {wall / ideal:.2f}; "
+          f"{total} x CPU of one / threads = {total * cpu / args.threads:.1f} s")
 
 
 if __name__ == "__main__":

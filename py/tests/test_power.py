@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 from dataclasses import replace
@@ -193,3 +194,27 @@ def test_bad_studies_are_refused_by_name(logs, tmp_path):
     with pytest.raises(TypeError, match="path of a model file"):
         stabilis.power(stabilis.Model.from_file(MODEL), [logs], effect="cart_friction",
                        values=[0.1], campaigns=1)
+
+
+def test_every_plot_of_the_power_report_draws_in_a_browser(logs, tmp_path):
+    from test_report_browser import CHECK, chromium
+
+    report = tmp_path / "report"
+    stabilis.power(MODEL, [logs], effect="cart_friction", values=[0.0, 0.2, 0.4], campaigns=3,
+                   progress=False, report=report)
+    html = (report / "index.html").read_text()
+    assert "<script" not in html
+    page = tmp_path / "checked.html"
+    page.write_text(html.replace("</body>", CHECK + "</body>"))
+    dom = subprocess.run([chromium(), "--headless", "--no-sandbox", "--disable-gpu",
+                          "--virtual-time-budget=5000", "--dump-dom", page.as_uri()],
+                         capture_output=True, text=True, check=False, timeout=120)
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    found = re.search(r'<pre id="plot-check">(.*?)</pre>', dom.stdout, re.S)
+    assert found, dom.stdout[-2000:]
+    plots = json.loads(found.group(1).replace("&quot;", '"').replace("&amp;", "&"))
+    # Power with its band, the other rates, the estimates.
+    assert len(plots) == 3, plots
+    for p in plots:
+        assert p["width"] > 100 and p["height"] > 100 and p["marks"] >= 2, p
+    assert "power" in plots[0]["title"]
