@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import re
 import subprocess
 import sys
 from dataclasses import replace
@@ -23,6 +22,7 @@ from dask.distributed import Client, LocalCluster
 import independent_cartpole as ic
 import stabilis
 from test_interop import stabilis_bin
+from test_report_browser import measured_plots
 
 MODEL = Path(__file__).parent / "data" / "cart_pole.toml"
 SHORT = dict(experiments=2, periods=4, transient_samples=300)
@@ -197,22 +197,12 @@ def test_bad_studies_are_refused_by_name(logs, tmp_path):
 
 
 def test_every_plot_of_the_power_report_draws_in_a_browser(logs, tmp_path):
-    from test_report_browser import CHECK, chromium
-
     report = tmp_path / "report"
     stabilis.power(MODEL, [logs], effect="cart_friction", values=[0.0, 0.2, 0.4], campaigns=3,
                    progress=False, report=report)
     html = (report / "index.html").read_text()
     assert "<script" not in html
-    page = tmp_path / "checked.html"
-    page.write_text(html.replace("</body>", CHECK + "</body>"))
-    dom = subprocess.run([chromium(), "--headless", "--no-sandbox", "--disable-gpu",
-                          "--virtual-time-budget=5000", "--dump-dom", page.as_uri()],
-                         capture_output=True, text=True, check=False, timeout=120)
-    assert dom.returncode == 0, dom.stderr[-2000:]
-    found = re.search(r'<pre id="plot-check">(.*?)</pre>', dom.stdout, re.S)
-    assert found, dom.stdout[-2000:]
-    plots = json.loads(found.group(1).replace("&quot;", '"').replace("&amp;", "&"))
+    plots = measured_plots(html, tmp_path)
     # Power with its band, the other rates, the estimates.
     assert len(plots) == 3, plots
     for p in plots:

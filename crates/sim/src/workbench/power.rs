@@ -39,7 +39,7 @@ use super::kalman::Predictor;
 use super::model::Model;
 use super::model_file::ModelFile;
 use super::stats::clopper_pearson;
-use super::timedomain::Discrete;
+use super::timedomain::{demeaned, Discrete};
 use super::{DataOptions, EstimatorChoice, Workbench};
 use crate::error::{Result, SimError};
 
@@ -363,15 +363,6 @@ fn check_values(values: &[f64], p: &super::model::Parameter) -> Result<()> {
         }
     }
     Ok(())
-}
-
-fn demeaned(x: &DMatrix<f64>) -> DMatrix<f64> {
-    let mut d = x.clone();
-    for mut c in d.column_iter_mut() {
-        let mean = c.mean();
-        c.add_scalar_mut(-mean);
-    }
-    d
 }
 
 /// Simulated records per noise source the calibration averages over (a short record's
