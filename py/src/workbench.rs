@@ -760,7 +760,7 @@ impl Workbench {
                     if discover {
                         wb.discover()
                     } else {
-                        wb.compare().map(|s| wb.record(s))
+                        wb.compared()
                     }
                 })?;
                 let value = json(wb, &d);
@@ -941,7 +941,7 @@ impl Workbench {
     fn compare<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let value = match &self.inner {
             Inner::Frf { wb, .. } => {
-                let d = self.run(py, || wb.compare().map(|s| wb.record(s)))?;
+                let d = self.run(py, || wb.compared())?;
                 json(wb, &d)
             }
             Inner::Cubli { bench, .. } => self.run(py, || bench.fit())?.json(),

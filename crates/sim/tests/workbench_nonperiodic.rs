@@ -108,6 +108,7 @@ fn discover(effects: &[Effect], seed: u64) -> sim::workbench::Discovery {
         EstimatorChoice::Auto,
         DataOptions {
             band_hz: Some((0.2, 4.0)),
+            ..DataOptions::default()
         },
     )
     .unwrap();

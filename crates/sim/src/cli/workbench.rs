@@ -11,7 +11,7 @@ use crate::workbench::cubli::{CubliBench, CubliDiscovery};
 use crate::workbench::flying_platform::embedded_dataset;
 use crate::workbench::report::{json, table, write_cubli_report, write_report};
 use crate::workbench::systems::{self, Source};
-use crate::workbench::{load, DataOptions, Discovery, EstimatorChoice, Workbench};
+use crate::workbench::{load, Criterion, DataOptions, Discovery, EstimatorChoice, Workbench};
 
 /// Non-parametric estimator.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -43,9 +43,23 @@ pub struct Common {
     /// the band the data excite).
     #[arg(long, value_name = "LOW,HIGH", value_delimiter = ',', num_args = 1)]
     pub band_hz: Vec<f64>,
+    /// Criterion: frf (variance-weighted FRF misfit) or time (prediction error of the
+    /// extended Kalman predictor, for a model file with [nonlinear]); default: time for a
+    /// nonlinear model file, frf otherwise.
+    #[arg(long, value_enum)]
+    pub criterion: Option<CriterionArg>,
     /// Write an HTML report with plots into this directory.
     #[arg(long)]
     pub report: Option<PathBuf>,
+}
+
+/// `--criterion`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum CriterionArg {
+    /// The variance-weighted FRF misfit (nonlinear models linearized).
+    Frf,
+    /// The one-step prediction error, absolute units (nonlinear models).
+    Time,
 }
 
 /// Options of `stabilis discover`.
@@ -124,7 +138,11 @@ impl Common {
                 ))
             }
         };
-        Workbench::with_options(structure, data, choice, DataOptions { band_hz })
+        let criterion = self.criterion.map(|c| match c {
+            CriterionArg::Frf => Criterion::Frf,
+            CriterionArg::Time => Criterion::Time,
+        });
+        Workbench::with_options(structure, data, choice, DataOptions { band_hz, criterion })
     }
 
     fn finish(&self, wb: &Workbench, d: &Discovery) -> Result<Output> {
@@ -208,8 +226,8 @@ impl FitArgs {
         for e in &self.with {
             wb.add(e.trim())?;
         }
-        let step = wb.compare()?;
-        let d = wb.record(step);
+        let step = wb.compared()?;
+        let d = step;
         self.common.finish(&wb, &d)
     }
 }

@@ -600,13 +600,16 @@ impl Workbench {
 
     /// [`Workbench::discover`] reporting progress (one message per fitted candidate).
     pub fn discover_with(&self, progress: &mut dyn FnMut(&str)) -> Result<Discovery> {
+        if self.criterion == super::Criterion::Time {
+            return self.discover_time(progress);
+        }
         let mut model = self.model.clone();
         progress("fitting the starting model");
         let mut current = self.fitted(&model, None, None)?;
         let mut done = Vec::new();
         let mut found = Vec::new();
         loop {
-            let candidates = model.candidates();
+            let candidates = model.frf_candidates();
             let mut best: Option<(Model, FitResult, usize)> = None;
             let mut scores = Vec::with_capacity(candidates.len());
             // Candidates are fitted independently, in parallel.

@@ -1,7 +1,8 @@
-//! Weighted least-squares fit of a model's parameters to the FRF (Levenberg-Marquardt on the
-//! whitened residuals, box bounds by projection), parameter standard errors from the
-//! Gauss-Newton Hessian, and the identifiability check that holds parameters the data cannot
-//! separate at their documented values.
+//! Weighted least-squares fit of a model's parameters (Levenberg-Marquardt on the whitened
+//! residuals, box bounds by projection), parameter standard errors from the Gauss-Newton
+//! Hessian, and the identifiability check that holds parameters the data cannot separate at
+//! their documented values. One solver for every criterion ([`LeastSquares`]): the FRF here,
+//! the time-domain prediction error in [`super::prediction`].
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
@@ -86,14 +87,61 @@ impl FitResult {
     }
 }
 
-/// Fits all parameters of `model` from `start` (documented values when `None`).
+/// A weighted least-squares criterion in a model's parameters.
+pub trait LeastSquares: Sync {
+    /// Whitened residuals at `theta` (their squared norm is the cost).
+    fn residuals(&self, theta: &[f64]) -> Result<DVector<f64>>;
+    /// The residuals and their Jacobian by every parameter (columns in model order).
+    fn jacobian(&self, theta: &[f64]) -> Result<(DVector<f64>, DMatrix<f64>)>;
+}
+
+/// The FRF criterion: the weighted misfit of the model FRF on the cost's lines.
+struct FrfCriterion<'a> {
+    model: &'a Model,
+    cost: &'a WeightedCost,
+    hold: Option<f64>,
+}
+
+impl LeastSquares for FrfCriterion<'_> {
+    fn residuals(&self, theta: &[f64]) -> Result<DVector<f64>> {
+        let g = self.model.frf(theta, &self.cost.freqs_hz, self.hold)?;
+        Ok(self.cost.residuals(&g))
+    }
+
+    fn jacobian(&self, theta: &[f64]) -> Result<(DVector<f64>, DMatrix<f64>)> {
+        let (g, d) = self
+            .model
+            .frf_with_jacobian(theta, &self.cost.freqs_hz, self.hold)?;
+        Ok((self.cost.residuals(&g), self.cost.jacobian(&d)))
+    }
+}
+
+/// Fits all parameters of `model` to the FRF from `start` (documented values when `None`).
 pub fn fit(
     model: &Model,
     cost: &WeightedCost,
     start: Option<&[f64]>,
     opts: &FitOptions,
 ) -> Result<FitResult> {
+    let criterion = FrfCriterion {
+        model,
+        cost,
+        hold: opts.hold,
+    };
     let params = model.parameters()?;
+    let mut r = solve(&criterion, &params, start, opts)?;
+    r.model_frf = model.frf(&r.theta, &cost.freqs_hz, opts.hold)?;
+    Ok(r)
+}
+
+/// Minimises `criterion` over `params` from `start` (documented values when `None`); the
+/// result's `model_frf` is left empty for the caller.
+pub fn solve(
+    criterion: &dyn LeastSquares,
+    params: &[Parameter],
+    start: Option<&[f64]>,
+    opts: &FitOptions,
+) -> Result<FitResult> {
     let mut theta: Vec<f64> = match start {
         Some(s) if s.len() == params.len() => s.to_vec(),
         Some(s) => {
@@ -105,13 +153,13 @@ pub fn fit(
         }
         None => params.iter().map(|p| p.value).collect(),
     };
-    clamp(&mut theta, &params);
+    clamp(&mut theta, params);
     let mut held = vec![false; params.len()];
     let mut iterations = 0;
     loop {
-        iterations += levenberg_marquardt(model, cost, &params, &held, &mut theta, opts)?;
-        let (g, d) = model.frf_with_jacobian(&theta, &cost.freqs_hz, opts.hold)?;
-        let j = scaled_free_jacobian(cost, &d, &params, &held);
+        iterations += levenberg_marquardt(criterion, params, &held, &mut theta, opts)?;
+        let (r, d) = criterion.jacobian(&theta)?;
+        let j = scaled_free_jacobian(&d, params, &held);
         match weakest(&j, opts.rank_tolerance) {
             Some(col) => {
                 let idx = free_indices(&held)[col];
@@ -119,15 +167,14 @@ pub fn fit(
                 theta[idx] = params[idx].value;
             }
             None => {
-                let r = cost.residuals(&g);
                 let v = r.norm_squared();
-                let estimates = report(&params, &held, &theta, &j, v, cost.n_residuals());
+                let estimates = report(params, &held, &theta, &j, v, r.len());
                 let free = held.iter().filter(|h| !**h).count();
                 return Ok(FitResult {
                     theta,
                     params: estimates,
                     cost: v,
-                    model_frf: g,
+                    model_frf: Vec::new(),
                     iterations,
                     free,
                 });
@@ -150,13 +197,7 @@ fn free_indices(held: &[bool]) -> Vec<usize> {
         .collect()
 }
 
-fn scaled_free_jacobian(
-    cost: &WeightedCost,
-    d: &[Vec<CMatrix>],
-    params: &[Parameter],
-    held: &[bool],
-) -> DMatrix<f64> {
-    let full = cost.jacobian(d);
+fn scaled_free_jacobian(full: &DMatrix<f64>, params: &[Parameter], held: &[bool]) -> DMatrix<f64> {
     let free = free_indices(held);
     DMatrix::from_fn(full.nrows(), free.len(), |r, c| {
         full[(r, free[c])] * params[free[c]].scale()
@@ -203,8 +244,7 @@ fn weakest(j: &DMatrix<f64>, tol: f64) -> Option<usize> {
 }
 
 fn levenberg_marquardt(
-    model: &Model,
-    cost: &WeightedCost,
+    criterion: &dyn LeastSquares,
     params: &[Parameter],
     held: &[bool],
     theta: &mut [f64],
@@ -215,10 +255,9 @@ fn levenberg_marquardt(
         return Ok(0);
     }
     let scale: Vec<f64> = free.iter().map(|&i| params[i].scale()).collect();
-    let (g, d) = model.frf_with_jacobian(theta, &cost.freqs_hz, opts.hold)?;
-    let mut r = cost.residuals(&g);
+    let (mut r, d) = criterion.jacobian(theta)?;
     let mut v = r.norm_squared();
-    let mut j = scaled_free_jacobian(cost, &d, params, held);
+    let mut j = scaled_free_jacobian(&d, params, held);
     let mut lambda = 1e-3;
     for it in 0..opts.max_iterations {
         let jtj = j.transpose() * &j;
@@ -258,8 +297,11 @@ fn levenberg_marquardt(
                 trial[i] += step[k] * scale[k];
             }
             clamp(&mut trial, params);
-            let gt = model.frf(&trial, &cost.freqs_hz, opts.hold)?;
-            let vt = cost.cost(&gt);
+            // A trial the criterion cannot evaluate (a predictor that diverges there) is a
+            // failed step, like a rise in cost.
+            let vt = criterion
+                .residuals(&trial)
+                .map_or(f64::INFINITY, |r| r.norm_squared());
             if vt.is_finite() && vt < v {
                 accepted = Some((trial, vt));
                 lambda = (lambda / 3.0).max(1e-12);
@@ -275,10 +317,10 @@ fn levenberg_marquardt(
         if decrease <= opts.rel_tolerance * vt || decrease <= opts.abs_tolerance {
             return Ok(it + 1);
         }
-        let (g, d) = model.frf_with_jacobian(theta, &cost.freqs_hz, opts.hold)?;
-        r = cost.residuals(&g);
+        let (rn, d) = criterion.jacobian(theta)?;
+        r = rn;
         v = r.norm_squared();
-        j = scaled_free_jacobian(cost, &d, params, held);
+        j = scaled_free_jacobian(&d, params, held);
     }
     Ok(opts.max_iterations)
 }

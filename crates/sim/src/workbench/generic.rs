@@ -1,11 +1,14 @@
 //! Effects every model gets as discovery candidates, whatever its system: a first-order lag
-//! on every input (`actuator_lag`, time constant `tau`) and a transport delay of every input
-//! (`input_delay`, `td`). A structure that declares an effect of the same name (the flying
-//! platform does) keeps its own.
+//! on every input (`actuator_lag`, time constant `tau`), a transport delay of every input
+//! (`input_delay`, `td`), and for a nonlinear model a constant offset on every output
+//! (`sensor_bias`, `bias_<output>`). A structure that declares an effect of the same name (the
+//! flying platform does) keeps its own.
 use std::sync::Arc;
 
 use nalgebra::DMatrix;
 
+use super::dataset::Dataset;
+use super::dynamics::{DelayedInputs, Dynamics, LaggedInputs, OutputBias};
 use super::model::{Effect, ModelStructure, Parameter, StateSpace};
 use crate::error::Result;
 
@@ -16,6 +19,91 @@ pub struct ActuatorLag;
 /// `u(t - td)` for every input, exact for fractional delays.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct InputDelay;
+
+/// `y = h(x, u) + bias` with one constant per output: an encoder's zero, a gyro's offset.
+/// Invisible to the FRF (it has no DC line); the time-domain criterion, which compares
+/// signals in absolute units, sees it.
+#[derive(Debug, Clone)]
+pub struct SensorBias {
+    /// `(output, bound)`: the offset is searched within `±bound`.
+    outputs: Vec<(String, f64)>,
+}
+
+impl SensorBias {
+    /// For outputs `names`, each offset bounded by one (in the output's unit).
+    pub fn new(names: &[String]) -> Self {
+        Self {
+            outputs: names.iter().map(|n| (n.clone(), 1.0)).collect(),
+        }
+    }
+
+    /// Bounds from the data: each offset within the output's logged range (or one, for an
+    /// output that never moves).
+    pub fn for_data(data: &Dataset) -> Self {
+        let outputs = data
+            .outputs
+            .iter()
+            .enumerate()
+            .map(|(i, name)| {
+                let (lo, hi) = data
+                    .experiments
+                    .iter()
+                    .flat_map(|e| e.y.column(i).iter().copied().collect::<Vec<_>>())
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                        (a.min(v), b.max(v))
+                    });
+                let range = hi - lo;
+                (
+                    name.clone(),
+                    if range.is_finite() && range > 0.0 {
+                        range
+                    } else {
+                        1.0
+                    },
+                )
+            })
+            .collect();
+        Self { outputs }
+    }
+}
+
+impl Effect for SensorBias {
+    fn name(&self) -> &str {
+        "sensor_bias"
+    }
+
+    fn description(&self) -> &str {
+        "a constant offset on every output (bias_<output>)"
+    }
+
+    fn parameters(&self) -> Vec<Parameter> {
+        self.outputs
+            .iter()
+            .map(|(o, bound)| Parameter::new(format!("bias_{o}"), 0.0, -bound, *bound, ""))
+            .collect()
+    }
+
+    fn qualified_names(&self) -> bool {
+        false
+    }
+
+    fn apply(&self, _theta: &[f64], _ss: &mut StateSpace) -> Result<()> {
+        // A constant offset does not change a linear model's response.
+        Ok(())
+    }
+
+    fn frf_visible(&self) -> bool {
+        false
+    }
+
+    fn has_dynamics(&self) -> bool {
+        true
+    }
+
+    fn apply_dynamics(&self, theta: &[f64], inner: Box<dyn Dynamics>) -> Result<Box<dyn Dynamics>> {
+        Ok(Box::new(OutputBias::new(inner, theta)?))
+    }
+}
 
 impl Effect for ActuatorLag {
     fn name(&self) -> &str {
@@ -56,6 +144,14 @@ impl Effect for ActuatorLag {
         ss.d = DMatrix::zeros(p, m);
         Ok(())
     }
+
+    fn has_dynamics(&self) -> bool {
+        true
+    }
+
+    fn apply_dynamics(&self, theta: &[f64], inner: Box<dyn Dynamics>) -> Result<Box<dyn Dynamics>> {
+        Ok(Box::new(LaggedInputs::new(inner, theta[0])?))
+    }
 }
 
 impl Effect for InputDelay {
@@ -79,12 +175,24 @@ impl Effect for InputDelay {
         ss.delay += theta[0];
         Ok(())
     }
+
+    fn has_dynamics(&self) -> bool {
+        true
+    }
+
+    fn apply_dynamics(&self, theta: &[f64], inner: Box<dyn Dynamics>) -> Result<Box<dyn Dynamics>> {
+        Ok(Box::new(DelayedInputs::new(inner, theta[0])?))
+    }
 }
 
-/// The generic effects `structure` does not declare itself.
+/// The generic effects `structure` does not declare itself (the sensor bias only for a
+/// nonlinear structure: the linear path compares deviations, where an offset cannot show).
 pub fn for_structure(structure: &dyn ModelStructure) -> Vec<Arc<dyn Effect>> {
     let own = structure.effects();
-    let all: [Arc<dyn Effect>; 2] = [Arc::new(ActuatorLag), Arc::new(InputDelay)];
+    let mut all: Vec<Arc<dyn Effect>> = vec![Arc::new(ActuatorLag), Arc::new(InputDelay)];
+    if structure.is_nonlinear() {
+        all.push(Arc::new(SensorBias::new(&structure.outputs())));
+    }
     all.into_iter()
         .filter(|e| !own.iter().any(|o| o == e.name()))
         .collect()

@@ -27,12 +27,11 @@ pub struct Predictor {
     disc: Discrete,
     /// Predictor gain, states x outputs.
     gain: DMatrix<f64>,
+    /// The designed process and sensor noise covariances `(Q, R)`, in the model's own
+    /// coordinates when every state is observable (`None` otherwise).
+    covariances: Option<(DMatrix<f64>, DMatrix<f64>)>,
     /// Summary for the report.
     pub noise: NoiseEstimate,
-    /// The designed process-noise covariance per sample in the model's own state
-    /// coordinates (zero on unobservable directions), for simulating data at this noise
-    /// level.
-    pub process_covariance: DMatrix<f64>,
 }
 
 /// The estimated noise covariances.
@@ -54,7 +53,7 @@ const SEARCH_SAMPLES: usize = 5_000;
 
 /// Samples at the start of each record left out of the search's criterion: the predictor
 /// starts from the zero state, and its start-up would dominate a short record.
-const BURN_IN: usize = 50;
+pub(crate) const BURN_IN: usize = 50;
 
 /// Coarse coordinate-descent sweeps of the noise search after the first, absolute grids
 /// (one fine sweep follows).
@@ -76,7 +75,8 @@ impl Predictor {
     pub fn design(disc: &Discrete, records: &[(&DMatrix<f64>, &DMatrix<f64>)]) -> Result<Self> {
         // Modes the outputs never see (a yaw angle measured only through its rate) cannot be
         // estimated and do not change the outputs: the predictor runs on the observable part.
-        let (observable, basis) = observable_part(disc);
+        let observable = observable_part(disc);
+        let whole_state = observable.phi.nrows() == disc.phi.nrows();
         let disc = &observable;
         let (n, p) = (disc.phi.nrows(), disc.c.nrows());
         let mut r = vec![0.0; p];
@@ -146,8 +146,8 @@ impl Predictor {
         let first = Self {
             disc: disc.clone(),
             gain: k0,
+            covariances: None,
             noise: Self::estimate(&r, &f, 0.0),
-            process_covariance: DMatrix::zeros(0, 0),
         };
         let mut motion = vec![0.0; n];
         let mut steps = 0usize;
@@ -209,23 +209,29 @@ impl Predictor {
             }
         }
         let (f, gain) = best.1.unwrap_or((f, first.gain));
+        let covariances = whole_state.then(|| {
+            (
+                &qu * f.input + &qx * f.state,
+                DMatrix::from_fn(p, p, |i, j| if i == j { r[i] * f.sensor[i] } else { 0.0 }),
+            )
+        });
         let closed = &disc.phi - &gain * &disc.c;
         let rho = closed
             .complex_eigenvalues()
             .iter()
             .map(|l| l.norm())
             .fold(0.0, f64::max);
-        let process = &qu * f.input + &qx * f.state;
-        let process_covariance = match basis {
-            Some(t) => t.transpose() * process * t,
-            None => process,
-        };
         Ok(Self {
             disc: disc.clone(),
             gain,
+            covariances,
             noise: Self::estimate(&r, &f, rho),
-            process_covariance,
         })
+    }
+
+    /// The designed noise covariances `(Q, R)` when every state is observable.
+    pub fn covariances(&self) -> Option<&(DMatrix<f64>, DMatrix<f64>)> {
+        self.covariances.as_ref()
     }
 
     fn estimate(r: &[f64], f: &Factors, rho: f64) -> NoiseEstimate {
@@ -253,8 +259,8 @@ impl Predictor {
         let candidate = Self {
             disc: disc.clone(),
             gain: k,
+            covariances: None,
             noise: Self::estimate(r, f, 0.0),
-            process_covariance: DMatrix::zeros(0, 0),
         };
         let mut s = DMatrix::zeros(p, p);
         let mut samples = 0usize;
@@ -331,9 +337,8 @@ const OBSERVABLE: f64 = 1e-9;
 
 /// The restriction of `disc` to its observable subspace (exact for the outputs: the
 /// unobservable subspace is invariant under Φ and in the kernel of C). The predicted states
-/// are then coordinates of that subspace, with the orthonormal basis `T` (rows) returned when
-/// it is a proper subspace (`z = T x`).
-fn observable_part(disc: &Discrete) -> (Discrete, Option<DMatrix<f64>>) {
+/// are then coordinates of that subspace.
+fn observable_part(disc: &Discrete) -> Discrete {
     let (n, p) = (disc.phi.nrows(), disc.c.nrows());
     let mut o = DMatrix::zeros(n * p, n);
     let mut block = disc.c.clone();
@@ -345,17 +350,17 @@ fn observable_part(disc: &Discrete) -> (Discrete, Option<DMatrix<f64>>) {
     let scale = o.amax().max(1e-300);
     let svd = (o / scale).svd(false, true);
     let Some(v_t) = svd.v_t else {
-        return (disc.clone(), None);
+        return disc.clone();
     };
     let top = svd.singular_values.max();
     let keep: Vec<usize> = (0..svd.singular_values.len())
         .filter(|&i| svd.singular_values[i] > OBSERVABLE * top)
         .collect();
     if keep.len() == n {
-        return (disc.clone(), None);
+        return disc.clone();
     }
     let t = DMatrix::from_fn(keep.len(), n, |r, c| v_t[(keep[r], c)]);
-    let part = Discrete {
+    Discrete {
         phi: &t * &disc.phi * t.transpose(),
         gamma0: &t * &disc.gamma0,
         gamma1: &t * &disc.gamma1,
@@ -363,8 +368,7 @@ fn observable_part(disc: &Discrete) -> (Discrete, Option<DMatrix<f64>>) {
         d: disc.d.clone(),
         whole: disc.whole,
         d_shift: disc.d_shift,
-    };
-    (part, Some(t))
+    }
 }
 
 /// `m` moved down by `s` rows (row k holds row k - s), zeros above.
@@ -378,7 +382,7 @@ fn shifted(m: &DMatrix<f64>, s: usize) -> DMatrix<f64> {
 }
 
 /// `K = Φ P Cᵀ (C P Cᵀ + R)^-1`, `P` the stabilizing solution of the filter Riccati equation.
-fn gain(disc: &Discrete, q: &DMatrix<f64>, r: &DMatrix<f64>) -> Result<DMatrix<f64>> {
+pub(crate) fn gain(disc: &Discrete, q: &DMatrix<f64>, r: &DMatrix<f64>) -> Result<DMatrix<f64>> {
     let phi_t = disc.phi.transpose();
     let c_t = disc.c.transpose();
     let p = rigid_body::lti::dare(&phi_t, &c_t, q, r).map_err(|e| {

@@ -17,6 +17,7 @@ pub mod cubli;
 pub mod dataset;
 pub mod diagnose;
 pub mod discover;
+pub mod dynamics;
 pub mod expr;
 pub mod fit;
 pub mod flying_platform;
@@ -29,6 +30,7 @@ pub mod model;
 pub mod model_file;
 pub mod noise;
 pub mod power;
+pub mod prediction;
 pub mod report;
 pub mod residual;
 pub mod spectra;
@@ -45,6 +47,7 @@ pub use fit::{FitOptions, FitResult, ParamEstimate};
 pub use frf::{Estimator, EstimatorChoice, FrfEstimate};
 pub use model::{Effect, Model, ModelStructure, Parameter, StateSpace};
 pub use model_file::{Controller, ModelFile};
+pub use prediction::Criterion;
 
 use crate::error::{Result, SimError};
 use cost::WeightedCost;
@@ -61,6 +64,7 @@ pub struct Workbench {
     cost: WeightedCost,
     noise: NoiseReference,
     model: Model,
+    criterion: Criterion,
 }
 
 /// Choices a user may make about the data; the defaults take everything from the data.
@@ -69,6 +73,9 @@ pub struct DataOptions {
     /// The band of a Welch estimate, Hz, when the experiment was designed for a known band;
     /// `None` finds it from the data ([`welch::excited_band`]).
     pub band_hz: Option<(f64, f64)>,
+    /// The criterion; `None`: the prediction error for a nonlinear model, else the FRF
+    /// ([`Criterion::default_for`]).
+    pub criterion: Option<Criterion>,
 }
 
 impl Workbench {
@@ -145,12 +152,37 @@ impl Workbench {
             (w.frf, noise)
         };
         let cost = WeightedCost::new(&frf)?;
+        let mut model = Model::new(structure);
+        if model.structure().is_nonlinear()
+            && !model
+                .structure()
+                .effects()
+                .iter()
+                .any(|e| e == "sensor_bias")
+        {
+            // The offsets are searched within each output's logged range.
+            model = model.with_candidate(Arc::new(generic::SensorBias::for_data(&data)))?;
+        }
+        let criterion = options
+            .criterion
+            .unwrap_or_else(|| Criterion::default_for(&model));
+        if criterion == Criterion::Time && !model.structure().is_nonlinear() {
+            return Err(SimError::invalid(
+                "criterion",
+                "time",
+                format!(
+                    "needs a nonlinear model ([nonlinear] in the model file); the {} model is linear: use --criterion frf",
+                    model.structure().system()
+                ),
+            ));
+        }
         Ok(Self {
             data,
             frf,
             cost,
             noise,
-            model: Model::new(structure),
+            model,
+            criterion,
         })
     }
 
@@ -205,8 +237,17 @@ impl Workbench {
         }
     }
 
-    /// Fits the current model and diagnoses it (the "compare" of the workflow).
+    /// Fits the current model to the FRF and diagnoses it.
     pub fn compare(&self) -> Result<Step> {
         self.step(&self.model, None, None, None)
+    }
+
+    /// Fits the current model with the workbench's criterion and records it with its verdict
+    /// (the "compare" of the workflow).
+    pub fn compared(&self) -> Result<Discovery> {
+        match self.criterion {
+            Criterion::Frf => Ok(self.record(self.compare()?)),
+            Criterion::Time => self.compare_time(),
+        }
     }
 }

@@ -8,6 +8,7 @@ use std::sync::Arc;
 use nalgebra::DMatrix;
 use serde::Serialize;
 
+use super::dynamics::Dynamics;
 use super::frf::CMatrix;
 use super::spectra::C64;
 use crate::error::{Result, SimError};
@@ -241,6 +242,28 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     /// Adds the effect's terms to `ss` for parameter values `theta` (same order as
     /// [`Effect::parameters`]). It may add states (a lag) or change the delay.
     fn apply(&self, theta: &[f64], ss: &mut StateSpace) -> Result<()>;
+    /// Whether the effect has a nonlinear form ([`Effect::apply_dynamics`]), so that the
+    /// time-domain criterion can test it.
+    fn has_dynamics(&self) -> bool {
+        false
+    }
+    /// The effect on a nonlinear model, for parameter values `theta`.
+    fn apply_dynamics(
+        &self,
+        _theta: &[f64],
+        _inner: Box<dyn Dynamics>,
+    ) -> Result<Box<dyn Dynamics>> {
+        Err(SimError::invalid(
+            "effect",
+            self.name(),
+            "has no nonlinear form, so the time-domain criterion cannot use it",
+        ))
+    }
+    /// Whether the effect changes the frequency response (a constant sensor offset does not:
+    /// the FRF has no DC line), so that the FRF criterion can test it.
+    fn frf_visible(&self) -> bool {
+        true
+    }
 }
 
 /// A model structure: base parameters plus named optional effects.
@@ -265,6 +288,15 @@ pub trait ModelStructure: Send + Sync + std::fmt::Debug {
     fn state_space(&self, enabled: &[String], theta: &[f64]) -> Result<StateSpace>;
     /// The experimenter's controller, for closed-loop re-simulation, if known.
     fn controller(&self) -> Option<super::model_file::Controller> {
+        None
+    }
+    /// Whether [`ModelStructure::dynamics`] gives a nonlinear model.
+    fn is_nonlinear(&self) -> bool {
+        false
+    }
+    /// The nonlinear model for `theta`, whose linearization at its operating point is
+    /// [`ModelStructure::state_space`]; `None` for a linear structure.
+    fn dynamics(&self, _enabled: &[String], _theta: &[f64]) -> Option<Result<Box<dyn Dynamics>>> {
         None
     }
 }
@@ -329,6 +361,67 @@ impl Model {
             .into_iter()
             .filter(|e| !on.contains(e))
             .collect()
+    }
+
+    /// The candidates the FRF criterion can test (those that change the response).
+    pub fn frf_candidates(&self) -> Vec<String> {
+        self.candidates()
+            .into_iter()
+            .filter(|c| self.pool.iter().all(|e| e.name() != c || e.frf_visible()))
+            .collect()
+    }
+
+    /// The candidates the time-domain criterion can test (those with a nonlinear form).
+    pub fn dynamics_candidates(&self) -> Vec<String> {
+        self.candidates()
+            .into_iter()
+            .filter(|c| self.pool.iter().all(|e| e.name() != c || e.has_dynamics()))
+            .collect()
+    }
+
+    /// The nonlinear model at `theta`: the structure's, with the added effects' nonlinear
+    /// forms.
+    pub fn dynamics(&self, theta: &[f64]) -> Result<Box<dyn Dynamics>> {
+        let n_struct = self.check_theta(theta)?;
+        let mut d = self
+            .structure
+            .dynamics(&self.enabled, &theta[..n_struct])
+            .ok_or_else(|| {
+                SimError::invalid(
+                    "criterion",
+                    "time",
+                    format!(
+                        "the {} model is linear (no [nonlinear] section): use the FRF criterion",
+                        self.structure.system()
+                    ),
+                )
+            })??;
+        let mut at = n_struct;
+        for e in &self.added {
+            let k = e.parameters().len();
+            d = e.apply_dynamics(&theta[at..at + k], d)?;
+            at += k;
+        }
+        Ok(d)
+    }
+
+    /// Checks the length of `theta`; returns how many of its entries are the structure's.
+    fn check_theta(&self, theta: &[f64]) -> Result<usize> {
+        let n_struct = self.structure.parameters(&self.enabled)?.len();
+        let n_total = n_struct
+            + self
+                .added
+                .iter()
+                .map(|e| e.parameters().len())
+                .sum::<usize>();
+        if theta.len() != n_total {
+            return Err(SimError::LengthMismatch {
+                what: "parameter vector".into(),
+                expected: n_total,
+                found: theta.len(),
+            });
+        }
+        Ok(n_struct)
     }
 
     /// Enables a known effect by name.
@@ -399,20 +492,7 @@ impl Model {
 
     /// The state-space model at `theta`.
     pub fn state_space(&self, theta: &[f64]) -> Result<StateSpace> {
-        let n_struct = self.structure.parameters(&self.enabled)?.len();
-        let n_total = n_struct
-            + self
-                .added
-                .iter()
-                .map(|e| e.parameters().len())
-                .sum::<usize>();
-        if theta.len() != n_total {
-            return Err(SimError::LengthMismatch {
-                what: "parameter vector".into(),
-                expected: n_total,
-                found: theta.len(),
-            });
-        }
+        let n_struct = self.check_theta(theta)?;
         let mut ss = self
             .structure
             .state_space(&self.enabled, &theta[..n_struct])?;

@@ -28,14 +28,19 @@
 //!
 //! Every error names the file and the key (`linear.A[1][0]`), and for an expression the
 //! position of an unknown name or a stray character.
+mod nonlinear;
+
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use nalgebra::DMatrix;
 use toml::{Table, Value};
 
+use super::dynamics::Dynamics;
 use super::expr::{check_name, Expr};
 use super::model::{ModelStructure, Parameter, StateSpace};
 use crate::error::{Result, SimError};
+use nonlinear::{Addition, Layout, Node, Section, Target};
 
 /// A matrix entry: a number or an expression.
 #[derive(Debug, Clone)]
@@ -92,6 +97,8 @@ struct FileEffect {
     description: String,
     parameters: Vec<FileParameter>,
     terms: Vec<Term>,
+    /// Terms added to definitions, and in a nonlinear model to `f` and `h`.
+    additions: Vec<Addition>,
 }
 
 /// The experimenter's controller, for closed-loop re-simulation. Sampled at
@@ -132,14 +139,18 @@ pub struct ModelFile {
     states: Vec<String>,
     inputs: Vec<String>,
     outputs: Vec<String>,
-    /// Every parameter (base, then each effect's), then every definition.
+    /// Every parameter (base, then each effect's), every definition, then the states and
+    /// the inputs (read by a nonlinear model's expressions).
     symbols: Vec<String>,
     /// Documented values of the symbol table (definitions evaluated).
     documented: Vec<f64>,
     parameters: Vec<FileParameter>,
     /// Definitions in an order that evaluates each after what it reads.
     definitions: Vec<(usize, Entry)>,
+    /// The matrices of a linear model (empty for a nonlinear one).
     linear: [Vec<Vec<Entry>>; 4],
+    /// The nonlinear model, linearized at its operating point for the linear tools.
+    nonlinear: Option<Arc<Section>>,
     effects: Vec<FileEffect>,
     controller: Option<Controller>,
 }
@@ -270,7 +281,8 @@ impl Reader<'_> {
             return Err(self.err(
                 key,
                 format!(
-                    "{:?} in {text:?} is a parameter of another effect, not visible here",
+                    "{:?} in {text:?} is not visible here: a parameter of another effect, or a \
+                     state or input, which only a [nonlinear] model's expressions read",
                     symbols[slot]
                 ),
             ));
@@ -384,12 +396,13 @@ impl ModelFile {
                 "parameters",
                 "definitions",
                 "linear",
+                "nonlinear",
                 "effects",
                 "controller",
             ]
             .contains(&key.as_str())
             {
-                return Err(r.err(key, "unknown section (expected name, states, inputs, outputs, parameters, definitions, linear, effects, controller)"));
+                return Err(r.err(key, "unknown section (expected name, states, inputs, outputs, parameters, definitions, linear, nonlinear, effects, controller)"));
             }
         }
         let name = root
@@ -485,13 +498,32 @@ impl ModelFile {
             def_slots.push(declare(&r, &key, dname, f64::NAN, &mut symbols)?);
         }
 
-        // Base visibility: base parameters and definitions.
+        // States and inputs, read by a nonlinear model's expressions.
+        let is_nonlinear = root.contains_key("nonlinear");
+        if is_nonlinear && root.contains_key("linear") {
+            return Err(r.err(
+                "linear",
+                "give [linear] or [nonlinear], not both (a nonlinear model is linearized at its operating point)",
+            ));
+        }
+        let state0 = symbols.len();
+        for s in states.iter().chain(&inputs) {
+            symbols.push(s.clone());
+            documented.push(0.0);
+        }
+        // Base visibility: base parameters and definitions (and states and inputs in a
+        // nonlinear model).
         let mut base_visible = vec![false; symbols.len()];
         for p in &parameters {
             base_visible[p.slot] = true;
         }
         for &s in &def_slots {
             base_visible[s] = true;
+        }
+        if is_nonlinear {
+            for v in &mut base_visible[state0..] {
+                *v = true;
+            }
         }
         let mut pending: Vec<(usize, Entry, String)> = Vec::new();
         for ((dname, v), &slot) in definition_table.iter().zip(&def_slots) {
@@ -505,6 +537,10 @@ impl ModelFile {
         for &s in &def_slots {
             ready[s] = false;
         }
+        let definition_keys: Vec<(usize, String)> = pending
+            .iter()
+            .map(|(slot, _, key)| (*slot, key.clone()))
+            .collect();
         while !pending.is_empty() {
             let before = pending.len();
             let mut i = 0;
@@ -535,12 +571,17 @@ impl ModelFile {
 
         let n = states.len();
         let (m, p) = (inputs.len(), outputs.len());
-        let linear = section(&r, &root, "linear")?.ok_or_else(|| {
-            r.err(
-                "linear",
-                "missing: the section with the matrices A, B, C (and D)",
-            )
-        })?;
+        let empty = Table::new();
+        let linear = match section(&r, &root, "linear")? {
+            Some(t) => t,
+            None if is_nonlinear => &empty,
+            None => {
+                return Err(r.err(
+                    "linear",
+                    "missing: [linear] with the matrices A, B, C (and D), or [nonlinear] with f, h and operating_point",
+                ))
+            }
+        };
         for key in linear.keys() {
             if !["A", "B", "C", "D"].contains(&key.as_str()) {
                 return Err(r.err(
@@ -560,6 +601,7 @@ impl ModelFile {
             let key = format!("linear.{}", which.key());
             mats.push(match linear.get(which.key()) {
                 Some(v) => r.matrix(&key, v, shape, what, &symbols, &base_visible)?,
+                None if is_nonlinear => Vec::new(),
                 None if *which == Which::D => (0..p)
                     .map(|_| (0..m).map(|_| Entry::Number(0.0)).collect())
                     .collect(),
@@ -578,6 +620,7 @@ impl ModelFile {
                 visible[q.slot] = true;
             }
             let mut terms = Vec::new();
+            let mut additions = Vec::new();
             let mut description = String::new();
             for (k, v) in t {
                 let key = format!("effects.{ename}.{k}");
@@ -588,6 +631,23 @@ impl ModelFile {
                             .as_str()
                             .ok_or_else(|| r.err(&key, "must be a string"))?
                             .to_string()
+                    }
+                    "add" => {
+                        additions.extend(Self::read_additions(
+                            &r,
+                            &key,
+                            v,
+                            (&symbols, &visible),
+                            &definition_keys,
+                            (&states, &outputs),
+                            is_nonlinear,
+                        )?);
+                    }
+                    "A" | "B" | "C" | "D" if is_nonlinear => {
+                        return Err(r.err(
+                            &key,
+                            "a [nonlinear] model's effects add terms to expressions: add.<definition>, add.f.<state>, add.h.<output>",
+                        ))
                     }
                     "A" | "B" | "C" | "D" => {
                         let which = Which::ALL[["A", "B", "C", "D"].iter().position(|w| w == k).unwrap_or(0)];
@@ -619,14 +679,18 @@ impl ModelFile {
                         }
                     }
                     other => {
-                        return Err(r.err(&key, format!("unknown field {other:?} (expected description, parameters, A, B, C, D)")))
+                        return Err(r.err(&key, format!("unknown field {other:?} (expected description, parameters, add, A, B, C, D)")))
                     }
                 }
             }
-            if terms.is_empty() {
+            if terms.is_empty() && additions.is_empty() {
                 return Err(r.err(
                     format!("effects.{ename}"),
-                    "adds no term (give A, B, C or D)",
+                    if is_nonlinear {
+                        "adds no term (give add.<definition>, add.f.<state> or add.h.<output>)"
+                    } else {
+                        "adds no term (give A, B, C or D, or add.<definition>)"
+                    },
                 ));
             }
             effects.push(FileEffect {
@@ -634,8 +698,48 @@ impl ModelFile {
                 description,
                 parameters: params,
                 terms,
+                additions,
             });
         }
+        let nonlinear = match section(&r, &root, "nonlinear")? {
+            None => None,
+            Some(t) => {
+                let layout = Layout {
+                    symbols: &symbols,
+                    visible: &base_visible,
+                    states: &states,
+                    inputs: &inputs,
+                    outputs: &outputs,
+                    state0,
+                };
+                let (f, h, point) = nonlinear::read(&r, t, &layout)?;
+                for (d, v) in documented[state0..].iter_mut().zip(&point) {
+                    *d = *v;
+                }
+                let defs = definitions
+                    .iter()
+                    .map(|(slot, e)| {
+                        (
+                            *slot,
+                            Node::new(e.clone(), format!("definitions.{}", symbols[*slot])),
+                        )
+                    })
+                    .collect();
+                let additions = effects
+                    .iter()
+                    .map(|e| (e.name.clone(), e.additions.clone()))
+                    .collect();
+                Some(Arc::new(Section::new(
+                    &r,
+                    &symbols,
+                    state0,
+                    (n, m, p),
+                    defs,
+                    (f, h, point),
+                    additions,
+                )?))
+            }
+        };
 
         let controller = match section(&r, &root, "controller")? {
             None => None,
@@ -653,22 +757,106 @@ impl ModelFile {
             parameters,
             definitions,
             linear,
+            nonlinear,
             effects,
             controller,
         };
         debug_assert!(n_params <= model.symbols.len());
         model.documented = model.table(&[], &[])?;
-        // Every effect alone must give finite matrices at the documented values.
-        model.matrices(&[], &[])?;
-        for e in model.effects() {
-            let theta: Vec<f64> = model
-                .parameters(std::slice::from_ref(&e))?
-                .iter()
-                .map(|p| p.value)
-                .collect();
-            model.state_space(std::slice::from_ref(&e), &theta)?;
+        // Every effect alone must give finite matrices (and a nonlinear model finite `f` and
+        // `h` at its operating point) at the documented values.
+        let mut alone: Vec<Vec<String>> = vec![Vec::new()];
+        alone.extend(model.effects().into_iter().map(|e| vec![e]));
+        for enabled in &alone {
+            let theta: Vec<f64> = model.parameters(enabled)?.iter().map(|p| p.value).collect();
+            model.state_space(enabled, &theta)?;
+            if let Some(d) = model.dynamics(enabled, &theta) {
+                let d = d?;
+                let (x, u) = d.operating_point();
+                let mut scratch = Vec::new();
+                d.f(&x, &u, &mut vec![0.0; x.len()], &mut scratch)?;
+                d.h(&x, &u, &mut vec![0.0; d.outputs()], &mut scratch)?;
+            }
         }
         Ok(model)
+    }
+
+    /// An effect's `add` table: `name = "term"` for a definition, and in a nonlinear model
+    /// `f.<state> = "term"`, `h.<output> = "term"`.
+    fn read_additions(
+        r: &Reader,
+        key: &str,
+        v: &Value,
+        (symbols, visible): (&[String], &[bool]),
+        definitions: &[(usize, String)],
+        (states, outputs): (&[String], &[String]),
+        is_nonlinear: bool,
+    ) -> Result<Vec<Addition>> {
+        let t = v.as_table().ok_or_else(|| {
+            r.err(key, "must be a table: add.<definition> = \"term\" (and add.f.<state>, add.h.<output> in a [nonlinear] model)")
+        })?;
+        let mut out = Vec::new();
+        for (name, x) in t {
+            let akey = format!("{key}.{name}");
+            match (name.as_str(), x.as_table()) {
+                (fh @ ("f" | "h"), Some(sub)) => {
+                    if !is_nonlinear {
+                        return Err(r.err(&akey, "only a [nonlinear] model has f and h; add to a definition, or give A, B, C, D terms"));
+                    }
+                    let (names, kind) = if fh == "f" {
+                        (states, "state")
+                    } else {
+                        (outputs, "output")
+                    };
+                    for (target, term) in sub {
+                        let tkey = format!("{akey}.{target}");
+                        let i = names.iter().position(|s| s == target).ok_or_else(|| {
+                            r.err(
+                                &tkey,
+                                format!(
+                                    "{target:?} is not a {kind}; {kind}s: {}",
+                                    names.join(", ")
+                                ),
+                            )
+                        })?;
+                        let entry = r.entry(&tkey, term, symbols, visible)?;
+                        out.push(Addition {
+                            target: if fh == "f" {
+                                Target::F(i)
+                            } else {
+                                Target::H(i)
+                            },
+                            node: Node::new(entry, tkey),
+                        });
+                    }
+                }
+                _ => {
+                    let slot = definitions
+                        .iter()
+                        .find(|(s, _)| symbols[*s] == *name)
+                        .map(|(s, _)| *s)
+                        .ok_or_else(|| {
+                            let known: Vec<&str> = definitions
+                                .iter()
+                                .map(|(s, _)| symbols[*s].as_str())
+                                .collect();
+                            r.err(
+                                &akey,
+                                format!(
+                                    "{name:?} is not a definition; definitions: {}",
+                                    known.join(", ")
+                                ),
+                            )
+                        })?;
+                    let entry = r.entry(&akey, x, symbols, visible)?;
+                    out.push(Addition {
+                        target: Target::Definition(slot),
+                        node: Node::new(entry, akey),
+                    });
+                }
+            }
+        }
+        Ok(out)
     }
 
     fn read_controller(r: &Reader, t: &Table, n: usize, m: usize, p: usize) -> Result<Controller> {
@@ -776,11 +964,18 @@ impl ModelFile {
             table[p.slot] = *v;
         }
         for (slot, entry) in &self.definitions {
-            let v = self.value(
+            let mut v = self.value(
                 entry,
                 &table,
                 &format!("definitions.{}", self.symbols[*slot]),
             )?;
+            for a in self
+                .enabled_effects(enabled)
+                .flat_map(|e| &e.additions)
+                .filter(|a| a.target == Target::Definition(*slot))
+            {
+                v += self.value(&a.node.entry, &table, &a.node.key)?;
+            }
             table[*slot] = v;
         }
         Ok(table)
@@ -821,6 +1016,9 @@ impl ModelFile {
 
     fn matrices(&self, enabled: &[String], theta: &[f64]) -> Result<[DMatrix<f64>; 4]> {
         let table = self.table(enabled, theta)?;
+        if let Some(nl) = &self.nonlinear {
+            return nl.linearize(enabled, &table);
+        }
         let mut out: Vec<DMatrix<f64>> = Vec::with_capacity(4);
         for (which, rows) in Which::ALL.iter().zip(&self.linear) {
             let ncols = rows.first().map_or(
@@ -849,6 +1047,18 @@ impl ModelFile {
             .try_into()
             .map_err(|_| self.err("linear", "needs A, B, C"))?;
         Ok([a, b, c, d])
+    }
+
+    fn checked_theta(&self, enabled: &[String], theta: &[f64]) -> Result<()> {
+        let want = self.parameters(enabled)?.len();
+        if theta.len() != want {
+            return Err(SimError::LengthMismatch {
+                what: format!("parameter vector of {}", self.name),
+                expected: want,
+                found: theta.len(),
+            });
+        }
+        Ok(())
     }
 
     /// The linear model at the documented values, with the given effects on.
@@ -919,15 +1129,20 @@ impl ModelStructure for ModelFile {
         self.controller.clone()
     }
 
+    fn is_nonlinear(&self) -> bool {
+        self.nonlinear.is_some()
+    }
+
+    fn dynamics(&self, enabled: &[String], theta: &[f64]) -> Option<Result<Box<dyn Dynamics>>> {
+        let nl = self.nonlinear.as_ref()?;
+        Some(self.checked_theta(enabled, theta).and_then(|()| {
+            let table = self.table(enabled, theta)?;
+            Ok(Box::new(nl.dynamics(enabled, table)) as Box<dyn Dynamics>)
+        }))
+    }
+
     fn state_space(&self, enabled: &[String], theta: &[f64]) -> Result<StateSpace> {
-        let want = self.parameters(enabled)?.len();
-        if theta.len() != want {
-            return Err(SimError::LengthMismatch {
-                what: format!("parameter vector of {}", self.name),
-                expected: want,
-                found: theta.len(),
-            });
-        }
+        self.checked_theta(enabled, theta)?;
         let [a, b, c, d] = self.matrices(enabled, theta)?;
         Ok(StateSpace {
             a,

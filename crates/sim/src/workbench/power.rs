@@ -223,6 +223,7 @@ pub fn prepare(
         estimator_choice(&options.estimator)?,
         DataOptions {
             band_hz: options.band_hz,
+            ..DataOptions::default()
         },
     )?;
     let nominal_model = wb.model().clone();
@@ -267,6 +268,14 @@ pub fn prepare(
         .collect();
     let pairs: Vec<(&DMatrix<f64>, &DMatrix<f64>)> = centred.iter().map(|(u, y)| (u, y)).collect();
     let predictor = Predictor::design(&disc, &pairs)?;
+    let (q, r) = predictor.covariances().ok_or_else(|| {
+        SimError::invalid(
+            "model",
+            model_path.display(),
+            "has states its outputs do not observe; a power study needs the noise of every \
+             state (the Kalman estimate covers the observable ones only)",
+        )
+    })?;
     let data = wb.data();
     let mut spec = StudySpec {
         model_text: model_text.to_string(),
@@ -277,8 +286,8 @@ pub fn prepare(
         campaigns: options.campaigns,
         seed: options.seed,
         nominal: names.into_iter().zip(step.theta).collect(),
-        process_noise: rows(&predictor.process_covariance),
-        sensor_noise: predictor.noise.sensor_variance.clone(),
+        process_noise: rows(q),
+        sensor_noise: r.diagonal().iter().copied().collect(),
         sample_rate_hz: data.sample_rate_hz,
         experiments: data
             .experiments
@@ -684,6 +693,7 @@ impl Study {
                 estimator_choice(&self.spec.estimator)?,
                 DataOptions {
                     band_hz: self.spec.band_hz,
+                    ..DataOptions::default()
                 },
             )?
             .discover()

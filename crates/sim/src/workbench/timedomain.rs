@@ -376,6 +376,8 @@ pub struct TimeFit {
     pub closed_loop: Option<super::closed_loop::ClosedLoopFit>,
     /// Why the loop was not re-simulated although a controller is given.
     pub closed_loop_error: Option<String>,
+    /// The nonlinear model's extended Kalman predictor, under the time-domain criterion.
+    pub prediction_error: Option<super::prediction::PredictionFit>,
 }
 
 /// Fits of the stationary Kalman predictor ([`super::kalman`]).
@@ -547,6 +549,7 @@ pub fn time_fit(
             kalman_error,
             closed_loop: None,
             closed_loop_error: None,
+            prediction_error: None,
         },
         records,
     ))

@@ -1,0 +1,181 @@
+//! Nonlinear grey-box models `x' = f(x, u)`, `y = h(x, u)` in absolute units, and the
+//! generic effects' nonlinear forms: what the time-domain prediction-error criterion
+//! ([`super::prediction`]) integrates between samples. A model file's `[nonlinear]` section
+//! is one ([`super::ModelFile`]); its linearization at the operating point is the
+//! [`super::StateSpace`] every linear tool of the workbench uses.
+use crate::error::{Result, SimError};
+
+/// A continuous-time nonlinear model at fixed parameter values.
+///
+/// `scratch` is the caller's reusable buffer (the predictor calls `f` four times per sample
+/// and integration step, so an implementation should not allocate).
+pub trait Dynamics: Send + Sync + std::fmt::Debug {
+    /// Number of states.
+    fn states(&self) -> usize;
+    /// Number of inputs.
+    fn inputs(&self) -> usize;
+    /// Number of outputs.
+    fn outputs(&self) -> usize;
+    /// `dx = f(x, u)`.
+    fn f(&self, x: &[f64], u: &[f64], dx: &mut [f64], scratch: &mut Vec<f64>) -> Result<()>;
+    /// `y = h(x, u)`.
+    fn h(&self, x: &[f64], u: &[f64], y: &mut [f64], scratch: &mut Vec<f64>) -> Result<()>;
+    /// The operating point `(x, u)`: where the model is linearized and the predictor starts.
+    fn operating_point(&self) -> (Vec<f64>, Vec<f64>);
+    /// Transport delay of every input, s.
+    fn input_delay(&self) -> f64 {
+        0.0
+    }
+}
+
+/// A constant offset on every output: `y = h(x, u) + bias`.
+#[derive(Debug)]
+pub struct OutputBias {
+    inner: Box<dyn Dynamics>,
+    bias: Vec<f64>,
+}
+
+impl OutputBias {
+    /// `inner` with `bias` added to its outputs.
+    pub fn new(inner: Box<dyn Dynamics>, bias: &[f64]) -> Result<Self> {
+        if bias.len() != inner.outputs() {
+            return Err(SimError::LengthMismatch {
+                what: "sensor biases (one per output)".into(),
+                expected: inner.outputs(),
+                found: bias.len(),
+            });
+        }
+        Ok(Self {
+            inner,
+            bias: bias.to_vec(),
+        })
+    }
+}
+
+impl Dynamics for OutputBias {
+    fn states(&self) -> usize {
+        self.inner.states()
+    }
+    fn inputs(&self) -> usize {
+        self.inner.inputs()
+    }
+    fn outputs(&self) -> usize {
+        self.inner.outputs()
+    }
+    fn f(&self, x: &[f64], u: &[f64], dx: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
+        self.inner.f(x, u, dx, scratch)
+    }
+    fn h(&self, x: &[f64], u: &[f64], y: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
+        self.inner.h(x, u, y, scratch)?;
+        for (y, b) in y.iter_mut().zip(&self.bias) {
+            *y += b;
+        }
+        Ok(())
+    }
+    fn operating_point(&self) -> (Vec<f64>, Vec<f64>) {
+        self.inner.operating_point()
+    }
+    fn input_delay(&self) -> f64 {
+        self.inner.input_delay()
+    }
+}
+
+/// A first-order lag on every input: states `(x, x_a)`, `x_a' = (u - x_a) / tau`, the plant
+/// driven by `x_a`.
+#[derive(Debug)]
+pub struct LaggedInputs {
+    inner: Box<dyn Dynamics>,
+    rate: f64,
+}
+
+impl LaggedInputs {
+    /// `inner` behind a lag of time constant `tau` (s, positive).
+    pub fn new(inner: Box<dyn Dynamics>, tau: f64) -> Result<Self> {
+        if !(tau.is_finite() && tau > 0.0) {
+            return Err(SimError::invalid("tau", tau, "must be positive and finite"));
+        }
+        Ok(Self {
+            inner,
+            rate: 1.0 / tau,
+        })
+    }
+}
+
+impl Dynamics for LaggedInputs {
+    fn states(&self) -> usize {
+        self.inner.states() + self.inner.inputs()
+    }
+    fn inputs(&self) -> usize {
+        self.inner.inputs()
+    }
+    fn outputs(&self) -> usize {
+        self.inner.outputs()
+    }
+    fn f(&self, x: &[f64], u: &[f64], dx: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
+        let n = self.inner.states();
+        let (xp, xa) = x.split_at(n);
+        let (dp, da) = dx.split_at_mut(n);
+        self.inner.f(xp, xa, dp, scratch)?;
+        for ((d, a), u) in da.iter_mut().zip(xa).zip(u) {
+            *d = (u - a) * self.rate;
+        }
+        Ok(())
+    }
+    fn h(&self, x: &[f64], _u: &[f64], y: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
+        let (xp, xa) = x.split_at(self.inner.states());
+        self.inner.h(xp, xa, y, scratch)
+    }
+    fn operating_point(&self) -> (Vec<f64>, Vec<f64>) {
+        let (mut x, u) = self.inner.operating_point();
+        x.extend_from_slice(&u);
+        (x, u)
+    }
+    fn input_delay(&self) -> f64 {
+        self.inner.input_delay()
+    }
+}
+
+/// A transport delay `td` of every input, added to the inner model's.
+#[derive(Debug)]
+pub struct DelayedInputs {
+    inner: Box<dyn Dynamics>,
+    td: f64,
+}
+
+impl DelayedInputs {
+    /// `inner` with its inputs delayed by `td` (s, non-negative) more.
+    pub fn new(inner: Box<dyn Dynamics>, td: f64) -> Result<Self> {
+        if !(td.is_finite() && td >= 0.0) {
+            return Err(SimError::invalid(
+                "td",
+                td,
+                "must be non-negative and finite",
+            ));
+        }
+        Ok(Self { inner, td })
+    }
+}
+
+impl Dynamics for DelayedInputs {
+    fn states(&self) -> usize {
+        self.inner.states()
+    }
+    fn inputs(&self) -> usize {
+        self.inner.inputs()
+    }
+    fn outputs(&self) -> usize {
+        self.inner.outputs()
+    }
+    fn f(&self, x: &[f64], u: &[f64], dx: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
+        self.inner.f(x, u, dx, scratch)
+    }
+    fn h(&self, x: &[f64], u: &[f64], y: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
+        self.inner.h(x, u, y, scratch)
+    }
+    fn operating_point(&self) -> (Vec<f64>, Vec<f64>) {
+        self.inner.operating_point()
+    }
+    fn input_delay(&self) -> f64 {
+        self.inner.input_delay() + self.td
+    }
+}

@@ -1,0 +1,483 @@
+//! The `[nonlinear]` section of a model file: `f.<state>` and `h.<output>` expressions in
+//! states, inputs, parameters and definitions, the operating point, the terms effects add to
+//! definitions and to `f` and `h`; the model as [`Dynamics`] and its linearization (symbolic
+//! partial derivatives, chained through the definitions).
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use nalgebra::DMatrix;
+use toml::{Table, Value};
+
+use super::super::dynamics::Dynamics;
+use super::super::expr::Derivative;
+use super::{number, Entry, Reader};
+use crate::error::{Result, SimError};
+
+/// Where an effect's added term goes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Target {
+    /// A definition, by symbol slot.
+    Definition(usize),
+    /// The derivative of a state.
+    F(usize),
+    /// An output.
+    H(usize),
+}
+
+/// An expression with its partial derivatives by the symbols it reads.
+#[derive(Debug, Clone)]
+pub(super) struct Node {
+    pub entry: Entry,
+    pub key: String,
+    partials: Vec<(usize, Derivative)>,
+}
+
+impl Node {
+    pub fn new(entry: Entry, key: String) -> Self {
+        Self {
+            entry,
+            key,
+            partials: Vec::new(),
+        }
+    }
+
+    fn differentiate(&mut self, r: &Reader) -> Result<()> {
+        if let Entry::Expr(e) = &self.entry {
+            self.partials = e
+                .reads()
+                .iter()
+                .map(|&s| {
+                    e.derivative(s)
+                        .map(|d| (s, d))
+                        .map_err(|e| r.err(&self.key, e.reason))
+                })
+                .collect::<Result<_>>()?;
+        }
+        Ok(())
+    }
+
+    fn reads(&self) -> &[usize] {
+        match &self.entry {
+            Entry::Number(_) => &[],
+            Entry::Expr(e) => e.reads(),
+        }
+    }
+}
+
+/// A term an effect adds.
+#[derive(Debug, Clone)]
+pub(super) struct Addition {
+    pub target: Target,
+    pub node: Node,
+}
+
+/// Everything the nonlinear model evaluates, shared by every [`FileDynamics`] built from it.
+#[derive(Debug)]
+pub(super) struct Section {
+    path: PathBuf,
+    symbols: Vec<String>,
+    /// First state slot; the inputs follow the states.
+    state0: usize,
+    n: usize,
+    m: usize,
+    p: usize,
+    /// Definitions in evaluation order, `(slot, node)`.
+    definitions: Vec<(usize, Node)>,
+    f: Vec<Node>,
+    h: Vec<Node>,
+    /// Additions per effect, in the file's effect order.
+    additions: Vec<(String, Vec<Addition>)>,
+    pub x_op: Vec<f64>,
+    pub u_op: Vec<f64>,
+}
+
+/// The symbol layout of a model file, for reading its `[nonlinear]` section.
+pub(super) struct Layout<'a> {
+    pub symbols: &'a [String],
+    pub visible: &'a [bool],
+    pub states: &'a [String],
+    pub inputs: &'a [String],
+    pub outputs: &'a [String],
+    pub state0: usize,
+}
+
+/// Reads `[nonlinear]`: `f`, `h` and `operating_point`.
+pub(super) fn read(r: &Reader, t: &Table, l: &Layout) -> Result<(Vec<Node>, Vec<Node>, Vec<f64>)> {
+    for key in t.keys() {
+        if !["f", "h", "operating_point"].contains(&key.as_str()) {
+            return Err(r.err(
+                format!("nonlinear.{key}"),
+                "unknown key (expected f.<state>, h.<output>, operating_point)",
+            ));
+        }
+    }
+    let exprs = |what: &str, names: &[String], kind: &str| -> Result<Vec<Node>> {
+        let table = t.get(what).and_then(Value::as_table).ok_or_else(|| {
+            r.err(
+                format!("nonlinear.{what}"),
+                format!("missing: one expression per {kind}, {what}.<{kind}> = \"...\""),
+            )
+        })?;
+        for k in table.keys() {
+            if !names.contains(k) {
+                return Err(r.err(
+                    format!("nonlinear.{what}.{k}"),
+                    format!("{k:?} is not a {kind}; {kind}s: {}", names.join(", ")),
+                ));
+            }
+        }
+        names
+            .iter()
+            .map(|name| {
+                let key = format!("nonlinear.{what}.{name}");
+                let v = table.get(name).ok_or_else(|| {
+                    r.err(
+                        &key,
+                        format!("missing: every {kind} needs {what}.{name} = \"...\""),
+                    )
+                })?;
+                Ok(Node::new(r.entry(&key, v, l.symbols, l.visible)?, key))
+            })
+            .collect()
+    };
+    let f = exprs("f", l.states, "state")?;
+    let h = exprs("h", l.outputs, "output")?;
+    let op = t
+        .get("operating_point")
+        .and_then(Value::as_table)
+        .ok_or_else(|| {
+            r.err(
+                "nonlinear.operating_point",
+                format!(
+                    "missing: a value for every state and input, e.g. {{ {} = 0 }}",
+                    l.states
+                        .iter()
+                        .chain(l.inputs)
+                        .cloned()
+                        .collect::<Vec<_>>()
+                        .join(" = 0, ")
+                ),
+            )
+        })?;
+    let mut point = Vec::with_capacity(l.states.len() + l.inputs.len());
+    for (name, kind) in l
+        .states
+        .iter()
+        .map(|s| (s, "state"))
+        .chain(l.inputs.iter().map(|s| (s, "input")))
+    {
+        let v = op.get(name).ok_or_else(|| {
+            r.err(
+                "nonlinear.operating_point",
+                format!("missing {kind} {name} (give a value for every state and input)"),
+            )
+        })?;
+        point.push(number(v).filter(|x| x.is_finite()).ok_or_else(|| {
+            r.err(
+                format!("nonlinear.operating_point.{name}"),
+                "must be a finite number",
+            )
+        })?);
+    }
+    if let Some(k) = op
+        .keys()
+        .find(|k| !l.states.contains(k) && !l.inputs.contains(k))
+    {
+        return Err(r.err(
+            format!("nonlinear.operating_point.{k}"),
+            format!("{k:?} is not a state or input"),
+        ));
+    }
+    debug_assert_eq!(l.state0 + point.len(), l.symbols.len());
+    Ok((f, h, point))
+}
+
+impl Section {
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        r: &Reader,
+        symbols: &[String],
+        state0: usize,
+        (n, m, p): (usize, usize, usize),
+        definitions: Vec<(usize, Node)>,
+        (f, h, point): (Vec<Node>, Vec<Node>, Vec<f64>),
+        additions: Vec<(String, Vec<Addition>)>,
+    ) -> Result<Self> {
+        let mut s = Self {
+            path: r.path.to_path_buf(),
+            symbols: symbols.to_vec(),
+            state0,
+            n,
+            m,
+            p,
+            definitions,
+            f,
+            h,
+            additions,
+            x_op: point[..n].to_vec(),
+            u_op: point[n..].to_vec(),
+        };
+        for (_, d) in &mut s.definitions {
+            d.differentiate(r)?;
+        }
+        for node in s.f.iter_mut().chain(s.h.iter_mut()) {
+            node.differentiate(r)?;
+        }
+        for (_, adds) in &mut s.additions {
+            for a in adds {
+                a.node.differentiate(r)?;
+            }
+        }
+        Ok(s)
+    }
+
+    fn err(&self, key: &str, reason: String) -> SimError {
+        SimError::ModelFile {
+            path: self.path.clone(),
+            key: key.to_string(),
+            reason,
+        }
+    }
+
+    fn value(&self, node: &Node, table: &[f64]) -> Result<f64> {
+        match &node.entry {
+            Entry::Number(x) => Ok(*x),
+            Entry::Expr(e) => e.eval(table).map_err(|e| self.err(&node.key, e.reason)),
+        }
+    }
+
+    /// The additions of the `enabled` effects.
+    fn active<'a>(&'a self, enabled: &'a [String]) -> impl Iterator<Item = &'a Addition> + 'a {
+        self.additions
+            .iter()
+            .filter(move |(name, _)| enabled.contains(name))
+            .flat_map(|(_, adds)| adds)
+    }
+
+    /// The model at the symbol values `table` (parameters set, definitions evaluated at the
+    /// operating point) with the `enabled` effects.
+    pub fn dynamics(self: &Arc<Self>, enabled: &[String], table: Vec<f64>) -> FileDynamics {
+        let adds: Vec<Addition> = self.active(enabled).cloned().collect();
+        // A definition is evaluated per call when it reads a state, an input, or such a
+        // definition, itself or through a term an enabled effect adds to it.
+        let mut moving = vec![false; self.symbols.len()];
+        for s in &mut moving[self.state0..] {
+            *s = true;
+        }
+        let mut dynamic = Vec::new();
+        for (i, (slot, node)) in self.definitions.iter().enumerate() {
+            let reads_motion = |n: &Node| n.reads().iter().any(|&s| moving[s]);
+            let moves = reads_motion(node)
+                || adds
+                    .iter()
+                    .any(|a| a.target == Target::Definition(*slot) && reads_motion(&a.node));
+            if moves {
+                moving[*slot] = true;
+                dynamic.push(i);
+            }
+        }
+        // The outputs often read a few states only: `h` evaluates just the definitions its
+        // expressions reach.
+        let mut reached = vec![false; self.symbols.len()];
+        let mark = |n: &Node, reached: &mut Vec<bool>| {
+            for &s in n.reads() {
+                reached[s] = true;
+            }
+        };
+        for (i, n) in self.h.iter().enumerate() {
+            mark(n, &mut reached);
+            for a in adds.iter().filter(|a| a.target == Target::H(i)) {
+                mark(&a.node, &mut reached);
+            }
+        }
+        for (slot, node) in self.definitions.iter().rev() {
+            if reached[*slot] {
+                mark(node, &mut reached);
+                for a in adds
+                    .iter()
+                    .filter(|a| a.target == Target::Definition(*slot))
+                {
+                    mark(&a.node, &mut reached);
+                }
+            }
+        }
+        let dynamic_h = dynamic
+            .iter()
+            .copied()
+            .filter(|&i| reached[self.definitions[i].0])
+            .collect();
+        FileDynamics {
+            section: self.clone(),
+            table,
+            adds,
+            dynamic,
+            dynamic_h,
+        }
+    }
+
+    /// `(A, B, C, D)` at the symbol values `table`: the partial derivatives of `f` and `h` by
+    /// the states and inputs, chained through the definitions (`d def / d z` accumulated in
+    /// evaluation order).
+    pub fn linearize(&self, enabled: &[String], table: &[f64]) -> Result<[DMatrix<f64>; 4]> {
+        let nz = self.n + self.m;
+        let mut grad = vec![vec![0.0; nz]; self.symbols.len()];
+        for (j, g) in grad[self.state0..].iter_mut().enumerate() {
+            g[j] = 1.0;
+        }
+        let adds: Vec<&Addition> = self.active(enabled).collect();
+        let total = |node: &Node, grad: &[Vec<f64>], out: &mut [f64]| -> Result<()> {
+            for (s, d) in &node.partials {
+                if grad[*s].iter().all(|g| *g == 0.0) {
+                    continue;
+                }
+                let v = d.eval(table).map_err(|e| self.err(&node.key, e.reason))?;
+                for (o, g) in out.iter_mut().zip(&grad[*s]) {
+                    *o += v * g;
+                }
+            }
+            Ok(())
+        };
+        for (slot, node) in &self.definitions {
+            let mut g = vec![0.0; nz];
+            total(node, &grad, &mut g)?;
+            for a in adds
+                .iter()
+                .filter(|a| a.target == Target::Definition(*slot))
+            {
+                total(&a.node, &grad, &mut g)?;
+            }
+            grad[*slot] = g;
+        }
+        let rows = |nodes: &[Node], target: fn(usize) -> Target| -> Result<DMatrix<f64>> {
+            let mut out = DMatrix::zeros(nodes.len(), nz);
+            for (i, node) in nodes.iter().enumerate() {
+                let mut g = vec![0.0; nz];
+                total(node, &grad, &mut g)?;
+                for a in adds.iter().filter(|a| a.target == target(i)) {
+                    total(&a.node, &grad, &mut g)?;
+                }
+                for (j, v) in g.iter().enumerate() {
+                    if !v.is_finite() {
+                        let at = self.point_text(table);
+                        return Err(self.err(
+                            &node.key,
+                            format!(
+                                "its derivative by {} is {v} at the operating point ({at})",
+                                self.symbols[self.state0 + j]
+                            ),
+                        ));
+                    }
+                    out[(i, j)] = *v;
+                }
+            }
+            Ok(out)
+        };
+        let fx = rows(&self.f, Target::F)?;
+        let hx = rows(&self.h, Target::H)?;
+        let (n, m) = (self.n, self.m);
+        Ok([
+            fx.columns(0, n).into_owned(),
+            fx.columns(n, m).into_owned(),
+            hx.columns(0, n).into_owned(),
+            hx.columns(n, m).into_owned(),
+        ])
+    }
+
+    fn point_text(&self, table: &[f64]) -> String {
+        self.symbols[self.state0..]
+            .iter()
+            .zip(&table[self.state0..])
+            .map(|(s, v)| format!("{s} = {v}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
+/// A model file's nonlinear model at fixed parameter values.
+#[derive(Debug)]
+pub struct FileDynamics {
+    section: Arc<Section>,
+    /// Symbol values: parameters, definitions at the operating point.
+    table: Vec<f64>,
+    /// The enabled effects' terms.
+    adds: Vec<Addition>,
+    /// Indices (into the section's definitions) evaluated per call of `f`.
+    dynamic: Vec<usize>,
+    /// Those `h` reads.
+    dynamic_h: Vec<usize>,
+}
+
+impl FileDynamics {
+    /// Fills `scratch` with the symbol values at `(x, u)`, evaluating the definitions
+    /// `dynamic` (indices into the section's).
+    fn prepare(
+        &self,
+        x: &[f64],
+        u: &[f64],
+        dynamic: &[usize],
+        scratch: &mut Vec<f64>,
+    ) -> Result<()> {
+        let s = &self.section;
+        scratch.clear();
+        scratch.extend_from_slice(&self.table);
+        scratch[s.state0..s.state0 + s.n].copy_from_slice(x);
+        scratch[s.state0 + s.n..].copy_from_slice(u);
+        for &i in dynamic {
+            let (slot, node) = &s.definitions[i];
+            let mut v = s.value(node, scratch)?;
+            for a in self
+                .adds
+                .iter()
+                .filter(|a| a.target == Target::Definition(*slot))
+            {
+                v += s.value(&a.node, scratch)?;
+            }
+            scratch[*slot] = v;
+        }
+        Ok(())
+    }
+
+    fn outputs_of(
+        &self,
+        nodes: &[Node],
+        target: fn(usize) -> Target,
+        scratch: &[f64],
+        out: &mut [f64],
+    ) -> Result<()> {
+        let s = &self.section;
+        for (i, (node, o)) in nodes.iter().zip(out.iter_mut()).enumerate() {
+            let mut v = s.value(node, scratch)?;
+            for a in self.adds.iter().filter(|a| a.target == target(i)) {
+                v += s.value(&a.node, scratch)?;
+            }
+            if !v.is_finite() {
+                return Err(s.err(&node.key, format!("is {v} at {}", s.point_text(scratch))));
+            }
+            *o = v;
+        }
+        Ok(())
+    }
+}
+
+impl Dynamics for FileDynamics {
+    fn states(&self) -> usize {
+        self.section.n
+    }
+    fn inputs(&self) -> usize {
+        self.section.m
+    }
+    fn outputs(&self) -> usize {
+        self.section.p
+    }
+    fn f(&self, x: &[f64], u: &[f64], dx: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
+        self.prepare(x, u, &self.dynamic, scratch)?;
+        self.outputs_of(&self.section.f, Target::F, scratch, dx)
+    }
+    fn h(&self, x: &[f64], u: &[f64], y: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
+        self.prepare(x, u, &self.dynamic_h, scratch)?;
+        self.outputs_of(&self.section.h, Target::H, scratch, y)
+    }
+    fn operating_point(&self) -> (Vec<f64>, Vec<f64>) {
+        (self.section.x_op.clone(), self.section.u_op.clone())
+    }
+}

@@ -1,0 +1,879 @@
+//! The time-domain criterion for nonlinear models: the one-step prediction error of an
+//! extended Kalman predictor, in absolute units around the model's operating point (so that
+//! an offset shows), and the discovery loop on it.
+//!
+//! The predictor of a model `x' = f(x, u)`, `y = h(x, u)` sampled at `T` is
+//! `x̂_{k+1} = F(x̂_k, u_k) + K (y_k - h(x̂_k, u_k))`, `F` the model integrated over one sample
+//! with the logged input held (classical RK4, sub-steps from the linearization's fastest
+//! mode, the delayed input switching inside the sample), and `K` the stationary gain of the
+//! starting model's linearization at the operating point for the noise covariances estimated
+//! from the data ([`super::kalman::Predictor::design`] on the linearization, at the starting
+//! model's fit). The gain keeps an unstable plant's prediction bounded where a free run
+//! diverges. It is held for the whole discovery, with the weighting `W` (the inverse
+//! innovation covariance of the starting model's fit): every model is then one predictor with
+//! its own `F`, and every cost compares with every other. Holding the gain, rather than
+//! re-linearizing at every sample or for every model, costs little near the operating point,
+//! where a stabilized plant stays; it also keeps a dry friction's linearization (steep at
+//! zero speed, where the plant rarely is) out of the predictor.
+//!
+//! The criterion is `V = Σ e_kᵀ W e_k`, fitted by the workbench's Levenberg-Marquardt
+//! ([`super::fit::solve`]) with forward-difference Jacobians.
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+
+use super::diagnose::{diagnose, LEVEL};
+use super::discover::{in_parallel, CandidateScore, Discovery, Step, Verdict};
+use super::dynamics::Dynamics;
+use super::fit::{solve, FitResult, LeastSquares};
+use super::kalman::{gain, Predictor, BURN_IN};
+use super::model::Model;
+use super::residual::{residual_tests, ResidualTests, DEFAULT_LAGS};
+use super::stats::f_sf;
+use super::timedomain::{fit_percent, time_fit, DEFAULT_HORIZON, DEFAULT_WINDOW};
+use super::Workbench;
+use crate::error::{Result, SimError};
+
+/// Which criterion a workbench fits and tests with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Criterion {
+    /// The variance-weighted FRF misfit (linear models, and nonlinear ones linearized).
+    Frf,
+    /// The prediction error of the extended Kalman predictor (nonlinear models).
+    Time,
+}
+
+impl Criterion {
+    /// The default for a model: the prediction error when it is nonlinear.
+    pub fn default_for(model: &Model) -> Self {
+        if model.structure().is_nonlinear() {
+            Self::Time
+        } else {
+            Self::Frf
+        }
+    }
+}
+
+/// Largest RK4 step, relative to the linearization's fastest mode (`|λ| h`; RK4 is stable to
+/// 2.78 and accurate to about 1e-4 per step at 0.5).
+const STEP_RATE: f64 = 0.5;
+
+/// Most sub-steps per sample (a mode faster than `2.78 * MAX_SUBSTEPS / T`, a lag far shorter
+/// than a sample, makes the integration diverge, which the fit takes as a failed step).
+const MAX_SUBSTEPS: usize = 16;
+
+/// Stretches of the data for the robustness check (the evidence must not rest on one).
+const BLOCKS: usize = 8;
+
+/// An innovation this many times an output's logged range means the predictor diverged.
+const DIVERGED: f64 = 1e3;
+
+/// One record in absolute units.
+struct Record<'a> {
+    name: &'a str,
+    u: &'a DMatrix<f64>,
+    y: &'a DMatrix<f64>,
+    /// Per output: the innovation bound beyond which the predictor counts as diverged.
+    limit: Vec<f64>,
+}
+
+/// The predictor of one model at one parameter vector.
+struct ExtendedPredictor {
+    dynamics: Box<dyn Dynamics>,
+    gain: DMatrix<f64>,
+    t: f64,
+    substeps: usize,
+}
+
+impl ExtendedPredictor {
+    /// The predictor of `model` at `theta` with the gain `gain` (states the gain does not
+    /// cover, an actuator lag's, are not corrected).
+    fn new(model: &Model, theta: &[f64], t: f64, gain: &DMatrix<f64>) -> Result<Self> {
+        let dynamics = model.dynamics(theta)?;
+        let ss = model.state_space(theta)?;
+        if ss.a.nrows() != dynamics.states() {
+            return Err(SimError::invalid(
+                "nonlinear model",
+                model.structure().system(),
+                format!(
+                    "its linearization has {} states, the model {}",
+                    ss.a.nrows(),
+                    dynamics.states()
+                ),
+            ));
+        }
+        let fastest =
+            ss.a.complex_eigenvalues()
+                .iter()
+                .map(|l| l.norm())
+                .fold(0.0, f64::max);
+        let substeps = ((fastest * t / STEP_RATE).ceil() as usize).clamp(1, MAX_SUBSTEPS);
+        let n = dynamics.states();
+        if gain.nrows() > n || gain.ncols() != dynamics.outputs() {
+            return Err(SimError::LengthMismatch {
+                what: "predictor gain rows against the model's states".into(),
+                expected: n,
+                found: gain.nrows(),
+            });
+        }
+        let mut padded = DMatrix::zeros(n, gain.ncols());
+        padded.rows_mut(0, gain.nrows()).copy_from(gain);
+        Ok(Self {
+            dynamics,
+            gain: padded,
+            t,
+            substeps,
+        })
+    }
+
+    /// RK4 from `x` over `h` in `steps` steps with the input `u` held.
+    fn integrate(
+        &self,
+        x: &mut [f64],
+        u: &[f64],
+        h: f64,
+        steps: usize,
+        work: &mut Work,
+    ) -> Result<()> {
+        let n = x.len();
+        let dt = h / steps as f64;
+        for _ in 0..steps {
+            let Work {
+                k1,
+                k2,
+                k3,
+                k4,
+                tmp,
+                scratch,
+                ..
+            } = work;
+            self.dynamics.f(x, u, k1, scratch)?;
+            for i in 0..n {
+                tmp[i] = x[i] + 0.5 * dt * k1[i];
+            }
+            self.dynamics.f(tmp, u, k2, scratch)?;
+            for i in 0..n {
+                tmp[i] = x[i] + 0.5 * dt * k2[i];
+            }
+            self.dynamics.f(tmp, u, k3, scratch)?;
+            for i in 0..n {
+                tmp[i] = x[i] + dt * k3[i];
+            }
+            self.dynamics.f(tmp, u, k4, scratch)?;
+            for i in 0..n {
+                x[i] += dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+            }
+        }
+        Ok(())
+    }
+
+    /// Innovations (samples x outputs) and one-step predicted states (samples x states) of
+    /// one record; an error names the sample where the prediction diverges.
+    fn run(&self, rec: &Record) -> Result<(DMatrix<f64>, DMatrix<f64>)> {
+        let d = self.dynamics.as_ref();
+        let (n, m, p) = (d.states(), d.inputs(), d.outputs());
+        let samples = rec.y.nrows();
+        let (mut x, u_op) = d.operating_point();
+        let td = d.input_delay();
+        let whole = (td / self.t).floor() as usize;
+        let frac = td - whole as f64 * self.t;
+        let split = frac > 1e-12 * self.t;
+        let input = |k: usize, lag: usize, out: &mut Vec<f64>| {
+            out.clear();
+            if k >= lag {
+                out.extend(rec.u.row(k - lag).iter());
+            } else {
+                out.extend_from_slice(&u_op);
+            }
+        };
+        let mut work = Work::new(n, m, p);
+        let mut e = DMatrix::zeros(samples, p);
+        let mut xs = DMatrix::zeros(samples, n);
+        let (mut early, mut late) = (Vec::with_capacity(m), Vec::with_capacity(m));
+        for k in 0..samples {
+            for i in 0..n {
+                xs[(k, i)] = x[i];
+            }
+            // u(kT - td): the sample before the switch when the delay is fractional.
+            input(k, whole + usize::from(split), &mut early);
+            input(k, whole, &mut late);
+            d.h(&x, &early, &mut work.y, &mut work.scratch)
+                .map_err(|err| self.diverged(rec, k, &err.to_string()))?;
+            for i in 0..p {
+                let v = rec.y[(k, i)] - work.y[i];
+                if !(v.abs() <= rec.limit[i]) {
+                    return Err(self.diverged(
+                        rec,
+                        k,
+                        &format!("innovation of output {i} is {v:.3e}"),
+                    ));
+                }
+                e[(k, i)] = v;
+            }
+            if split {
+                let s1 = ((self.substeps as f64 * frac / self.t).ceil() as usize).max(1);
+                let s2 = ((self.substeps as f64 * (1.0 - frac / self.t)).ceil() as usize).max(1);
+                self.integrate(&mut x, &early, frac, s1, &mut work)
+                    .and_then(|()| self.integrate(&mut x, &late, self.t - frac, s2, &mut work))
+            } else {
+                self.integrate(&mut x, &late, self.t, self.substeps, &mut work)
+            }
+            .map_err(|err| self.diverged(rec, k, &err.to_string()))?;
+            for i in 0..n {
+                x[i] += (0..p).map(|j| self.gain[(i, j)] * e[(k, j)]).sum::<f64>();
+                if !x[i].is_finite() {
+                    return Err(self.diverged(rec, k, &format!("state {i} is {}", x[i])));
+                }
+            }
+        }
+        Ok((e, xs))
+    }
+
+    fn diverged(&self, rec: &Record, k: usize, why: &str) -> SimError {
+        SimError::invalid(
+            "prediction",
+            format!(
+                "experiment {} sample {k} (t = {:.3} s)",
+                rec.name,
+                k as f64 * self.t
+            ),
+            format!("the extended Kalman predictor diverges: {why}"),
+        )
+    }
+}
+
+/// Buffers of one predictor run.
+struct Work {
+    k1: Vec<f64>,
+    k2: Vec<f64>,
+    k3: Vec<f64>,
+    k4: Vec<f64>,
+    tmp: Vec<f64>,
+    y: Vec<f64>,
+    scratch: Vec<f64>,
+}
+
+impl Work {
+    fn new(n: usize, _m: usize, p: usize) -> Self {
+        Self {
+            k1: vec![0.0; n],
+            k2: vec![0.0; n],
+            k3: vec![0.0; n],
+            k4: vec![0.0; n],
+            tmp: vec![0.0; n],
+            y: vec![0.0; p],
+            scratch: Vec::new(),
+        }
+    }
+}
+
+/// The predictor gain and weighting every model of a discovery is compared under.
+#[derive(Debug, Clone)]
+struct Design {
+    gain: DMatrix<f64>,
+    /// `Lᵀ` with `W = L Lᵀ`.
+    whiten: DMatrix<f64>,
+}
+
+/// The prediction-error criterion of one model under a fixed design.
+struct PredictionError<'a> {
+    model: &'a Model,
+    records: Vec<Record<'a>>,
+    t: f64,
+    design: Design,
+}
+
+/// The innovations of one model at one parameter vector.
+struct Innovations {
+    /// Per record: innovations and predicted states.
+    runs: Vec<(DMatrix<f64>, DMatrix<f64>)>,
+}
+
+impl<'a> PredictionError<'a> {
+    /// The criterion of `model` on the workbench's data under `design`.
+    fn new(wb: &'a Workbench, model: &'a Model, design: &Design) -> Self {
+        let records: Vec<Record> = wb
+            .data
+            .experiments
+            .iter()
+            .map(|e| Record {
+                name: &e.name,
+                u: &e.u,
+                y: &e.y,
+                limit: (0..e.y.ncols())
+                    .map(|i| {
+                        let c = e.y.column(i);
+                        DIVERGED * (c.max() - c.min()).max(1e-9 * c.amax()).max(1e-300)
+                    })
+                    .collect(),
+            })
+            .collect();
+        Self {
+            model,
+            records,
+            t: 1.0 / wb.data.sample_rate_hz,
+            design: design.clone(),
+        }
+    }
+
+    /// The design for `model` at `theta`: the stationary gain of its linearization for the
+    /// noise covariances estimated on it, and the inverse innovation covariance of its
+    /// nonlinear predictor.
+    fn design(wb: &'a Workbench, model: &'a Model, theta: &[f64]) -> Result<Design> {
+        let t = 1.0 / wb.data.sample_rate_hz;
+        let disc = model.state_space(theta)?.discretize(t)?;
+        let demeaned: Vec<(DMatrix<f64>, DMatrix<f64>)> = wb
+            .data
+            .experiments
+            .iter()
+            .map(|e| (centred(&e.u), centred(&e.y)))
+            .collect();
+        let refs: Vec<(&DMatrix<f64>, &DMatrix<f64>)> =
+            demeaned.iter().map(|(u, y)| (u, y)).collect();
+        let linear = Predictor::design(&disc, &refs)?;
+        let (q, r) = linear.covariances().ok_or_else(|| {
+            SimError::invalid(
+                "nonlinear model",
+                model.structure().system(),
+                "its linearization has states the outputs do not see; the extended Kalman \
+                 predictor needs every state observable",
+            )
+        })?;
+        let p = wb.data.outputs.len();
+        let mut pe = Self::new(
+            wb,
+            model,
+            &Design {
+                gain: gain(&disc, q, r)?,
+                whiten: DMatrix::identity(p, p),
+            },
+        );
+        let inn = pe.innovations(theta)?;
+        let mut s = DMatrix::zeros(p, p);
+        let mut count = 0usize;
+        for (e, _) in &inn.runs {
+            let e = scored(e);
+            s += e.transpose() * &e;
+            count += e.nrows();
+        }
+        let s = s / count.max(1) as f64;
+        let w = s.try_inverse().ok_or_else(|| {
+            SimError::invalid("prediction", "innovation covariance", "is singular")
+        })?;
+        let l = w.cholesky().ok_or_else(|| {
+            SimError::invalid(
+                "prediction",
+                "innovation covariance",
+                "is not positive definite",
+            )
+        })?;
+        pe.design.whiten = l.l().transpose();
+        Ok(pe.design)
+    }
+
+    fn innovations(&self, theta: &[f64]) -> Result<Innovations> {
+        let predictor = ExtendedPredictor::new(self.model, theta, self.t, &self.design.gain)?;
+        // Records are independent: run on threads.
+        let predictor = &predictor;
+        let jobs: Vec<_> = self
+            .records
+            .iter()
+            .map(|r| move || predictor.run(r))
+            .collect();
+        let runs = in_parallel(jobs, "prediction")?;
+        Ok(Innovations { runs })
+    }
+
+    /// Whitened scored residuals, stacked record by record.
+    fn stack(&self, inn: &Innovations) -> DVector<f64> {
+        let whiten = &self.design.whiten;
+        let p = whiten.nrows();
+        let total: usize = inn.runs.iter().map(|(e, _)| scored(e).nrows()).sum();
+        let mut out = DVector::zeros(total * p);
+        let mut at = 0;
+        for (e, _) in &inn.runs {
+            let w = scored(e) * whiten.transpose();
+            for k in 0..w.nrows() {
+                for i in 0..p {
+                    out[at] = w[(k, i)];
+                    at += 1;
+                }
+            }
+        }
+        out
+    }
+
+    /// Cost per stretch of the data ([`BLOCKS`] of equal length over the stacked residuals).
+    fn block_costs(r: &DVector<f64>, p: usize) -> Vec<f64> {
+        let samples = r.len() / p.max(1);
+        let per = samples.div_ceil(BLOCKS).max(1);
+        let mut out = vec![0.0; samples.div_ceil(per)];
+        for (k, chunk) in r.as_slice().chunks(p).enumerate() {
+            out[k / per] += chunk.iter().map(|v| v * v).sum::<f64>();
+        }
+        out
+    }
+}
+
+/// Samples of a record the criterion scores (after the predictor's start-up).
+fn scored(e: &DMatrix<f64>) -> DMatrix<f64> {
+    let from = BURN_IN.min(e.nrows() / 2);
+    e.rows(from, e.nrows() - from).into_owned()
+}
+
+fn centred(x: &DMatrix<f64>) -> DMatrix<f64> {
+    let mut d = x.clone();
+    for mut c in d.column_iter_mut() {
+        let mean = c.mean();
+        c.add_scalar_mut(-mean);
+    }
+    d
+}
+
+impl LeastSquares for PredictionError<'_> {
+    fn residuals(&self, theta: &[f64]) -> Result<DVector<f64>> {
+        Ok(self.stack(&self.innovations(theta)?))
+    }
+
+    fn jacobian(&self, theta: &[f64]) -> Result<(DVector<f64>, DMatrix<f64>)> {
+        let params = self.model.parameters()?;
+        let r0 = self.residuals(theta)?;
+        // Forward differences, one column per parameter, in parallel; backwards at an
+        // upper bound.
+        let jobs: Vec<_> = params
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let r0 = &r0;
+                move || {
+                    let h0 = 1e-6 * p.scale().max(theta[i].abs());
+                    let h = if theta[i] + h0 <= p.upper { h0 } else { -h0 };
+                    let mut t = theta.to_vec();
+                    t[i] += h;
+                    Ok((self.residuals(&t)? - r0) / h)
+                }
+            })
+            .collect();
+        let cols = in_parallel(jobs, "prediction-error Jacobian")?;
+        Ok((r0.clone(), DMatrix::from_columns(&cols)))
+    }
+}
+
+/// The nonlinear predictor's fit of a step.
+#[derive(Debug, Clone, Serialize)]
+pub struct PredictionFit {
+    /// How it was made.
+    pub policy: String,
+    /// One-step-ahead prediction fit % per output (absolute units).
+    pub one_step: Vec<(String, f64)>,
+    /// Cost divided by its number of residuals (one at the noise level of the weighting).
+    pub cost_per_residual: f64,
+    /// Sub-steps of the integration per sample.
+    pub substeps: usize,
+}
+
+/// A fitted model of the time-domain discovery.
+struct Fitted {
+    model: Model,
+    added: Option<String>,
+    r: FitResult,
+    candidates: Vec<CandidateScore>,
+}
+
+impl Workbench {
+    /// The criterion `compare`, `fit` and `discover` use.
+    pub fn criterion(&self) -> Criterion {
+        self.criterion
+    }
+
+    /// Fits `model` by prediction error from `start` under `design` (`None`: its own at the
+    /// start, then refitted once under its own at the estimate, which is returned).
+    fn fit_time(
+        &self,
+        model: &Model,
+        start: Option<&[f64]>,
+        design: Option<&Design>,
+    ) -> Result<(FitResult, Design)> {
+        let params = model.parameters()?;
+        let theta: Vec<f64> = match start {
+            Some(s) => s.to_vec(),
+            None => params.iter().map(|p| p.value).collect(),
+        };
+        let opts = self.time_fit_options();
+        let (mut r, design) = match design {
+            Some(d) => (
+                solve(
+                    &PredictionError::new(self, model, d),
+                    &params,
+                    Some(&theta),
+                    &opts,
+                )?,
+                d.clone(),
+            ),
+            None => {
+                let first = PredictionError::design(self, model, &theta)?;
+                let r = solve(
+                    &PredictionError::new(self, model, &first),
+                    &params,
+                    Some(&theta),
+                    &opts,
+                )?;
+                let again = PredictionError::design(self, model, &r.theta)?;
+                (
+                    solve(
+                        &PredictionError::new(self, model, &again),
+                        &params,
+                        Some(&r.theta),
+                        &opts,
+                    )?,
+                    again,
+                )
+            }
+        };
+        r.model_frf = model.frf(&r.theta, &self.cost.freqs_hz, opts.hold)?;
+        Ok((r, design))
+    }
+
+    /// Fit options of the prediction error: its cost is in units of the innovation variance,
+    /// so a step that lowers it by less than 0.05 changes no test.
+    fn time_fit_options(&self) -> super::FitOptions {
+        super::FitOptions {
+            abs_tolerance: 0.05,
+            ..self.fit_options()
+        }
+    }
+
+    /// Scores `effect` on top of `current` (fitted under `design`, whitened residuals `r0`).
+    fn score_time(
+        &self,
+        current: &Fitted,
+        (design, r0): (&Design, &DVector<f64>),
+        effect: &str,
+        n_candidates: usize,
+    ) -> Result<(Model, FitResult, CandidateScore)> {
+        let with = current.model.with_effect(effect)?;
+        let params = with.parameters()?;
+        let old = current.model.parameters()?;
+        let mut start: Vec<f64> = params
+            .iter()
+            .map(|p| {
+                old.iter()
+                    .position(|q| q.name == p.name)
+                    .map_or(p.value, |i| current.r.theta[i])
+            })
+            .collect();
+        let new: Vec<usize> = (0..params.len())
+            .filter(|&i| !old.iter().any(|q| q.name == params[i].name))
+            .collect();
+        let pe = PredictionError::new(self, &with, design);
+        // The better of zero (or the nearest bound) and the documented value starts each new
+        // parameter.
+        for &i in &new {
+            let mut grid = vec![
+                0.0f64.clamp(params[i].lower, params[i].upper),
+                params[i].value,
+            ];
+            grid.dedup();
+            let mut best = (f64::INFINITY, start[i]);
+            for v in grid {
+                let mut t = start.clone();
+                t[i] = v;
+                if let Ok(c) = pe.residuals(&t).map(|r| r.norm_squared()) {
+                    if c < best.0 {
+                        best = (c, v);
+                    }
+                }
+            }
+            start[i] = best.1;
+        }
+        let mut r = solve(&pe, &params, Some(&start), &self.time_fit_options())?;
+        r.model_frf = with.frf(&r.theta, &self.cost.freqs_hz, self.fit_options().hold)?;
+        let p = design.whiten.nrows();
+        let r1 = pe.residuals(&r.theta)?;
+        let (v0, v1) = (r0.norm_squared(), r1.norm_squared());
+        let n = r1.len() as f64;
+        let (p0, p1) = (current.r.free, r.free);
+        let q = p1.saturating_sub(p0);
+        let dv = v0 - v1;
+        let s = v1 / (n - p1 as f64);
+        let (f_statistic, p_value) = if q > 0 && v1 > 0.0 {
+            let f = (dv / q as f64) / s;
+            (f, f_sf(f, q as f64, n - p1 as f64))
+        } else {
+            (0.0, 1.0)
+        };
+        // The evidence must not rest on one stretch of the data: repeat the test without the
+        // stretch that gained most.
+        let (b0, b1) = (
+            PredictionError::block_costs(r0, p),
+            PredictionError::block_costs(&r1, p),
+        );
+        let (kmax, gain_max) = b0.iter().zip(&b1).map(|(a, b)| a - b).enumerate().fold(
+            (0, f64::NEG_INFINITY),
+            |acc, (k, d)| if d > acc.1 { (k, d) } else { acc },
+        );
+        let n_block = n / b0.len() as f64;
+        let robust_p = if q > 0 && b0.len() > 1 {
+            let rest = v1 - b1[kmax];
+            let f = ((dv - gain_max) / q as f64) / (rest / (n - n_block - p1 as f64));
+            f_sf(f, q as f64, n - n_block - p1 as f64)
+        } else {
+            1.0
+        };
+        let delta_aic = -dv / s + 2.0 * q as f64;
+        let delta_bic = -dv / s + q as f64 * n.ln();
+        let alpha = LEVEL / n_candidates.max(1) as f64;
+        // As on the FRF: the F test is exact only for a model class that contains the truth,
+        // and with tens of thousands of residuals it also finds model-class mismatch far
+        // below the noise; an effect is claimed only when it also changes the cost by more
+        // than noise alone varies it (the standard deviation of a chi-square cost of n
+        // residuals, sqrt(2 n) in units of the residual variance).
+        let exceeds_noise = dv / s > (2.0 * n).sqrt();
+        let significant =
+            q > 0 && p_value < alpha && robust_p < alpha && delta_bic < 0.0 && exceeds_noise;
+        let score = CandidateScore {
+            effect: effect.to_string(),
+            cost: v1,
+            reduction_percent: 100.0 * dv / v0,
+            added_parameters: q,
+            f_statistic,
+            p_value,
+            robust_p_value: robust_p,
+            delta_aic,
+            delta_bic,
+            significant,
+        };
+        r.cost = v1;
+        Ok((with, r, score))
+    }
+
+    /// Fits the current model by prediction error and records it (`compare` and `fit` with
+    /// the time-domain criterion).
+    pub(crate) fn compare_time(&self) -> Result<Discovery> {
+        let (r, design) = self.fit_time(&self.model, None, None)?;
+        let fitted = Fitted {
+            model: self.model.clone(),
+            added: None,
+            r,
+            candidates: Vec::new(),
+        };
+        self.conclude(vec![fitted], &design, Vec::new())
+    }
+
+    /// The discovery loop on the prediction error.
+    pub(crate) fn discover_time(&self, progress: &mut dyn FnMut(&str)) -> Result<Discovery> {
+        progress("fitting the starting model (prediction error)");
+        let (r, design) = self.fit_time(&self.model, None, None)?;
+        let mut current = Fitted {
+            model: self.model.clone(),
+            added: None,
+            r,
+            candidates: Vec::new(),
+        };
+        let mut done = Vec::new();
+        let mut found = Vec::new();
+        loop {
+            let candidates = current.model.dynamics_candidates();
+            let n = candidates.len();
+            let r0 =
+                PredictionError::new(self, &current.model, &design).residuals(&current.r.theta)?;
+            let jobs: Vec<_> = candidates
+                .iter()
+                .map(|name| {
+                    let (current, design, r0) = (&current, &design, &r0);
+                    move || self.score_time(current, (design, r0), name, n)
+                })
+                .collect();
+            let mut best: Option<(Model, usize)> = None;
+            let mut best_cost = f64::INFINITY;
+            for outcome in in_parallel(jobs, "candidate fit")? {
+                let (with, r, score) = outcome;
+                progress(&format!("tried {}", score.effect));
+                current.candidates.push(score);
+                if r.cost < best_cost {
+                    best_cost = r.cost;
+                    best = Some((with, current.candidates.len() - 1));
+                }
+            }
+            let chosen = best.filter(|(_, i)| current.candidates[*i].significant);
+            let Some((with, i)) = chosen else { break };
+            let name = current.candidates[i].effect.clone();
+            progress(&format!("adding {name}"));
+            found.push(name.clone());
+            let start = {
+                let old = current.model.parameters()?;
+                let fresh = with.parameters()?;
+                let r = current.r.theta.clone();
+                fresh
+                    .iter()
+                    .map(|p| {
+                        old.iter()
+                            .position(|q| q.name == p.name)
+                            .map_or(p.value, |k| r[k])
+                    })
+                    .collect::<Vec<f64>>()
+            };
+            let (r, _) = self.fit_time(&with, Some(&start), Some(&design))?;
+            let next = Fitted {
+                model: with,
+                added: Some(name),
+                r,
+                candidates: Vec::new(),
+            };
+            done.push(std::mem::replace(&mut current, next));
+        }
+        done.push(current);
+        self.conclude(done, &design, found)
+    }
+
+    /// Step records under the last weighting, the verdict from the last model's innovations.
+    fn conclude(
+        &self,
+        fitted: Vec<Fitted>,
+        design: &Design,
+        found: Vec<String>,
+    ) -> Result<Discovery> {
+        let base_cost = fitted.first().map_or(1.0, |f| f.r.cost);
+        let jobs: Vec<_> = fitted
+            .into_iter()
+            .map(|f| move || self.time_step(f, design, base_cost))
+            .collect();
+        let steps = in_parallel(jobs, "discovery step record")?;
+        let last = steps
+            .last()
+            .ok_or_else(|| SimError::invalid("discovery", "no step", "nothing was fitted"))?;
+        let verdict = time_verdict(&last.residual_tests);
+        let unexplained = matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. });
+        let (found, tentative, caveats) = if unexplained && !found.is_empty() {
+            (
+                Vec::new(),
+                found,
+                vec!["the final model's innovations still correlate with the inputs, which the tests that added them took for noise".to_string()],
+            )
+        } else {
+            (found, Vec::new(), Vec::new())
+        };
+        Ok(Discovery {
+            weighting: "time-domain prediction error of the extended Kalman predictor in absolute units; every model under the gain and the inverse innovation covariance of the starting model's fit".to_string(),
+            steps,
+            found,
+            tentative,
+            caveats,
+            unexplained,
+            verdict,
+            level: LEVEL,
+        })
+    }
+
+    /// The record of one fitted model.
+    fn time_step(&self, f: Fitted, design: &Design, base_cost: f64) -> Result<Step> {
+        let pe = PredictionError::new(self, &f.model, design);
+        let inn = pe.innovations(&f.r.theta)?;
+        let cost = pe.stack(&inn).norm_squared();
+        let n_res = pe.stack(&inn).len().max(1) as f64;
+        let ss = f.model.state_space(&f.r.theta)?;
+        let (mut time_fit, _) = time_fit(&self.data, &ss, DEFAULT_HORIZON, DEFAULT_WINDOW)?;
+        if let Some(controller) = f.model.structure().controller() {
+            let disc = ss.discretize(1.0 / self.data.sample_rate_hz)?;
+            match super::closed_loop::closed_loop_fit(&self.data, &disc, &controller) {
+                Ok(fit) => time_fit.closed_loop = Some(fit),
+                Err(why) => time_fit.closed_loop_error = Some(why),
+            }
+        }
+        // One-step fit % in absolute units, pooled.
+        let y: Vec<DMatrix<f64>> = self.data.experiments.iter().map(|e| scored(&e.y)).collect();
+        let yhat: Vec<DMatrix<f64>> = inn
+            .runs
+            .iter()
+            .zip(&y)
+            .map(|((e, _), y)| y - scored(e))
+            .collect();
+        let stack = |m: &[DMatrix<f64>]| {
+            let rows: usize = m.iter().map(|x| x.nrows()).sum();
+            let cols = m.first().map_or(0, |x| x.ncols());
+            let mut out = DMatrix::zeros(rows, cols);
+            let mut at = 0;
+            for x in m {
+                out.rows_mut(at, x.nrows()).copy_from(x);
+                at += x.nrows();
+            }
+            out
+        };
+        let one_step: Vec<(String, f64)> = self
+            .data
+            .outputs
+            .iter()
+            .cloned()
+            .zip(fit_percent(&stack(&y), &stack(&yhat)))
+            .collect();
+        let predictor = ExtendedPredictor::new(&f.model, &f.r.theta, pe.t, &design.gain)?;
+        time_fit.prediction_error = Some(PredictionFit {
+            policy: format!(
+                "extended Kalman predictor (stationary gain of the linearization at the operating point), RK4 with {} sub-step(s) per sample and the logged input held, absolute units, scored from sample {BURN_IN}",
+                predictor.substeps
+            ),
+            one_step,
+            cost_per_residual: cost / n_res,
+            substeps: predictor.substeps,
+        });
+        let residuals: Vec<DMatrix<f64>> = inn.runs.iter().map(|(e, _)| scored(e)).collect();
+        let states: Vec<DMatrix<f64>> = inn.runs.iter().map(|(_, x)| scored(x)).collect();
+        let inputs: Vec<DMatrix<f64>> = self
+            .data
+            .experiments
+            .iter()
+            .map(|e| scored(&centred(&e.u)))
+            .collect();
+        let mut tests = residual_tests(
+            &residuals.iter().collect::<Vec<_>>(),
+            &inputs.iter().collect::<Vec<_>>(),
+            &states.iter().collect::<Vec<_>>(),
+            &self.data.outputs,
+            &self.data.inputs,
+            DEFAULT_LAGS,
+            usize::from(!self.data.is_open_loop()),
+        );
+        tests.residual = "innovations of the extended Kalman predictor".into();
+        let diagnosis = diagnose(&self.frf, &self.cost, &self.noise, &f.r.model_frf, f.r.free);
+        Ok(Step {
+            added: f.added,
+            effects: f.model.enabled(),
+            cost,
+            reduction_percent: 100.0 * (1.0 - cost / base_cost),
+            normalized_cost: cost / n_res,
+            params: f.r.params,
+            diagnosis,
+            time_fit,
+            residual_tests: tests,
+            candidates: f.candidates,
+            theta: f.r.theta,
+            model_frf: f.r.model_frf,
+        })
+    }
+}
+
+/// The verdict of the time-domain criterion: innovations that correlate with past inputs
+/// show a model error (whiteness alone tests the noise model, which is estimated).
+fn time_verdict(tests: &ResidualTests) -> Verdict {
+    let flagged: Vec<String> = tests
+        .channels
+        .iter()
+        .filter(|c| !c.correlated_inputs.is_empty())
+        .map(|c| c.output.clone())
+        .collect();
+    let p_value = tests
+        .channels
+        .iter()
+        .flat_map(|c| c.inputs.iter().map(|(_, t)| t.p_value))
+        .fold(1.0, f64::min);
+    if flagged.is_empty() {
+        Verdict::ExplainedToNoiseLevel { p_value }
+    } else {
+        Verdict::UnexplainedStructuredMisfit {
+            p_value,
+            outputs: flagged,
+            band_hz: None,
+            worst_entries: Vec::new(),
+        }
+    }
+}
