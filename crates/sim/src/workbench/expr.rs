@@ -302,10 +302,7 @@ mod tests {
             "-a*tanh(x/b) + exp(-x^2)*sqrt(b) + log(b)*x",
             "x*x*x - 2^x",
         ];
-        let exprs: Vec<Expr> = texts
-            .iter()
-            .map(|t| Expr::parse(t, &sym).unwrap())
-            .collect();
+        let exprs: Vec<Expr> = texts.iter().map(|t| Expr::parse(t, &sym).unwrap()).collect();
         let mut runner = proptest::test_runner::TestRunner::default();
         runner
             .run(&(0.2f64..2.0, 0.5f64..2.0, -1.5f64..1.5), |(a, b, x)| {
@@ -318,11 +315,7 @@ mod tests {
                         tp[slot] += h;
                         tm[slot] -= h;
                         let fd = (e.eval(&tp).unwrap() - e.eval(&tm).unwrap()) / (2.0 * h);
-                        prop_assert!(
-                            (d - fd).abs() <= 1e-7 * (1.0 + fd.abs()),
-                            "{} d/d{slot}: {d} vs {fd}",
-                            e.text()
-                        );
+                        prop_assert!((d - fd).abs() <= 1e-7 * (1.0 + fd.abs()), "{} d/d{slot}: {d} vs {fd}", e.text());
                     }
                 }
                 Ok(())
