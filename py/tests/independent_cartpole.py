@@ -11,7 +11,9 @@ Written with numpy/scipy and the official `mcap` writer only (no stabilis code):
 
   with the force on the cart F_c = F_a + w - b x' - F_coul tanh(x' / v_coul) + F_s: F_a the
   actuator force, w a force disturbance (process noise, held over each sample), b the cart's
-  viscous friction, and T_d a small torque disturbance on the pole.
+  viscous friction, F_coul its dry (Coulomb) friction, smoothed over v_coul (v_coul = 0: the
+  unsmoothed F_coul sign(x'), the cart chattering about rest while the force on it is below
+  F_coul), and T_d a small torque disturbance on the pole.
 * A flexible mode no effect of the model file and no generic effect describes (switchable): an
   appendage of mass m_f on the cart (a cable carrier, a sensor mast) on a lightly damped
   spring, q its displacement relative to the cart, natural frequency wn, damping zeta:
@@ -21,7 +23,9 @@ Written with numpy/scipy and the official `mcap` writer only (no stabilis code):
   delay td (the zero-order-hold command switches at k Ts + td, integrated as two sub-intervals)
   and a first-order lag tau F_a' = F_del - F_a.
 * Integration: classical RK4 with sub-steps of at most Ts / substeps between samples.
-* Sensors: x and theta at 100 Hz with white noise.
+* Sensors: x and theta at 100 Hz with white noise and a constant offset each (offset_x,
+  offset_theta: a miscalibrated encoder). The controller sees the offset measurement, as on a
+  rig: a theta offset makes it hold the cart away from x = 0 with the pole upright.
 * Controller (its own): a discrete LQR on the current estimate of a Kalman filter, both designed
   on the nominal linearised model at the documented parameters (no friction, zero-order hold).
   The filter is driven by the measured outputs and by the controller's own output; the
@@ -30,7 +34,8 @@ Written with numpy/scipy and the official `mcap` writer only (no stabilis code):
   Dc y[k] + r[k], the form of the model file's [controller] section.
 * Excitation: a random-phase flat multisine on lines 1..lines of a period_samples period, a
   fresh phase draw per experiment (lowest crest factor of phase_draws draws), periods whole
-  periods after transient_samples samples.
+  periods after transient_samples samples. FRICTION_EXCITATION: a stronger one under which the
+  cart moves faster than 0.05 m/s most of the time (dry and viscous friction differ there).
 * Logs: MCAP exactly per DESIGN.md (topics /cart_pole/input F, /cart_pole/output x theta,
   /cart_pole/excitation F, the `experiment` metadata) or CSV (t, F, x, theta, r_F).
 """
@@ -67,12 +72,14 @@ class Plant:
     g: float = 9.81
     b: float = 0.0  # cart viscous friction, N s/m (the model file's declared effect)
     coulomb: float = 0.0  # Coulomb friction force, N
-    coulomb_v: float = 0.01  # its tanh smoothing speed, m/s
+    coulomb_v: float = 0.01  # its tanh smoothing speed, m/s (0: unsmoothed, a sign)
     tau: float = 0.0  # actuator lag, s
     td: float = 0.0  # transport delay of the force, s (any value >= 0, fractional exactly)
     flex_hz: float = 0.0  # flexible appendage on the cart: natural frequency, Hz (0: none)
     flex_zeta: float = 0.05  # its damping ratio
     flex_mass: float = 0.05  # its mass, kg
+    offset_x: float = 0.0  # constant offset of the cart position sensor, m
+    offset_theta: float = 0.0  # constant offset of the pole angle sensor, rad
 
 
 def documented_plant() -> Plant:
@@ -98,8 +105,18 @@ class Config:
     x_sigma: float = 2e-4  # cart position sensor noise, m
     theta_sigma: float = 5e-4  # pole angle sensor noise, rad
     theta0: float = 0.01  # initial pole angle, rad (the transient discards it)
+    x0: float = 0.0  # initial cart position, m
     substeps: int = 4
     seed: int = 0
+
+
+# Config fields of a campaign for telling dry from viscous friction (the default's 0.3 N moves
+# the cart faster than 0.05 m/s a third of the time): at 1 N rms, over the 15 campaigns of
+# test_nonlinear_independent.py (4 x 8300 samples; no friction, either friction, an offset),
+# the cart is faster than 0.05 m/s on 72-78 % of the samples after the transient and faster
+# than 0.1 m/s on 50-58 %, the pole within 0.123 rad of upright, the cart within 0.16 m of its
+# start (0.27 m with a 0.01 rad angle offset, which moves its rest to -0.125 m).
+FRICTION_EXCITATION = {"r_rms": 1.0}
 
 
 def nominal_linear(p: Plant) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -187,7 +204,8 @@ def derivative(p: Plant, s: list[float], f_in: float, w: float, torque: float) -
         spring = p.flex_mass * wn * (wn * s[i] + 2 * p.flex_zeta * s[i + 1])
         force += spring
     if p.coulomb > 0:
-        force -= p.coulomb * math.tanh(xd / p.coulomb_v)
+        force -= p.coulomb * (math.tanh(xd / p.coulomb_v) if p.coulomb_v > 0
+                              else 1.0 if xd > 0 else -1.0 if xd < 0 else 0.0)
     ml = p.m * p.l
     cth, sth = math.cos(th), math.sin(th)
     a11, a12, a22 = p.M + p.m, ml * cth, p.J + ml * p.l
@@ -339,7 +357,7 @@ def samples(cfg: Config) -> int:
 
 
 def simulate(cfg: Config) -> list[Run]:
-    """The campaign's closed-loop experiments, each from rest with the pole at theta0."""
+    """The campaign's closed-loop experiments, each from rest at x0 with the pole at theta0."""
     ts = 1.0 / cfg.sample_rate_hz
     ctrl = design_controller(cfg)
     radius = closed_loop_radius(cfg, ctrl)
@@ -355,13 +373,14 @@ def simulate(cfg: Config) -> list[Run]:
     steps = [(h / max(1, math.ceil(cfg.substeps * h / ts - 1e-9)),
               max(1, math.ceil(cfg.substeps * h / ts - 1e-9)), lag) for h, lag in parts]
     ac, bc, cc, dc = (np.asarray(m, float) for m in (ctrl.A, ctrl.B, ctrl.C, ctrl.D))
+    offset = np.array([p.offset_x, p.offset_theta])
     runs = []
     for e in range(1, cfg.experiments + 1):
         r = multisine(cfg, rng)[n % cfg.period_samples]
         w = rng.standard_normal(count) * cfg.force_noise
         tq = rng.standard_normal(count) * cfg.torque_noise
         noise = rng.standard_normal((count, 2)) * [cfg.x_sigma, cfg.theta_sigma]
-        s = [0.0, 0.0, cfg.theta0, 0.0] + [0.0] * _extra_states(p)
+        s = [cfg.x0, 0.0, cfg.theta0, 0.0] + [0.0] * _extra_states(p)
         xc = np.zeros(ac.shape[0])
         u = np.zeros(count)
         y = np.zeros((count, 2))
@@ -370,6 +389,8 @@ def simulate(cfg: Config) -> list[Run]:
             state[k] = s[:4]
             y[k] = (s[0], s[2])
             y[k] += noise[k]
+            if offset.any():  # (skipped when zero: the default logs stay bit for bit)
+                y[k] += offset
             u[k] = (cc @ xc + dc @ y[k])[0] + r[k]
             xc = ac @ xc + bc @ y[k]
             for h, m_steps, lag in steps:
@@ -417,7 +438,9 @@ def campaign(directory: Path, **kw) -> tuple[Config, list[Path]]:
 
 if __name__ == "__main__":
     # python independent_cartpole.py DIR [SEED] [FIELD=VALUE ...]: a default campaign into DIR,
-    #   the truth's hidden effects as Plant fields, e.g. b=1.2 tau=0.03 td=0.015 flex_hz=4;
+    #   the truth's hidden effects as Plant fields, e.g. b=1.2 tau=0.03 td=0.015 flex_hz=4
+    #   coulomb=0.3 coulomb_v=0 offset_theta=0.01, and Config fields prefixed `cfg.`, e.g.
+    #   cfg.r_rms=1.0 (FRICTION_EXCITATION);
     # python independent_cartpole.py --controller: the model file's controller matrices.
     import sys
 
@@ -426,6 +449,10 @@ if __name__ == "__main__":
     else:
         args = sys.argv[2:]
         seed = int(args.pop(0)) if args and "=" not in args[0] else 0
-        hidden = {k: float(v) for k, v in (a.split("=", 1) for a in args)}
+        pairs = [a.split("=", 1) for a in args]
+        hidden = {k: float(v) for k, v in pairs if not k.startswith("cfg.")}
+        settings = {k[4:]: type(getattr(Config(), k[4:]))(float(v))
+                    for k, v in pairs if k.startswith("cfg.")}
         plant = replace(Plant(), **hidden)
-        print("\n".join(map(str, campaign(Path(sys.argv[1]), plant=plant, seed=seed)[1])))
+        print("\n".join(map(str, campaign(Path(sys.argv[1]), plant=plant, seed=seed,
+                                           **settings)[1])))

@@ -266,19 +266,25 @@ def test_stabilis_info_reads_the_logs(tmp_path):
 # --- acceptance through the CLI and Python ----------------------------------------------
 
 
-@pytest.fixture(scope="module")
-def campaigns(tmp_path_factory):
-    """The issue's campaign (4 x 8300 samples) per (case, seed), simulated once."""
+def campaign_cache(tmp_path_factory, cases: dict[str, dict], **settings):
+    """get(case, seed): the directory of the campaign Config(**settings) with the Plant fields
+    cases[case] at that seed, simulated on first use."""
     cache = {}
 
     def get(case: str, seed: int) -> Path:
         if (case, seed) not in cache:
             out = tmp_path_factory.mktemp(f"{case.replace('+', '_')}_{seed}")
-            ic.campaign(out, plant=replace(ic.Plant(), **CASES[case]), seed=seed)
+            ic.campaign(out, plant=replace(ic.Plant(), **cases[case]), seed=seed, **settings)
             cache[case, seed] = out
         return cache[case, seed]
 
     return get
+
+
+@pytest.fixture(scope="module")
+def campaigns(tmp_path_factory):
+    """The issue's campaign (4 x 8300 samples) per (case, seed), simulated once."""
+    return campaign_cache(tmp_path_factory, CASES)
 
 
 def cli(*args):
@@ -393,7 +399,13 @@ def test_python_discover_with_the_model_file(campaigns, tmp_path, case):
 
 
 def test_model_check_names_the_unstable_pole():
-    done = cli("model", "check", MODEL)
+    check_names_the_unstable_pole(MODEL)
+
+
+def check_names_the_unstable_pole(model: Path):
+    """`stabilis model check model` exits 0 and prints +-p, the upright pole's eigenvalues at
+    the documented values, calling the model unstable."""
+    done = cli("model", "check", model)
     require_model_option(done)
     assert done.returncode == 0, done.stderr
     p = ic.documented_plant()
@@ -408,10 +420,11 @@ def test_model_check_names_the_unstable_pole():
 # --- bad model files ----------------------------------------------------------------------
 
 
-def bad_copy(tmp: Path, old: str, new: str) -> tuple[Path, str]:
-    text = MODEL.read_text()
+def bad_copy(tmp: Path, old: str, new: str, model: Path = MODEL) -> tuple[Path, str]:
+    """A copy of `model` in tmp with the one occurrence of `old` replaced by `new`."""
+    text = model.read_text()
     assert text.count(old) == 1, old
-    path = tmp / "bad_cart_pole.toml"
+    path = tmp / f"bad_{model.name}"
     path.write_text(text.replace(old, new))
     return path, path.read_text()
 

@@ -142,12 +142,7 @@ impl Common {
             CriterionArg::Frf => Criterion::Frf,
             CriterionArg::Time => Criterion::Time,
         });
-        Workbench::with_options(
-            structure,
-            data,
-            choice,
-            DataOptions { band_hz, criterion },
-        )
+        Workbench::with_options(structure, data, choice, DataOptions { band_hz, criterion })
     }
 
     fn finish(&self, wb: &Workbench, d: &Discovery) -> Result<Output> {

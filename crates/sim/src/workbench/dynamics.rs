@@ -146,7 +146,11 @@ impl DelayedInputs {
     /// `inner` with its inputs delayed by `td` (s, non-negative) more.
     pub fn new(inner: Box<dyn Dynamics>, td: f64) -> Result<Self> {
         if !(td.is_finite() && td >= 0.0) {
-            return Err(SimError::invalid("td", td, "must be non-negative and finite"));
+            return Err(SimError::invalid(
+                "td",
+                td,
+                "must be non-negative and finite",
+            ));
         }
         Ok(Self { inner, td })
     }

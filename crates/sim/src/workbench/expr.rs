@@ -42,7 +42,8 @@ impl Expr {
     /// Parses `text`, whose names must all be in `symbols`.
     pub fn parse(text: &str, symbols: &[String]) -> Result<Self, ExprError> {
         check_characters(text)?;
-        let flat = exmex::parse::<f64>(&conventional_minus(text)).map_err(|e| ExprError {
+        let rewritten = conventional_minus(&plain_numbers(text));
+        let flat = exmex::parse::<f64>(&rewritten).map_err(|e| ExprError {
             reason: format!("syntax error in {text:?}: {}", e.msg()),
         })?;
         let mut slots = Vec::with_capacity(flat.var_names().len());
@@ -67,7 +68,7 @@ impl Expr {
             slots,
             program: None,
         };
-        let program = Program::compile(&conventional_minus(text), symbols)
+        let program = Program::compile(&rewritten, symbols)
             .filter(|p| p.agrees_with(|table| e.interpret(table).ok(), symbols.len(), &e.slots));
         e.program = program;
         Ok(e)
@@ -161,6 +162,47 @@ impl Derivative {
             Self::Expr(e) => e.eval(table),
         }
     }
+}
+
+/// Numbers in scientific notation (`1e-3`, `2.5E6`), which `exmex` does not read (it takes
+/// `e` for Euler's number), written out in decimals.
+fn plain_numbers(text: &str) -> String {
+    let chars: Vec<char> = text.chars().collect();
+    let mut out = String::with_capacity(text.len());
+    let mut i = 0;
+    while i < chars.len() {
+        let starts = (chars[i].is_ascii_digit() || chars[i] == '.')
+            && (i == 0 || !(chars[i - 1].is_ascii_alphanumeric() || chars[i - 1] == '_'));
+        if !starts {
+            out.push(chars[i]);
+            i += 1;
+            continue;
+        }
+        let mut j = i;
+        while j < chars.len() && (chars[j].is_ascii_digit() || chars[j] == '.') {
+            j += 1;
+        }
+        let mut end = j;
+        if j < chars.len() && matches!(chars[j], 'e' | 'E') {
+            let mut k = j + 1;
+            if k < chars.len() && matches!(chars[k], '+' | '-') {
+                k += 1;
+            }
+            if k < chars.len() && chars[k].is_ascii_digit() {
+                while k < chars.len() && chars[k].is_ascii_digit() {
+                    k += 1;
+                }
+                end = k;
+            }
+        }
+        let literal: String = chars[i..end].iter().collect();
+        match (end > j, literal.parse::<f64>()) {
+            (true, Ok(v)) => out.push_str(&v.to_string()),
+            _ => out.push_str(&literal),
+        }
+        i = end;
+    }
+    out
 }
 
 /// `exmex` binds a unary minus tighter than `^` (`-m^2` is `(-m)^2`); written as `-1*`, it
@@ -282,6 +324,7 @@ mod tests {
             ("-m^2", -0.25),
             ("l*-m^2 + 2^-x", 0.4 * -0.25 + 2f64.powf(-0.3)),
             ("exp(-x^2)/(-l)", (-0.09f64).exp() / -0.4),
+            ("1e-3*m + 2.5E2 - 3e+1*x", 0.5e-3 + 250.0 - 9.0),
         ];
         for (text, want) in cases {
             let e = Expr::parse(text, &sym).unwrap();
@@ -302,7 +345,10 @@ mod tests {
             "-a*tanh(x/b) + exp(-x^2)*sqrt(b) + log(b)*x",
             "x*x*x - 2^x",
         ];
-        let exprs: Vec<Expr> = texts.iter().map(|t| Expr::parse(t, &sym).unwrap()).collect();
+        let exprs: Vec<Expr> = texts
+            .iter()
+            .map(|t| Expr::parse(t, &sym).unwrap())
+            .collect();
         let mut runner = proptest::test_runner::TestRunner::default();
         runner
             .run(&(0.2f64..2.0, 0.5f64..2.0, -1.5f64..1.5), |(a, b, x)| {
@@ -315,7 +361,11 @@ mod tests {
                         tp[slot] += h;
                         tm[slot] -= h;
                         let fd = (e.eval(&tp).unwrap() - e.eval(&tm).unwrap()) / (2.0 * h);
-                        prop_assert!((d - fd).abs() <= 1e-7 * (1.0 + fd.abs()), "{} d/d{slot}: {d} vs {fd}", e.text());
+                        prop_assert!(
+                            (d - fd).abs() <= 1e-7 * (1.0 + fd.abs()),
+                            "{} d/d{slot}: {d} vs {fd}",
+                            e.text()
+                        );
                     }
                 }
                 Ok(())

@@ -153,7 +153,13 @@ impl Workbench {
         };
         let cost = WeightedCost::new(&frf)?;
         let mut model = Model::new(structure);
-        if model.structure().is_nonlinear() && !model.structure().effects().iter().any(|e| e == "sensor_bias") {
+        if model.structure().is_nonlinear()
+            && !model
+                .structure()
+                .effects()
+                .iter()
+                .any(|e| e == "sensor_bias")
+        {
             // The offsets are searched within each output's logged range.
             model = model.with_candidate(Arc::new(generic::SensorBias::for_data(&data)))?;
         }

@@ -768,11 +768,7 @@ impl ModelFile {
         let mut alone: Vec<Vec<String>> = vec![Vec::new()];
         alone.extend(model.effects().into_iter().map(|e| vec![e]));
         for enabled in &alone {
-            let theta: Vec<f64> = model
-                .parameters(enabled)?
-                .iter()
-                .map(|p| p.value)
-                .collect();
+            let theta: Vec<f64> = model.parameters(enabled)?.iter().map(|p| p.value).collect();
             model.state_space(enabled, &theta)?;
             if let Some(d) = model.dynamics(enabled, &theta) {
                 let d = d?;
@@ -807,15 +803,29 @@ impl ModelFile {
                     if !is_nonlinear {
                         return Err(r.err(&akey, "only a [nonlinear] model has f and h; add to a definition, or give A, B, C, D terms"));
                     }
-                    let (names, kind) = if fh == "f" { (states, "state") } else { (outputs, "output") };
+                    let (names, kind) = if fh == "f" {
+                        (states, "state")
+                    } else {
+                        (outputs, "output")
+                    };
                     for (target, term) in sub {
                         let tkey = format!("{akey}.{target}");
                         let i = names.iter().position(|s| s == target).ok_or_else(|| {
-                            r.err(&tkey, format!("{target:?} is not a {kind}; {kind}s: {}", names.join(", ")))
+                            r.err(
+                                &tkey,
+                                format!(
+                                    "{target:?} is not a {kind}; {kind}s: {}",
+                                    names.join(", ")
+                                ),
+                            )
                         })?;
                         let entry = r.entry(&tkey, term, symbols, visible)?;
                         out.push(Addition {
-                            target: if fh == "f" { Target::F(i) } else { Target::H(i) },
+                            target: if fh == "f" {
+                                Target::F(i)
+                            } else {
+                                Target::H(i)
+                            },
                             node: Node::new(entry, tkey),
                         });
                     }
@@ -826,9 +836,17 @@ impl ModelFile {
                         .find(|(s, _)| symbols[*s] == *name)
                         .map(|(s, _)| *s)
                         .ok_or_else(|| {
-                            let known: Vec<&str> =
-                                definitions.iter().map(|(s, _)| symbols[*s].as_str()).collect();
-                            r.err(&akey, format!("{name:?} is not a definition; definitions: {}", known.join(", ")))
+                            let known: Vec<&str> = definitions
+                                .iter()
+                                .map(|(s, _)| symbols[*s].as_str())
+                                .collect();
+                            r.err(
+                                &akey,
+                                format!(
+                                    "{name:?} is not a definition; definitions: {}",
+                                    known.join(", ")
+                                ),
+                            )
                         })?;
                     let entry = r.entry(&akey, x, symbols, visible)?;
                     out.push(Addition {

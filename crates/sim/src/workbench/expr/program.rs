@@ -313,7 +313,11 @@ impl Program {
         for _ in 0..64 {
             for &i in reads {
                 let magnitude = 10f64.powf(rng.random_range(-2.0..2.0));
-                table[i] = if rng.random_bool(0.5) { magnitude } else { -magnitude };
+                table[i] = if rng.random_bool(0.5) {
+                    magnitude
+                } else {
+                    -magnitude
+                };
             }
             let Some(want) = reference(&table).filter(|v| v.is_finite()) else {
                 continue;
@@ -350,17 +354,32 @@ mod tests {
             ("2^3^2", 64.0),
             ("a/b/a", 1.5 / -0.5 / 1.5),
             ("0.001*a + 250", 1.5e-3 + 250.0),
-            ("sin(a)*cos(b) + tanh(a/b) - log(a)", 1.5f64.sin() * (-0.5f64).cos() + (-3.0f64).tanh() - 1.5f64.ln()),
-            ("2^-a + PI*e", 2f64.powf(-1.5) + std::f64::consts::PI * std::f64::consts::E),
+            (
+                "sin(a)*cos(b) + tanh(a/b) - log(a)",
+                1.5f64.sin() * (-0.5f64).cos() + (-3.0f64).tanh() - 1.5f64.ln(),
+            ),
+            (
+                "2^-a + PI*e",
+                2f64.powf(-1.5) + std::f64::consts::PI * std::f64::consts::E,
+            ),
             ("(a - b)^0.5", 2f64.sqrt()),
         ];
         for (text, want) in cases {
             let p = Program::compile(&super::super::conventional_minus(text), &sym)
                 .unwrap_or_else(|| panic!("{text}"));
             let got = p.eval(&t);
-            assert!((got - want).abs() < 1e-12 * (1.0 + want.abs()), "{text}: {got} vs {want}");
-            let exmex = super::super::Expr::parse(text, &sym).unwrap().interpret(&t).unwrap();
-            assert!((got - exmex).abs() < 1e-12 * (1.0 + want.abs()), "{text}: exmex {exmex}");
+            assert!(
+                (got - want).abs() < 1e-12 * (1.0 + want.abs()),
+                "{text}: {got} vs {want}"
+            );
+            let exmex = super::super::Expr::parse(text, &sym)
+                .unwrap()
+                .interpret(&t)
+                .unwrap();
+            assert!(
+                (got - exmex).abs() < 1e-12 * (1.0 + want.abs()),
+                "{text}: exmex {exmex}"
+            );
         }
         for bad in ["a +", "sin a", "foo(a)", "a min b", "(a"] {
             assert!(Program::compile(bad, &sym).is_none(), "{bad}");

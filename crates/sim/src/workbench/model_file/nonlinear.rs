@@ -112,15 +112,12 @@ pub(super) fn read(r: &Reader, t: &Table, l: &Layout) -> Result<(Vec<Node>, Vec<
         }
     }
     let exprs = |what: &str, names: &[String], kind: &str| -> Result<Vec<Node>> {
-        let table = t
-            .get(what)
-            .and_then(Value::as_table)
-            .ok_or_else(|| {
-                r.err(
-                    format!("nonlinear.{what}"),
-                    format!("missing: one expression per {kind}, {what}.<{kind}> = \"...\""),
-                )
-            })?;
+        let table = t.get(what).and_then(Value::as_table).ok_or_else(|| {
+            r.err(
+                format!("nonlinear.{what}"),
+                format!("missing: one expression per {kind}, {what}.<{kind}> = \"...\""),
+            )
+        })?;
         for k in table.keys() {
             if !names.contains(k) {
                 return Err(r.err(
@@ -153,7 +150,12 @@ pub(super) fn read(r: &Reader, t: &Table, l: &Layout) -> Result<(Vec<Node>, Vec<
                 "nonlinear.operating_point",
                 format!(
                     "missing: a value for every state and input, e.g. {{ {} = 0 }}",
-                    l.states.iter().chain(l.inputs).cloned().collect::<Vec<_>>().join(" = 0, ")
+                    l.states
+                        .iter()
+                        .chain(l.inputs)
+                        .cloned()
+                        .collect::<Vec<_>>()
+                        .join(" = 0, ")
                 ),
             )
         })?;
@@ -177,7 +179,10 @@ pub(super) fn read(r: &Reader, t: &Table, l: &Layout) -> Result<(Vec<Node>, Vec<
             )
         })?);
     }
-    if let Some(k) = op.keys().find(|k| !l.states.contains(k) && !l.inputs.contains(k)) {
+    if let Some(k) = op
+        .keys()
+        .find(|k| !l.states.contains(k) && !l.inputs.contains(k))
+    {
         return Err(r.err(
             format!("nonlinear.operating_point.{k}"),
             format!("{k:?} is not a state or input"),
@@ -288,7 +293,10 @@ impl Section {
         for (slot, node) in self.definitions.iter().rev() {
             if reached[*slot] {
                 mark(node, &mut reached);
-                for a in adds.iter().filter(|a| a.target == Target::Definition(*slot)) {
+                for a in adds
+                    .iter()
+                    .filter(|a| a.target == Target::Definition(*slot))
+                {
                     mark(&a.node, &mut reached);
                 }
             }
@@ -332,7 +340,10 @@ impl Section {
         for (slot, node) in &self.definitions {
             let mut g = vec![0.0; nz];
             total(node, &grad, &mut g)?;
-            for a in adds.iter().filter(|a| a.target == Target::Definition(*slot)) {
+            for a in adds
+                .iter()
+                .filter(|a| a.target == Target::Definition(*slot))
+            {
                 total(&a.node, &grad, &mut g)?;
             }
             grad[*slot] = g;
@@ -399,7 +410,13 @@ pub struct FileDynamics {
 impl FileDynamics {
     /// Fills `scratch` with the symbol values at `(x, u)`, evaluating the definitions
     /// `dynamic` (indices into the section's).
-    fn prepare(&self, x: &[f64], u: &[f64], dynamic: &[usize], scratch: &mut Vec<f64>) -> Result<()> {
+    fn prepare(
+        &self,
+        x: &[f64],
+        u: &[f64],
+        dynamic: &[usize],
+        scratch: &mut Vec<f64>,
+    ) -> Result<()> {
         let s = &self.section;
         scratch.clear();
         scratch.extend_from_slice(&self.table);
@@ -408,7 +425,11 @@ impl FileDynamics {
         for &i in dynamic {
             let (slot, node) = &s.definitions[i];
             let mut v = s.value(node, scratch)?;
-            for a in self.adds.iter().filter(|a| a.target == Target::Definition(*slot)) {
+            for a in self
+                .adds
+                .iter()
+                .filter(|a| a.target == Target::Definition(*slot))
+            {
                 v += s.value(&a.node, scratch)?;
             }
             scratch[*slot] = v;
@@ -430,10 +451,7 @@ impl FileDynamics {
                 v += s.value(&a.node, scratch)?;
             }
             if !v.is_finite() {
-                return Err(s.err(
-                    &node.key,
-                    format!("is {v} at {}", s.point_text(scratch)),
-                ));
+                return Err(s.err(&node.key, format!("is {v} at {}", s.point_text(scratch))));
             }
             *o = v;
         }
