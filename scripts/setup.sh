@@ -31,11 +31,12 @@ if [ ! -x .venv/bin/python ]; then
     python3 -m venv .venv
 fi
 stamp=.venv/.stabilis-deps
-deps="maturin>=1.9.4,<2 pytest numpy scipy mcap control"
+deps="maturin>=1.9.4,<2 pytest numpy scipy mcap control dask[distributed]"
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$deps" ]; then
     echo "setup: installing Python dependencies into .venv"
     .venv/bin/python -m pip install -q --upgrade pip
+    # Split on spaces, never globbed (dask[distributed] is a bracket pattern to the shell).
     # shellcheck disable=SC2086
-    .venv/bin/python -m pip install -q $deps
+    (set -f; .venv/bin/python -m pip install -q $deps)
     echo "$deps" > "$stamp"
 fi

@@ -10,6 +10,7 @@ mod flying_platform;
 mod geometry;
 mod log;
 mod pmpc;
+mod power;
 mod real;
 mod sim;
 mod tilt;
@@ -24,6 +25,7 @@ fn _stabilis(m: &Bound<'_, PyModule>) -> PyResult<()> {
     geometry::register(m)?;
     log::register(m)?;
     pmpc::register(m)?;
+    power::register(m)?;
     sim::register(m)?;
     tilt::register(m)?;
     workbench::register(m)?;

@@ -47,6 +47,19 @@ def chromium() -> str:
     pytest.fail("headless Chromium is not installed (scripts/setup.sh installs Debian's chromium)")
 
 
+def measured_plots(html: str, tmp_path: Path) -> list[dict]:
+    """Every SVG of the page `html` as the browser lays it out: title, size, marks drawn."""
+    page = tmp_path / "checked.html"
+    page.write_text(html.replace("</body>", CHECK + "</body>"))
+    dom = subprocess.run([chromium(), "--headless", "--no-sandbox", "--disable-gpu",
+                          "--virtual-time-budget=5000", "--dump-dom", page.as_uri()],
+                         capture_output=True, text=True, check=False, timeout=120)
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    found = re.search(r'<pre id="plot-check">(.*?)</pre>', dom.stdout, re.S)
+    assert found, dom.stdout[-2000:]
+    return json.loads(found.group(1).replace("&quot;", '"').replace("&amp;", "&"))
+
+
 def test_every_plot_of_the_report_draws(tmp_path):
     data = tmp_path / "runs"
     ic.campaign(data, plant=replace(ic.Plant(), tau=0.03), seed=1)
@@ -59,15 +72,7 @@ def test_every_plot_of_the_report_draws(tmp_path):
     for heading in ("Parameters", "Time domain", "Residual autocorrelation", "Error per step",
                     "Frequency response"):
         assert f"<h2>{heading}" in html, heading
-    page = tmp_path / "checked.html"
-    page.write_text(html.replace("</body>", CHECK + "</body>"))
-    dom = subprocess.run([chromium(), "--headless", "--no-sandbox", "--disable-gpu",
-                          "--virtual-time-budget=5000", "--dump-dom", page.as_uri()],
-                         capture_output=True, text=True, check=False, timeout=120)
-    assert dom.returncode == 0, dom.stderr[-2000:]
-    found = re.search(r'<pre id="plot-check">(.*?)</pre>', dom.stdout, re.S)
-    assert found, dom.stdout[-2000:]
-    plots = json.loads(found.group(1).replace("&quot;", '"').replace("&amp;", "&"))
+    plots = measured_plots(html, tmp_path)
     # Error per step, the misfit per line, two outputs of measured/predicted, two
     # autocorrelations, and a magnitude and phase panel per FRF entry shown.
     assert len(plots) >= 8, plots

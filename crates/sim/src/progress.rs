@@ -48,6 +48,11 @@ impl Progress {
         self.bar.set_position(done);
     }
 
+    /// Replaces the label (a rate, a count).
+    pub fn set_message(&self, message: &str) {
+        self.bar.set_message(message.to_string());
+    }
+
     /// Removes the bar from the terminal.
     pub fn finish(&self) {
         self.bar.finish_and_clear();

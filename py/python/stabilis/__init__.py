@@ -8,3 +8,5 @@ from . import tilt
 from .log import Log, read_csv, read_mcap
 from . import workbench
 from .workbench import Effect, Model, Workbench
+from . import power_study
+from .power_study import power

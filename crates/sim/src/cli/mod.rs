@@ -11,6 +11,7 @@ use crate::scenarios::{self, Recording, Scenario};
 
 pub mod info;
 pub mod model;
+pub mod power;
 pub mod tilt;
 pub mod workbench;
 
@@ -48,6 +49,9 @@ pub enum Command {
     /// Checks a model file: matrices, eigenvalues, identifiability.
     #[command(subcommand)]
     Model(model::Command),
+    /// Monte-Carlo detection power: how often the discovery finds an effect of each size in
+    /// simulated campaigns like the logged ones, and how often it finds one that is not there.
+    Power(power::Args),
 }
 
 /// The systems `stabilis sim` can run.
@@ -150,6 +154,7 @@ impl Command {
             Self::Discover(args) => workbench_inputs(&args.common),
             Self::Compare(args) | Self::Fit(args) => workbench_inputs(&args.common),
             Self::Model(model::Command::Check(args)) => vec![args.file.clone()],
+            Self::Power(args) => args.inputs(),
         }
     }
 
@@ -158,6 +163,7 @@ impl Command {
         match self {
             Self::Discover(args) => args.common.report.as_deref(),
             Self::Compare(args) | Self::Fit(args) => args.common.report.as_deref(),
+            Self::Power(args) => args.report.as_deref(),
             _ => None,
         }
     }
@@ -171,6 +177,7 @@ impl Command {
             Self::Discover(args) => args.run(),
             Self::Compare(args) | Self::Fit(args) => args.run(),
             Self::Model(cmd) => cmd.run(),
+            Self::Power(args) => args.run(),
         }
     }
 }

@@ -24,17 +24,13 @@ pub fn closed_loop_fit(
     disc: &Discrete,
     controller: &Controller,
 ) -> Result<ClosedLoopFit, String> {
-    let rate = match controller {
-        Controller::StateFeedback { sample_rate_hz, .. }
-        | Controller::Discrete { sample_rate_hz, .. } => *sample_rate_hz,
-    };
+    let rate = controller_rate(controller);
     if (rate - data.sample_rate_hz).abs() > 1e-9 * rate {
         return Err(format!(
             "the controller runs at {rate} Hz, the data at {} Hz",
             data.sample_rate_hz
         ));
     }
-    let (n, m, p) = (disc.phi.nrows(), disc.gamma0.ncols(), disc.c.nrows());
     let mut measured = Vec::new();
     let mut simulated = Vec::new();
     let mut first_scored = 0;
@@ -49,48 +45,12 @@ pub fn closed_loop_fit(
             .map_or(samples / 10, |p| p.transient)
             .min(samples / 2);
         first_scored = from;
-        let mut x = DVector::zeros(n);
-        let mut xc = match controller {
-            Controller::Discrete { a, .. } => DVector::zeros(a.nrows()),
-            Controller::StateFeedback { .. } => DVector::zeros(0),
-        };
-        let mut u = DMatrix::zeros(samples, m);
-        let mut y = DMatrix::zeros(samples, p);
-        for k in 0..samples {
-            let mut yk = &disc.c * &x;
-            if k >= disc.d_shift {
-                yk += &disc.d * u.row(k - disc.d_shift).transpose();
-            }
-            let uk = match controller {
-                Controller::StateFeedback { k: gain, .. } => {
-                    // The gain acts on the file's states, which come first in the fitted model
-                    // (a lag's states are appended).
-                    let nk = gain.ncols().min(n);
-                    -(gain.columns(0, nk) * x.rows(0, nk))
-                }
-                Controller::Discrete { a, b, c, d, .. } => {
-                    let out = c * &xc + d * &yk;
-                    xc = a * &xc + b * &yk;
-                    out
-                }
-            } + r.row(k).transpose();
-            u.row_mut(k).copy_from(&uk.transpose());
-            y.row_mut(k).copy_from(&yk.transpose());
-            let mut next = &disc.phi * &x;
-            if k >= disc.whole {
-                next += &disc.gamma0 * u.row(k - disc.whole).transpose();
-            }
-            if k > disc.whole {
-                next += &disc.gamma1 * u.row(k - disc.whole - 1).transpose();
-            }
-            x = next;
-            if !x.iter().all(|v| v.is_finite()) {
-                return Err(format!(
-                    "the loop of the fitted model and the controller diverges in {} at sample {k}",
-                    e.name
-                ));
-            }
-        }
+        let (_, y) = run_loop(disc, controller, r, &mut |_, _| {}).map_err(|k| {
+            format!(
+                "the loop of the fitted model and the controller diverges in {} at sample {k}",
+                e.name
+            )
+        })?;
         let mut ym = e.y.clone();
         for mut c in ym.column_iter_mut() {
             let mean = c.mean();
@@ -110,4 +70,72 @@ pub fn closed_loop_fit(
         ),
         fit: data.outputs.iter().cloned().zip(fit).collect(),
     })
+}
+
+/// The rate the controller runs at, Hz.
+pub fn controller_rate(controller: &Controller) -> f64 {
+    match controller {
+        Controller::StateFeedback { sample_rate_hz, .. }
+        | Controller::Discrete { sample_rate_hz, .. } => *sample_rate_hz,
+    }
+}
+
+/// Runs the sampled model `disc` in closed loop with `controller`, driven by the excitation
+/// `r` (samples x inputs), from zero plant and controller states; returns the inputs and the
+/// measured outputs, samples in rows. `noise(w, v)` may add process noise `w` (states) to each
+/// next state and sensor noise `v` (outputs) to each measured output the controller sees; it
+/// is called once per sample, both vectors zeroed. `Err(k)`: the state is no longer finite
+/// after sample `k`.
+pub fn run_loop(
+    disc: &Discrete,
+    controller: &Controller,
+    r: &DMatrix<f64>,
+    noise: &mut dyn FnMut(&mut DVector<f64>, &mut DVector<f64>),
+) -> Result<(DMatrix<f64>, DMatrix<f64>), usize> {
+    let (n, m, p) = (disc.phi.nrows(), disc.gamma0.ncols(), disc.c.nrows());
+    let samples = r.nrows();
+    let mut x = DVector::zeros(n);
+    let mut xc = match controller {
+        Controller::Discrete { a, .. } => DVector::zeros(a.nrows()),
+        Controller::StateFeedback { .. } => DVector::zeros(0),
+    };
+    let (mut w, mut v) = (DVector::zeros(n), DVector::zeros(p));
+    let mut u = DMatrix::zeros(samples, m);
+    let mut y = DMatrix::zeros(samples, p);
+    for k in 0..samples {
+        w.fill(0.0);
+        v.fill(0.0);
+        noise(&mut w, &mut v);
+        let mut yk = &disc.c * &x + &v;
+        if k >= disc.d_shift {
+            yk += &disc.d * u.row(k - disc.d_shift).transpose();
+        }
+        let uk = match controller {
+            Controller::StateFeedback { k: gain, .. } => {
+                // The gain acts on the file's states, which come first in the fitted model
+                // (a lag's states are appended).
+                let nk = gain.ncols().min(n);
+                -(gain.columns(0, nk) * x.rows(0, nk))
+            }
+            Controller::Discrete { a, b, c, d, .. } => {
+                let out = c * &xc + d * &yk;
+                xc = a * &xc + b * &yk;
+                out
+            }
+        } + r.row(k).transpose();
+        u.row_mut(k).copy_from(&uk.transpose());
+        y.row_mut(k).copy_from(&yk.transpose());
+        let mut next = &disc.phi * &x + &w;
+        if k >= disc.whole {
+            next += &disc.gamma0 * u.row(k - disc.whole).transpose();
+        }
+        if k > disc.whole {
+            next += &disc.gamma1 * u.row(k - disc.whole - 1).transpose();
+        }
+        x = next;
+        if !x.iter().all(|v| v.is_finite()) {
+            return Err(k);
+        }
+    }
+    Ok((u, y))
 }

@@ -29,6 +29,7 @@ pub mod load;
 pub mod model;
 pub mod model_file;
 pub mod noise;
+pub mod power;
 pub mod prediction;
 pub mod report;
 pub mod residual;

@@ -290,28 +290,28 @@ fn publish(dir: &Path, html: &str, json: &Value) -> Result<()> {
     })
 }
 
-const COLORS: [&str; 6] = [
+pub(crate) const COLORS: [&str; 6] = [
     "#d62728", "#ff7f0e", "#2ca02c", "#1f77b4", "#9467bd", "#8c564b",
 ];
 
 /// A plotted series.
-struct Series<'a> {
-    name: String,
-    color: &'a str,
-    points: Vec<(f64, f64)>,
-    markers: bool,
-    band: Option<Vec<(f64, f64, f64)>>,
+pub(crate) struct Series<'a> {
+    pub(crate) name: String,
+    pub(crate) color: &'a str,
+    pub(crate) points: Vec<(f64, f64)>,
+    pub(crate) markers: bool,
+    pub(crate) band: Option<Vec<(f64, f64, f64)>>,
 }
 
 /// The x axis of a chart.
 #[derive(Clone, Copy)]
-struct XAxis<'a> {
+pub(crate) struct XAxis<'a> {
     label: &'a str,
     log: bool,
 }
 
 impl<'a> XAxis<'a> {
-    fn linear(label: &'a str) -> Self {
+    pub(crate) fn linear(label: &'a str) -> Self {
         Self { label, log: false }
     }
 }
@@ -352,7 +352,12 @@ fn per_step<S>(
 }
 
 /// An SVG chart with a logarithmic or linear x axis and a linear y axis.
-fn chart(title: &str, x_axis: XAxis<'_>, y_label: &str, series: &[Series<'_>]) -> String {
+pub(crate) fn chart(
+    title: &str,
+    x_axis: XAxis<'_>,
+    y_label: &str,
+    series: &[Series<'_>],
+) -> String {
     let (w, h, l, r, t, b) = (520.0, 300.0, 60.0, 150.0, 28.0, 40.0);
     let xs = series.iter().flat_map(|s| s.points.iter().map(|p| p.0));
     let (xmin, xmax) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
@@ -550,7 +555,7 @@ fn fmt_num(v: f64) -> String {
     format!("{v:.decimals$}")
 }
 
-fn escape(s: &str) -> String {
+pub(crate) fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
@@ -887,7 +892,7 @@ fn autocorrelation(d: &Discovery) -> String {
 }
 
 /// The HTML page around `body` (inline style, no scripts).
-fn page(body: &str) -> String {
+pub(crate) fn page(body: &str) -> String {
     format!("<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>stabilis workbench</title><style>body{{font-family:sans-serif;max-width:1100px;margin:auto}} svg{{margin:4px}} pre{{background:#f4f4f4;padding:8px;overflow-x:auto}} td,th{{padding:2px 8px;text-align:right}}</style></head><body>{body}</body></html>")
 }
 

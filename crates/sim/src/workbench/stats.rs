@@ -151,6 +151,39 @@ pub fn f_sf(f: f64, d1: f64, d2: f64) -> f64 {
     beta_i(0.5 * d2, 0.5 * d1, d2 / (d2 + d1 * f))
 }
 
+/// The Clopper-Pearson (exact) two-sided interval of a binomial proportion at confidence
+/// `1 - alpha` for `successes` of `trials`: the `alpha / 2` quantile of Beta(x, n - x + 1) and
+/// the `1 - alpha / 2` quantile of Beta(x + 1, n - x), found by bisection on [`beta_i`].
+/// Its coverage is at least `1 - alpha` for every true proportion (conservative). `(0, 1)`
+/// for no trials.
+pub fn clopper_pearson(successes: usize, trials: usize, alpha: f64) -> (f64, f64) {
+    let (x, n) = (successes.min(trials) as f64, trials as f64);
+    // The p with I_p(a, b) = q (I rises with p).
+    let quantile = |a: f64, b: f64, q: f64| {
+        let (mut lo, mut hi) = (0.0f64, 1.0f64);
+        for _ in 0..100 {
+            let mid = 0.5 * (lo + hi);
+            if beta_i(a, b, mid) < q {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        0.5 * (lo + hi)
+    };
+    let lower = if x == 0.0 {
+        0.0
+    } else {
+        quantile(x, n - x + 1.0, 0.5 * alpha)
+    };
+    let upper = if x >= n {
+        1.0
+    } else {
+        quantile(x + 1.0, n - x, 1.0 - 0.5 * alpha)
+    };
+    (lower, upper)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -165,6 +198,29 @@ mod tests {
         assert!((chi2_sf(2200.0, 2160.0) - 0.269_280_104_336_830_03).abs() < 1e-8);
         assert!((f_sf(2.0, 3.0, 10.0) - 0.178_007_407_375_175_42).abs() < 1e-10);
         assert!((f_sf(3.5, 6.0, 2100.0) - 0.001_899_801_151_119_947_3).abs() < 1e-10);
+    }
+
+    #[test]
+    fn clopper_pearson_matches_closed_forms_and_r() {
+        // x = 0 and x = n have closed forms: 1 - (a/2)^(1/n) and (a/2)^(1/n).
+        for n in [1usize, 8, 20, 100] {
+            let (lo, hi) = clopper_pearson(0, n, 0.05);
+            assert_eq!(lo, 0.0);
+            assert!(
+                (hi - (1.0 - 0.025f64.powf(1.0 / n as f64))).abs() < 1e-12,
+                "{n}"
+            );
+            let (lo, hi) = clopper_pearson(n, n, 0.05);
+            assert_eq!(hi, 1.0);
+            assert!((lo - 0.025f64.powf(1.0 / n as f64)).abs() < 1e-12, "{n}");
+        }
+        // R: binom.test(3, 10)$conf.int = 0.06673951 0.65245285;
+        // binom.test(17, 20)$conf.int = 0.6210732 0.9679291.
+        let (lo, hi) = clopper_pearson(3, 10, 0.05);
+        assert!((lo - 0.066_739_51).abs() < 1e-8 && (hi - 0.652_452_85).abs() < 1e-8);
+        let (lo, hi) = clopper_pearson(17, 20, 0.05);
+        assert!((lo - 0.621_073_2).abs() < 1e-7 && (hi - 0.967_929_1).abs() < 1e-7);
+        assert_eq!(clopper_pearson(0, 0, 0.05), (0.0, 1.0));
     }
 
     proptest! {

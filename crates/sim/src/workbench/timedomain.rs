@@ -410,7 +410,8 @@ pub fn policy(k: usize, m: usize, t: f64) -> String {
     )
 }
 
-fn demeaned(x: &DMatrix<f64>) -> DMatrix<f64> {
+/// `x` with each column's mean removed.
+pub(crate) fn demeaned(x: &DMatrix<f64>) -> DMatrix<f64> {
     let mut d = x.clone();
     for mut c in d.column_iter_mut() {
         let mean = c.mean();

@@ -1,0 +1,1483 @@
+//! Detection power before the experiment: how large an effect must be for the discovery to
+//! find it with this excitation, this noise and this many periods, and how often it finds
+//! something that is not there.
+//!
+//! A study ([`StudySpec`]) is prepared once from a model file with a `[controller]` and the
+//! user's logs ([`prepare`]): the nominal model fitted to the logs (the `compare` step), the
+//! noise level estimated from them (the stationary Kalman predictor's covariances,
+//! [`super::kalman`]: process noise per sample and white sensor noise), and the logged
+//! excitation of each experiment. A campaign ([`Study::campaign`]) is then a pure function of
+//! the spec, the value index and the campaign index: the fitted nominal model plus the effect at
+//! that value, sampled with a zero-order hold at the logs' rate, runs in closed loop with the
+//! file's controller from zero states, driven by each experiment's excitation (same lengths,
+//! same number of experiments, same periodic layout), with Gaussian process and sensor noise of
+//! the estimated covariances; the full discovery then runs on the simulated logs. The spec is
+//! plain JSON (model-file text and excitation arrays, no paths), so campaigns run anywhere: in
+//! threads here ([`run`]) or in Dask tasks through the Python package. Outcomes are aggregated
+//! in one place ([`aggregate`]), whatever ran them.
+//!
+//! Random numbers: campaign `c` of value `i` draws from ChaCha8 keyed by `seed`
+//! (`seed_from_u64`) on stream `(i << 32) | c`, in sample order: per sample, the process noise
+//! (one standard normal per state, times a square root of its covariance), then the sensor
+//! noise (one per output, times its standard deviation), experiment after experiment. The
+//! results are therefore identical to the bit for the same spec and seed however the campaigns
+//! are scheduled.
+use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+
+use nalgebra::{DMatrix, DVector};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+use serde::{Deserialize, Serialize};
+
+use super::closed_loop::{controller_rate, run_loop};
+use super::dataset::{Dataset, Experiment, Periodic};
+use super::diagnose::LEVEL;
+use super::kalman::Predictor;
+use super::model::Model;
+use super::model_file::ModelFile;
+use super::stats::clopper_pearson;
+use super::timedomain::{demeaned, Discrete};
+use super::{DataOptions, EstimatorChoice, Workbench};
+use crate::error::{Result, SimError};
+
+/// Power the reverse question asks for: the smallest value detected this often.
+pub const TARGET_POWER: f64 = 0.95;
+
+/// One minus the confidence of the binomial intervals (95 %).
+pub const ALPHA: f64 = 0.05;
+
+/// The excitation of one logged experiment, as the simulated campaign replays it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Excitation {
+    /// The log's name.
+    pub name: String,
+    /// Excitation per sample (rows) and input (columns).
+    pub r: Vec<Vec<f64>>,
+    /// Periodic layout `(period, periods, transient)` from the log's metadata, if any.
+    pub periodic: Option<(usize, usize, usize)>,
+}
+
+/// Everything a campaign needs, as plain data: the study is this and nothing else.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StudySpec {
+    /// The model file's text.
+    pub model_text: String,
+    /// Its path, for messages only (never read by a campaign).
+    pub model_path: String,
+    /// The effect whose power is studied.
+    pub effect: String,
+    /// Its parameter set to each value.
+    pub parameter: String,
+    /// Values of the parameter, increasing.
+    pub values: Vec<f64>,
+    /// Campaigns per value.
+    pub campaigns: usize,
+    /// Seed of every campaign's random numbers.
+    pub seed: u64,
+    /// The nominal model's parameters fitted to the logs, by name.
+    pub nominal: Vec<(String, f64)>,
+    /// Process-noise covariance per sample, rows of the nominal model's states.
+    pub process_noise: Vec<Vec<f64>>,
+    /// Sensor-noise variance per output.
+    pub sensor_noise: Vec<f64>,
+    /// Sample rate of the logs, Hz.
+    pub sample_rate_hz: f64,
+    /// The experiments' excitations.
+    pub experiments: Vec<Excitation>,
+    /// FRF estimator of the discovery: `auto`, `ls` or `iv`.
+    pub estimator: String,
+    /// Welch band of the discovery, if the user fixed one.
+    pub band_hz: Option<(f64, f64)>,
+    /// Period-to-period noise rms per output of the logs ([`period_noise_rms`]), to compare
+    /// the simulated campaigns' with; `None` for logs that are not periodic.
+    pub measured_noise_rms: Option<Vec<f64>>,
+    /// The factors `(process, sensor)` the Kalman estimate's covariances were scaled by so
+    /// that the simulated period-to-period noise matches the logs' (`None`: not periodic, not
+    /// scaled).
+    pub noise_calibration: Option<(f64, f64)>,
+}
+
+impl StudySpec {
+    /// Every campaign of the study, `(value index, campaign index)`, in order.
+    pub fn jobs(&self) -> Vec<(usize, usize)> {
+        (0..self.values.len())
+            .flat_map(|i| (0..self.campaigns).map(move |c| (i, c)))
+            .collect()
+    }
+}
+
+/// What the discovery made of one simulated campaign.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Outcome {
+    /// Index of the value.
+    pub value_index: usize,
+    /// Index of the campaign at that value.
+    pub campaign: usize,
+    /// The studied effect is among the found.
+    pub found: bool,
+    /// The other effects found.
+    pub other_found: Vec<String>,
+    /// The discovery reported an unexplained structured misfit.
+    pub unexplained: bool,
+    /// The studied parameter's estimate when the effect was found.
+    pub estimate: Option<f64>,
+    /// Why the campaign failed (a diverged loop, a failed fit); the rest is then empty.
+    pub error: Option<String>,
+    /// Period-to-period noise rms per output of the simulated logs.
+    pub noise_rms: Option<Vec<f64>>,
+}
+
+fn estimator_choice(name: &str) -> Result<EstimatorChoice> {
+    match name {
+        "auto" => Ok(EstimatorChoice::Auto),
+        "ls" => Ok(EstimatorChoice::LeastSquares),
+        "iv" => Ok(EstimatorChoice::InstrumentalVariable),
+        other => Err(SimError::invalid(
+            "estimator",
+            other,
+            "must be auto, ls or iv",
+        )),
+    }
+}
+
+fn rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
+    m.row_iter().map(|r| r.iter().copied().collect()).collect()
+}
+
+fn matrix(what: &str, rows: &[Vec<f64>], ncols: usize) -> Result<DMatrix<f64>> {
+    if let Some(bad) = rows.iter().position(|r| r.len() != ncols) {
+        return Err(SimError::LengthMismatch {
+            what: format!("{what}, row {bad}"),
+            expected: ncols,
+            found: rows[bad].len(),
+        });
+    }
+    Ok(DMatrix::from_fn(rows.len(), ncols, |i, j| rows[i][j]))
+}
+
+/// The inputs of a study: what [`prepare`] needs besides the model file and the logs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StudyOptions {
+    /// The effect (declared in the file, or `actuator_lag` / `input_delay`).
+    pub effect: String,
+    /// Values of its parameter, increasing and within its bounds.
+    pub values: Vec<f64>,
+    /// Campaigns per value.
+    pub campaigns: usize,
+    /// Seed.
+    pub seed: u64,
+    /// FRF estimator of the discovery (`auto`, `ls`, `iv`).
+    pub estimator: String,
+    /// Welch band, Hz, when the user fixes one.
+    pub band_hz: Option<(f64, f64)>,
+}
+
+/// Prepares a study from the model file's text (`model_path` names it in messages) and the
+/// logs: fits the nominal model, estimates the noise, keeps the excitation.
+pub fn prepare(
+    model_text: &str,
+    model_path: &Path,
+    data: Dataset,
+    options: &StudyOptions,
+) -> Result<StudySpec> {
+    let structure = Arc::new(ModelFile::parse(model_text, model_path)?);
+    let controller =
+        super::model::ModelStructure::controller(structure.as_ref()).ok_or_else(|| {
+            SimError::invalid(
+            "controller",
+            model_path.display(),
+            "a power study simulates the closed loop: the model file needs a [controller] section",
+        )
+        })?;
+    let rate = controller_rate(&controller);
+    if (rate - data.sample_rate_hz).abs() > 1e-9 * rate {
+        return Err(SimError::invalid(
+            "controller.sample_rate_hz",
+            rate,
+            format!(
+                "the logs are sampled at {} Hz; they must agree",
+                data.sample_rate_hz
+            ),
+        ));
+    }
+    if let Some(e) = data.experiments.iter().find(|e| e.r.is_none()) {
+        return Err(SimError::invalid(
+            "data",
+            &e.name,
+            format!(
+                "logs no excitation (MCAP topic /{}/excitation, CSV columns r_<input>): a power \
+                 study replays it",
+                super::model::ModelStructure::system(structure.as_ref())
+            ),
+        ));
+    }
+    if options.campaigns == 0 {
+        return Err(SimError::invalid("campaigns", 0, "must be at least 1"));
+    }
+    let wb = Workbench::with_options(
+        structure.clone(),
+        data,
+        estimator_choice(&options.estimator)?,
+        DataOptions {
+            band_hz: options.band_hz,
+            ..DataOptions::default()
+        },
+    )?;
+    let nominal_model = wb.model().clone();
+    let names: Vec<String> = nominal_model
+        .parameters()?
+        .into_iter()
+        .map(|p| p.name)
+        .collect();
+    let with = nominal_model.with_effect(&options.effect)?;
+    let added: Vec<_> = with
+        .parameters()?
+        .into_iter()
+        .filter(|p| !names.contains(&p.name))
+        .collect();
+    let parameter = match added.as_slice() {
+        [one] => one.clone(),
+        other => {
+            return Err(SimError::invalid(
+                "effect",
+                &options.effect,
+                format!(
+                    "a power study sets one parameter to each value; this effect has {} ({})",
+                    other.len(),
+                    other
+                        .iter()
+                        .map(|p| p.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ))
+        }
+    };
+    check_values(&options.values, &parameter)?;
+    let step = wb.compare()?;
+    let ss = nominal_model.state_space(&step.theta)?;
+    let disc = ss.discretize(1.0 / wb.data().sample_rate_hz)?;
+    let centred: Vec<(DMatrix<f64>, DMatrix<f64>)> = wb
+        .data()
+        .experiments
+        .iter()
+        .map(|e| (demeaned(&e.u), demeaned(&e.y)))
+        .collect();
+    let pairs: Vec<(&DMatrix<f64>, &DMatrix<f64>)> = centred.iter().map(|(u, y)| (u, y)).collect();
+    let predictor = Predictor::design(&disc, &pairs)?;
+    let (q, r) = predictor.covariances().ok_or_else(|| {
+        SimError::invalid(
+            "model",
+            model_path.display(),
+            "has states its outputs do not observe; a power study needs the noise of every \
+             state (the Kalman estimate covers the observable ones only)",
+        )
+    })?;
+    let data = wb.data();
+    let mut spec = StudySpec {
+        model_text: model_text.to_string(),
+        model_path: model_path.display().to_string(),
+        effect: options.effect.clone(),
+        parameter: parameter.name,
+        values: options.values.clone(),
+        campaigns: options.campaigns,
+        seed: options.seed,
+        nominal: names.into_iter().zip(step.theta).collect(),
+        process_noise: rows(q),
+        sensor_noise: r.diagonal().iter().copied().collect(),
+        sample_rate_hz: data.sample_rate_hz,
+        experiments: data
+            .experiments
+            .iter()
+            .map(|e| Excitation {
+                name: e.name.clone(),
+                r: e.r.as_ref().map(rows).unwrap_or_default(),
+                periodic: e.periodic.map(|p| (p.period, p.periods, p.transient)),
+            })
+            .collect(),
+        estimator: options.estimator.clone(),
+        band_hz: options.band_hz,
+        measured_noise_rms: period_noise_rms(data),
+        noise_calibration: None,
+    };
+    if let Some(measured) = spec.measured_noise_rms.clone() {
+        let (cq, cr) = Study::new(spec.clone())?.calibration(&disc, &measured)?;
+        spec.process_noise
+            .iter_mut()
+            .flatten()
+            .for_each(|q| *q *= cq);
+        spec.sensor_noise.iter_mut().for_each(|r| *r *= cr);
+        spec.noise_calibration = Some((cq, cr));
+    }
+    Ok(spec)
+}
+
+/// The rms per output of the deviation of each period from the mean period (the noise a
+/// periodic FRF estimate sees), pooled over the experiments and corrected for the mean's own
+/// share (`P / (P - 1)` for `P` periods); `None` unless every experiment is periodic.
+pub fn period_noise_rms(data: &Dataset) -> Option<Vec<f64>> {
+    let (layouts, _) = data.periodic_layouts()?;
+    let (mut sum, mut count) = (vec![0.0; data.outputs.len()], 0usize);
+    for (e, l) in data.experiments.iter().zip(&layouts) {
+        let periods = l.periods as f64;
+        for (i, total) in sum.iter_mut().enumerate() {
+            for k in 0..l.period {
+                let at = |j: usize| e.y[(l.transient + j * l.period + k, i)];
+                let mean = (0..l.periods).map(at).sum::<f64>() / periods;
+                *total += (0..l.periods).map(|j| (at(j) - mean).powi(2)).sum::<f64>()
+                    * (periods / (periods - 1.0));
+            }
+        }
+        count += l.period * l.periods;
+    }
+    Some(
+        sum.iter()
+            .map(|s| (s / count.max(1) as f64).sqrt())
+            .collect(),
+    )
+}
+
+fn check_values(values: &[f64], p: &super::model::Parameter) -> Result<()> {
+    if values.is_empty() {
+        return Err(SimError::invalid(
+            "values",
+            "(none)",
+            "give at least one value",
+        ));
+    }
+    for (i, v) in values.iter().enumerate() {
+        if !v.is_finite() || *v < p.lower || *v > p.upper {
+            return Err(SimError::invalid(
+                "values",
+                v,
+                format!(
+                    "{} must be finite and within its bounds [{}, {}]",
+                    p.name, p.lower, p.upper
+                ),
+            ));
+        }
+        if i > 0 && *v <= values[i - 1] {
+            return Err(SimError::invalid(
+                "values",
+                values
+                    .iter()
+                    .map(|v| v.to_string())
+                    .collect::<Vec<_>>()
+                    .join(","),
+                "must increase",
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Simulated records per noise source the calibration averages over (a short record's
+/// period-to-period noise varies much from one draw to the next).
+const CALIBRATION_DRAWS: usize = 8;
+
+/// Growth of the output rms over a record above which a simulated loop counts as diverged
+/// (a stable loop driven by a stationary excitation and noise keeps its level).
+const GROWTH: f64 = 10.0;
+
+/// The largest ratio over the outputs of the rms over the last quarter of `y` to the rms over
+/// its second quarter (the first holds the start-up).
+fn growth(y: &DMatrix<f64>) -> f64 {
+    let q = y.nrows() / 4;
+    if q == 0 {
+        return 1.0;
+    }
+    y.column_iter()
+        .map(|c| {
+            let rms = |from: usize| c.rows(from, q).norm();
+            rms(y.nrows() - q) / rms(q).max(f64::MIN_POSITIVE)
+        })
+        .fold(0.0, f64::max)
+}
+
+/// A symmetric positive semi-definite matrix's square root factor `L` (`L Lᵀ = S`) from its
+/// eigen-decomposition, negative rounding clipped (the process covariance may be singular).
+fn sqrt_factor(s: &DMatrix<f64>) -> DMatrix<f64> {
+    let sym = (s + s.transpose()) * 0.5;
+    let eig = sym.symmetric_eigen();
+    let roots = eig.eigenvalues.map(|l| l.max(0.0).sqrt());
+    &eig.eigenvectors * DMatrix::from_diagonal(&roots)
+}
+
+/// A study ready to run: the spec checked and parsed once.
+#[derive(Debug, Clone)]
+pub struct Study {
+    spec: StudySpec,
+    structure: Arc<ModelFile>,
+    /// The model with the effect on, and the parameter vector with its slot.
+    with: Model,
+    theta: Vec<f64>,
+    slot: usize,
+    noise_factor: DMatrix<f64>,
+    sensor_sd: DVector<f64>,
+    controller: super::model_file::Controller,
+    excitations: Vec<DMatrix<f64>>,
+    inputs: Vec<String>,
+    outputs: Vec<String>,
+}
+
+impl Study {
+    /// Checks and parses a spec.
+    pub fn new(spec: StudySpec) -> Result<Self> {
+        let path = Path::new(&spec.model_path);
+        let structure = Arc::new(ModelFile::parse(&spec.model_text, path)?);
+        let controller = super::model::ModelStructure::controller(structure.as_ref())
+            .ok_or_else(|| SimError::invalid("controller", path.display(), "is missing"))?;
+        let nominal = Model::new(structure.clone());
+        let with = nominal.with_effect(&spec.effect)?;
+        let params = with.parameters()?;
+        let slot = params
+            .iter()
+            .position(|p| p.name == spec.parameter)
+            .ok_or_else(|| SimError::invalid("parameter", &spec.parameter, "not in the model"))?;
+        let theta = params
+            .iter()
+            .map(|p| {
+                spec.nominal
+                    .iter()
+                    .find(|(n, _)| *n == p.name)
+                    .map_or(p.value, |(_, v)| *v)
+            })
+            .collect();
+        check_values(&spec.values, &params[slot])?;
+        let n = spec.process_noise.len();
+        let q = matrix("process_noise", &spec.process_noise, n)?;
+        let inputs = super::model::ModelStructure::inputs(structure.as_ref());
+        let outputs = super::model::ModelStructure::outputs(structure.as_ref());
+        if spec.sensor_noise.len() != outputs.len() {
+            return Err(SimError::LengthMismatch {
+                what: "sensor_noise (one variance per output)".into(),
+                expected: outputs.len(),
+                found: spec.sensor_noise.len(),
+            });
+        }
+        let excitations = spec
+            .experiments
+            .iter()
+            .map(|e| matrix(&format!("excitation of {}", e.name), &e.r, inputs.len()))
+            .collect::<Result<_>>()?;
+        Ok(Self {
+            noise_factor: sqrt_factor(&q),
+            sensor_sd: DVector::from_iterator(
+                spec.sensor_noise.len(),
+                spec.sensor_noise.iter().map(|v| v.max(0.0).sqrt()),
+            ),
+            structure,
+            with,
+            theta,
+            slot,
+            controller,
+            excitations,
+            inputs,
+            outputs,
+            spec,
+        })
+    }
+
+    /// The spec.
+    pub fn spec(&self) -> &StudySpec {
+        &self.spec
+    }
+
+    /// Every campaign of the study (see [`StudySpec::jobs`]).
+    pub fn jobs(&self) -> Vec<(usize, usize)> {
+        self.spec.jobs()
+    }
+
+    /// The random numbers of one campaign (see the module documentation).
+    fn rng(&self, value_index: usize, campaign: usize) -> ChaCha8Rng {
+        let mut rng = ChaCha8Rng::seed_from_u64(self.spec.seed);
+        rng.set_stream(((value_index as u64) << 32) | campaign as u64);
+        rng
+    }
+
+    /// The simulated logs of one campaign.
+    pub fn simulate(&self, value_index: usize, campaign: usize) -> Result<Dataset> {
+        let value = *self.spec.values.get(value_index).ok_or_else(|| {
+            SimError::invalid(
+                "value index",
+                value_index,
+                format!("the study has {} values", self.spec.values.len()),
+            )
+        })?;
+        let mut theta = self.theta.clone();
+        theta[self.slot] = value;
+        let disc = self
+            .with
+            .state_space(&theta)?
+            .discretize(1.0 / self.spec.sample_rate_hz)?;
+        let mut rng = self.rng(value_index, campaign);
+        let label = (self.spec.parameter.as_str(), value.to_string());
+        self.logs(&disc, &label, &mut rng, &self.noise_factor, &self.sensor_sd)
+    }
+
+    /// Simulated logs of `disc` in the loop, noise drawn from `rng` with the process-noise
+    /// factor `factor` (`factor factorᵀ` the covariance) and sensor standard deviations `sd`;
+    /// `label` (a parameter and its value) names the model in a divergence message.
+    fn logs(
+        &self,
+        disc: &Discrete,
+        label: &(&str, String),
+        rng: &mut ChaCha8Rng,
+        factor: &DMatrix<f64>,
+        sd: &DVector<f64>,
+    ) -> Result<Dataset> {
+        let (n_true, n_noise) = (disc.phi.nrows(), factor.nrows());
+        let mut z = DVector::zeros(n_noise);
+        let mut experiments = Vec::with_capacity(self.excitations.len());
+        for (r, e) in self.excitations.iter().zip(&self.spec.experiments) {
+            let mut noise = |w: &mut DVector<f64>, v: &mut DVector<f64>| {
+                for zi in z.iter_mut() {
+                    *zi = StandardNormal.sample(&mut *rng);
+                }
+                // The noise enters the nominal model's states; states the effect adds (a lag's)
+                // come after them and get none.
+                let drawn = factor * &z;
+                w.rows_mut(0, n_noise.min(n_true))
+                    .copy_from(&drawn.rows(0, n_noise.min(n_true)));
+                for (vi, sd) in v.iter_mut().zip(sd.iter()) {
+                    let s: f64 = StandardNormal.sample(&mut *rng);
+                    *vi = sd * s;
+                }
+            };
+            let (u, y) = run_loop(disc, &self.controller, r, &mut noise).map_err(|k| {
+                SimError::invalid(
+                    label.0,
+                    &label.1,
+                    format!(
+                        "the simulated loop of the model and the controller diverges in {} at \
+                         sample {k}",
+                        e.name
+                    ),
+                )
+            })?;
+            let growth = growth(&y);
+            if growth > GROWTH {
+                return Err(SimError::invalid(
+                    label.0,
+                    &label.1,
+                    format!(
+                        "the simulated loop of the model and the controller diverges in {}: the \
+                         output rms grows {growth:.3e}-fold from the second to the last quarter \
+                         of the record",
+                        e.name
+                    ),
+                ));
+            }
+            experiments.push(Experiment {
+                name: format!("{} (simulated)", e.name),
+                u,
+                y,
+                r: Some(r.clone()),
+                periodic: e.periodic.map(|(period, periods, transient)| Periodic {
+                    period,
+                    periods,
+                    transient,
+                }),
+            });
+        }
+        Ok(Dataset {
+            sample_rate_hz: self.spec.sample_rate_hz,
+            inputs: self.inputs.clone(),
+            outputs: self.outputs.clone(),
+            experiments,
+        })
+    }
+
+    /// Factors `(process, sensor)` that scale the covariances so that the nominal model's
+    /// simulated period-to-period noise matches the logs' per output (`measured` rms): the
+    /// noise enters linearly, so each output's variance is `cq A_i + cr B_i` with `A`, `B` the
+    /// variances simulated with process noise alone and sensor noise alone, averaged over
+    /// [`CALIBRATION_DRAWS`] records each (random stream
+    /// `u64::MAX`, which no campaign uses); `(cq, cr) >= 0` minimise the squared relative
+    /// errors, one common factor unless two halve them.
+    fn calibration(&self, nominal: &Discrete, measured: &[f64]) -> Result<(f64, f64)> {
+        let mut rng = ChaCha8Rng::seed_from_u64(self.spec.seed);
+        rng.set_stream(u64::MAX);
+        let none_q = DMatrix::zeros(self.noise_factor.nrows(), self.noise_factor.ncols());
+        let none_r = DVector::zeros(self.sensor_sd.len());
+        let mut variance = |factor: &DMatrix<f64>, sd: &DVector<f64>| -> Result<Vec<f64>> {
+            let mut sum = vec![0.0; measured.len()];
+            for _ in 0..CALIBRATION_DRAWS {
+                let label = ("nominal model", "fitted".to_string());
+                let logs = self.logs(nominal, &label, &mut rng, factor, sd)?;
+                for (s, v) in sum
+                    .iter_mut()
+                    .zip(period_noise_rms(&logs).unwrap_or_default())
+                {
+                    *s += v * v / CALIBRATION_DRAWS as f64;
+                }
+            }
+            Ok(sum)
+        };
+        let a = variance(&self.noise_factor, &none_r)?;
+        let b = variance(&none_q, &self.sensor_sd)?;
+        let rel = |v: &[f64]| -> Vec<f64> {
+            v.iter()
+                .zip(measured)
+                .map(|(x, m)| x / (m * m).max(1e-300))
+                .collect()
+        };
+        let (a, b) = (rel(&a), rel(&b));
+        let dot = |x: &[f64], y: &[f64]| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>();
+        let ones = vec![1.0; a.len()];
+        let misfit = |cq: f64, cr: f64| {
+            a.iter()
+                .zip(&b)
+                .map(|(x, y)| (cq * x + cr * y - 1.0).powi(2))
+                .sum::<f64>()
+        };
+        let (aa, ab, bb) = (dot(&a, &a), dot(&a, &b), dot(&b, &b));
+        let det = aa * bb - ab * ab;
+        // One factor for both keeps the estimate's split between process and sensor noise; a
+        // split of its own replaces it only where it halves the misfit (with one output the
+        // split is not identifiable from the period-to-period noise).
+        let both: Vec<f64> = a.iter().zip(&b).map(|(x, y)| x + y).collect();
+        let c = dot(&both, &ones) / dot(&both, &both).max(f64::MIN_POSITIVE);
+        let mut best = (misfit(c, c), c, c);
+        let common = best.0;
+        let mut consider = |cq: f64, cr: f64| {
+            if cq >= 0.0 && cr >= 0.0 && cq.is_finite() && cr.is_finite() {
+                let m = misfit(cq, cr);
+                if m < best.0 && m < 0.5 * common {
+                    best = (m, cq, cr);
+                }
+            }
+        };
+        if det > 1e-12 * aa * bb {
+            let (ya, yb) = (dot(&a, &ones), dot(&b, &ones));
+            consider((bb * ya - ab * yb) / det, (aa * yb - ab * ya) / det);
+        }
+        if aa > 0.0 {
+            consider(dot(&a, &ones) / aa, 0.0);
+        }
+        if bb > 0.0 {
+            consider(0.0, dot(&b, &ones) / bb);
+        }
+        if best.0.is_finite() && best.1 + best.2 > 0.0 {
+            Ok((best.1, best.2))
+        } else {
+            Err(SimError::invalid(
+                "noise calibration",
+                "simulated noise",
+                "is zero on every output",
+            ))
+        }
+    }
+
+    /// One campaign: simulate, discover, and what was found. Never fails: a failure is the
+    /// outcome's `error`.
+    pub fn campaign(&self, value_index: usize, campaign: usize) -> Outcome {
+        let mut out = Outcome {
+            value_index,
+            campaign,
+            found: false,
+            other_found: Vec::new(),
+            unexplained: false,
+            estimate: None,
+            error: None,
+            noise_rms: None,
+        };
+        let result = self.simulate(value_index, campaign).and_then(|data| {
+            out.noise_rms = period_noise_rms(&data);
+            Workbench::with_options(
+                self.structure.clone(),
+                data,
+                estimator_choice(&self.spec.estimator)?,
+                DataOptions {
+                    band_hz: self.spec.band_hz,
+                    ..DataOptions::default()
+                },
+            )?
+            .discover()
+        });
+        match result {
+            Err(e) => out.error = Some(e.to_string()),
+            Ok(d) => {
+                out.found = d.found.contains(&self.spec.effect);
+                out.other_found = d
+                    .found
+                    .iter()
+                    .filter(|f| **f != self.spec.effect)
+                    .cloned()
+                    .collect();
+                out.unexplained = d.unexplained;
+                out.estimate = out
+                    .found
+                    .then(|| {
+                        d.steps.last().and_then(|s| {
+                            s.params
+                                .iter()
+                                .find(|p| p.name == self.spec.parameter)
+                                .map(|p| p.value)
+                        })
+                    })
+                    .flatten();
+            }
+        }
+        out
+    }
+}
+
+/// Runs `jobs` on `threads` threads (at least one), calling `progress(done)` after each
+/// campaign; the outcomes come back in the order of `jobs`.
+pub fn run(
+    study: &Study,
+    jobs: &[(usize, usize)],
+    threads: usize,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Vec<Outcome> {
+    let next = AtomicUsize::new(0);
+    let done = AtomicUsize::new(0);
+    let slots: Mutex<Vec<Option<Outcome>>> = Mutex::new(vec![None; jobs.len()]);
+    std::thread::scope(|scope| {
+        for _ in 0..threads.clamp(1, jobs.len().max(1)) {
+            scope.spawn(|| loop {
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                let Some(&(v, c)) = jobs.get(i) else { break };
+                let outcome = study.campaign(v, c);
+                if let Ok(mut s) = slots.lock() {
+                    s[i] = Some(outcome);
+                }
+                progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+            });
+        }
+    });
+    slots
+        .into_inner()
+        .unwrap_or_default()
+        .into_iter()
+        .zip(jobs)
+        .map(|(o, &(v, c))| {
+            o.unwrap_or_else(|| Outcome {
+                value_index: v,
+                campaign: c,
+                found: false,
+                other_found: Vec::new(),
+                unexplained: false,
+                estimate: None,
+                error: Some("the campaign's thread failed".into()),
+                noise_rms: None,
+            })
+        })
+        .collect()
+}
+
+/// The aggregate of one value.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ValueSummary {
+    /// The parameter's value.
+    pub value: f64,
+    /// Campaigns that found the effect, of those that completed.
+    pub detection_rate: f64,
+    /// Its Clopper-Pearson interval.
+    pub ci: [f64; 2],
+    /// Campaigns that found any other effect.
+    pub other_found_rate: f64,
+    /// Campaigns whose discovery reported an unexplained misfit.
+    pub unexplained_rate: f64,
+    /// Mean of the parameter's estimate where the effect was found.
+    pub estimate_mean: Option<f64>,
+    /// Its sample standard deviation (two estimates at least).
+    pub estimate_std: Option<f64>,
+    /// At value 0 (the nominal model is the truth): campaigns that found any effect.
+    pub false_discovery_rate: Option<f64>,
+    /// Its Clopper-Pearson interval.
+    pub false_discovery_ci: Option<[f64; 2]>,
+    /// Campaigns that completed.
+    pub completed: usize,
+    /// Campaigns that failed.
+    pub failed: usize,
+}
+
+/// The smallest value detected with [`TARGET_POWER`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MinDetectable {
+    /// Where the detection rate, linearly interpolated between the values, first reaches the
+    /// target; `None` when it never does.
+    pub value: Option<f64>,
+    /// Where the upper and the lower interval bounds first reach it (`None`: not within the
+    /// values studied).
+    pub ci: [Option<f64>; 2],
+    /// How to read it.
+    pub note: String,
+}
+
+/// A failed campaign, named.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Failure {
+    /// The parameter's value.
+    pub value: f64,
+    /// Campaign index.
+    pub campaign: usize,
+    /// Why.
+    pub error: String,
+}
+
+/// The study's result.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PowerResult {
+    /// The effect.
+    pub effect: String,
+    /// Its parameter.
+    pub parameter: String,
+    /// Campaigns per value.
+    pub campaigns: usize,
+    /// Seed.
+    pub seed: u64,
+    /// Significance level of the discovery's tests (the nominal false-discovery level).
+    pub level: f64,
+    /// Which interval, at which confidence.
+    pub interval: String,
+    /// Per value.
+    pub values: Vec<ValueSummary>,
+    /// The reverse question.
+    pub min_detectable: MinDetectable,
+    /// Failed campaigns.
+    pub failures: Vec<Failure>,
+    /// Per output, the simulated campaigns' period-to-period noise rms (mean over the
+    /// campaigns at the smallest value) over the logs': near 1 when the campaigns have the
+    /// logged noise level; `None` for logs that are not periodic.
+    pub noise_ratio: Option<Vec<f64>>,
+    /// How the campaigns were simulated.
+    pub policy: String,
+}
+
+fn mean_std(x: &[f64]) -> (Option<f64>, Option<f64>) {
+    if x.is_empty() {
+        return (None, None);
+    }
+    let n = x.len() as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    let std = (x.len() > 1)
+        .then(|| (x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt());
+    (Some(mean), std)
+}
+
+/// Where `curve` (at increasing `values`), linearly interpolated, first reaches `target`.
+fn first_crossing(values: &[f64], curve: &[f64], target: f64) -> Option<f64> {
+    let i = curve.iter().position(|c| *c >= target)?;
+    if i == 0 {
+        return Some(values[0]);
+    }
+    let (v0, v1, c0, c1) = (values[i - 1], values[i], curve[i - 1], curve[i]);
+    Some(v0 + (v1 - v0) * (target - c0) / (c1 - c0))
+}
+
+/// Aggregates the outcomes of a study (in any order; each `(value, campaign)` once). Sums run
+/// in campaign order, so the result does not depend on the order the outcomes arrived in.
+pub fn aggregate(spec: &StudySpec, outcomes: &[Outcome]) -> Result<PowerResult> {
+    let mut sorted: Vec<&Outcome> = outcomes.iter().collect();
+    sorted.sort_by_key(|o| (o.value_index, o.campaign));
+    let outcomes = sorted;
+    let mut seen = vec![vec![false; spec.campaigns]; spec.values.len()];
+    for o in &outcomes {
+        let slot = seen
+            .get_mut(o.value_index)
+            .and_then(|s| s.get_mut(o.campaign))
+            .ok_or_else(|| {
+                SimError::invalid(
+                    "outcome",
+                    format!("value {} campaign {}", o.value_index, o.campaign),
+                    "is not a campaign of this study",
+                )
+            })?;
+        if *slot {
+            return Err(SimError::invalid(
+                "outcome",
+                format!("value {} campaign {}", o.value_index, o.campaign),
+                "given twice",
+            ));
+        }
+        *slot = true;
+    }
+    let alpha = ALPHA;
+    let mut failures = Vec::new();
+    let mut values = Vec::with_capacity(spec.values.len());
+    for (i, &value) in spec.values.iter().enumerate() {
+        let mine: Vec<&Outcome> = outcomes
+            .iter()
+            .copied()
+            .filter(|o| o.value_index == i)
+            .collect();
+        let (ok, bad): (Vec<&Outcome>, Vec<&Outcome>) =
+            mine.into_iter().partition(|o| o.error.is_none());
+        failures.extend(bad.iter().map(|o| Failure {
+            value,
+            campaign: o.campaign,
+            error: o.error.clone().unwrap_or_default(),
+        }));
+        let n = ok.len();
+        let rate = |k: usize| if n == 0 { 0.0 } else { k as f64 / n as f64 };
+        let detected = ok.iter().filter(|o| o.found).count();
+        let (lo, hi) = clopper_pearson(detected, n, alpha);
+        let estimates: Vec<f64> = ok.iter().filter_map(|o| o.estimate).collect();
+        let (estimate_mean, estimate_std) = mean_std(&estimates);
+        let any = ok
+            .iter()
+            .filter(|o| o.found || !o.other_found.is_empty())
+            .count();
+        let at_zero = value == 0.0;
+        values.push(ValueSummary {
+            value,
+            detection_rate: rate(detected),
+            ci: [lo, hi],
+            other_found_rate: rate(ok.iter().filter(|o| !o.other_found.is_empty()).count()),
+            unexplained_rate: rate(ok.iter().filter(|o| o.unexplained).count()),
+            estimate_mean,
+            estimate_std,
+            false_discovery_rate: at_zero.then(|| rate(any)),
+            false_discovery_ci: at_zero.then(|| {
+                let (a, b) = clopper_pearson(any, n, alpha);
+                [a, b]
+            }),
+            completed: n,
+            failed: bad.len(),
+        });
+    }
+    let xs: Vec<f64> = values.iter().map(|v| v.value).collect();
+    let point: Vec<f64> = values.iter().map(|v| v.detection_rate).collect();
+    let upper: Vec<f64> = values.iter().map(|v| v.ci[1]).collect();
+    let lower: Vec<f64> = values.iter().map(|v| v.ci[0]).collect();
+    let min_detectable = MinDetectable {
+        value: first_crossing(&xs, &point, TARGET_POWER),
+        ci: [
+            first_crossing(&xs, &upper, TARGET_POWER),
+            first_crossing(&xs, &lower, TARGET_POWER),
+        ],
+        note: format!(
+            "value: where the detection rate, linearly interpolated between the values \
+             studied, first reaches {:.0} %; interval: where the upper and the lower {:.0} % \
+             Clopper-Pearson bounds first reach it (null: not within the values studied; the \
+             smallest value when already reached there)",
+            100.0 * TARGET_POWER,
+            100.0 * (1.0 - ALPHA)
+        ),
+    };
+    let noise_ratio = spec.measured_noise_rms.as_ref().and_then(|measured| {
+        let sims: Vec<&Vec<f64>> = outcomes
+            .iter()
+            .filter(|o| o.value_index == 0)
+            .filter_map(|o| o.noise_rms.as_ref())
+            .filter(|v| v.len() == measured.len())
+            .collect();
+        (!sims.is_empty()).then(|| {
+            (0..measured.len())
+                .map(|i| sims.iter().map(|v| v[i]).sum::<f64>() / sims.len() as f64 / measured[i])
+                .collect()
+        })
+    });
+    Ok(PowerResult {
+        noise_ratio,
+        effect: spec.effect.clone(),
+        parameter: spec.parameter.clone(),
+        campaigns: spec.campaigns,
+        seed: spec.seed,
+        level: LEVEL,
+        interval: format!(
+            "Clopper-Pearson (exact) {:.0} % interval over the completed campaigns",
+            100.0 * (1.0 - ALPHA)
+        ),
+        values,
+        min_detectable,
+        failures,
+        policy: format!(
+            "each campaign: the nominal model fitted to the logs plus {} with {} at the value, \
+             sampled with a zero-order hold at {} Hz, in closed loop with the model file's \
+             controller from zero states, driven by the logged excitation of each of the {} \
+             experiments, with white Gaussian process and sensor noise of the covariances the \
+             Kalman predictor estimated from the logs{}; then the full discovery",
+            spec.effect,
+            spec.parameter,
+            spec.sample_rate_hz,
+            spec.experiments.len(),
+            spec.noise_calibration
+                .map_or(String::new(), |(cq, cr)| format!(
+                    ", scaled by {cq:.3} (process) and {cr:.3} (sensor) so that the nominal \
+                 model's simulated period-to-period noise matches the logs' per output"
+                ))
+        ),
+    })
+}
+
+impl PowerResult {
+    /// The summary for people: one row per value, then the smallest detectable value.
+    pub fn table(&self) -> String {
+        let mut s = format!(
+            "power of {} ({}), {} campaigns per value, seed {}; {}\n",
+            self.effect, self.parameter, self.campaigns, self.seed, self.interval
+        );
+        s.push_str(&format!(
+            "{:>12} {:>9} {:>17} {:>7} {:>11} {:>12} {:>10} {:>6}\n",
+            self.parameter,
+            "detected",
+            "95% CI",
+            "other",
+            "unexplained",
+            "estimate",
+            "std",
+            "failed"
+        ));
+        let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4}"));
+        for v in &self.values {
+            s.push_str(&format!(
+                "{:>12} {:>8.1}% {:>8.1}-{:>6.1}% {:>6.1}% {:>10.1}% {:>12} {:>10} {:>6}\n",
+                format!("{:.4}", v.value),
+                100.0 * v.detection_rate,
+                100.0 * v.ci[0],
+                100.0 * v.ci[1],
+                100.0 * v.other_found_rate,
+                100.0 * v.unexplained_rate,
+                opt(v.estimate_mean),
+                opt(v.estimate_std),
+                v.failed
+            ));
+            if let (Some(rate), Some([lo, hi])) = (v.false_discovery_rate, v.false_discovery_ci) {
+                s.push_str(&format!(
+                    "{:>12} false discoveries (any effect found with the nominal model true): \
+                     {:.1}% (95% CI {:.1}-{:.1}%), nominal level {}%\n",
+                    "",
+                    100.0 * rate,
+                    100.0 * lo,
+                    100.0 * hi,
+                    100.0 * self.level
+                ));
+            }
+        }
+        let m = &self.min_detectable;
+        s.push_str(&match m.value {
+            Some(v) => format!(
+                "smallest {} detected with {:.0}% power: {v:.4} (interval {} to {})\n",
+                self.parameter,
+                100.0 * TARGET_POWER,
+                opt(m.ci[0]),
+                m.ci[1].map_or("beyond the values studied".into(), |v| format!("{v:.4}"))
+            ),
+            None => format!(
+                "{:.0}% power is not reached within the values studied\n",
+                100.0 * TARGET_POWER
+            ),
+        });
+        if let Some(ratio) = &self.noise_ratio {
+            s.push_str(&format!(
+                "simulated / logged period-to-period noise rms per output: {}\n",
+                ratio
+                    .iter()
+                    .map(|r| format!("{r:.2}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
+        for f in &self.failures {
+            s.push_str(&format!(
+                "failed: {} = {}, campaign {}: {}\n",
+                self.parameter, f.value, f.campaign, f.error
+            ));
+        }
+        s
+    }
+
+    /// The HTML page: power against the value with its interval band, the other rates, the
+    /// estimates, and the table.
+    pub fn html(&self) -> String {
+        use super::report::{chart, escape, page, Series, XAxis, COLORS};
+        let xs: Vec<f64> = self.values.iter().map(|v| v.value).collect();
+        let series = |name: &str, color: usize, y: &dyn Fn(&ValueSummary) -> f64| Series {
+            name: name.to_string(),
+            color: COLORS[color],
+            points: self
+                .values
+                .iter()
+                .map(|v| (v.value, 100.0 * y(v)))
+                .collect(),
+            markers: true,
+            band: None,
+        };
+        let mut power = series("detected", 3, &|v| v.detection_rate);
+        power.band = Some(
+            self.values
+                .iter()
+                .map(|v| (v.value, 100.0 * v.ci[0], 100.0 * v.ci[1]))
+                .collect(),
+        );
+        let target = Series {
+            name: format!("{:.0} %", 100.0 * TARGET_POWER),
+            color: COLORS[0],
+            points: vec![
+                (xs[0], 100.0 * TARGET_POWER),
+                (xs[xs.len() - 1], 100.0 * TARGET_POWER),
+            ],
+            markers: false,
+            band: None,
+        };
+        let label = format!("{} ({})", self.parameter, self.effect);
+        let mut body = format!(
+            "<h1>Detection power of {}</h1><p>{} campaigns per value, seed {}. {}.</p>",
+            escape(&self.effect),
+            self.campaigns,
+            self.seed,
+            escape(&self.interval)
+        );
+        body.push_str(&chart(
+            "power: campaigns that found the effect (%), with the 95 % band",
+            XAxis::linear(&label),
+            "%",
+            &[power, target],
+        ));
+        body.push_str(&chart(
+            "other effects found and unexplained misfit (%)",
+            XAxis::linear(&label),
+            "%",
+            &[
+                series("other found", 1, &|v| v.other_found_rate),
+                series("unexplained", 4, &|v| v.unexplained_rate),
+            ],
+        ));
+        let est: Vec<&ValueSummary> = self
+            .values
+            .iter()
+            .filter(|v| v.estimate_mean.is_some())
+            .collect();
+        if !est.is_empty() {
+            let truth = Series {
+                name: "true value".into(),
+                color: COLORS[0],
+                points: xs.iter().map(|x| (*x, *x)).collect(),
+                markers: false,
+                band: None,
+            };
+            let mean = Series {
+                name: "mean estimate".into(),
+                color: COLORS[2],
+                points: est
+                    .iter()
+                    .filter_map(|v| Some((v.value, v.estimate_mean?)))
+                    .collect(),
+                markers: true,
+                band: Some(
+                    est.iter()
+                        .filter_map(|v| {
+                            let (m, s) = (v.estimate_mean?, v.estimate_std.unwrap_or(0.0));
+                            Some((v.value, m - s, m + s))
+                        })
+                        .collect(),
+                ),
+            };
+            body.push_str(&chart(
+                "estimate where found (mean, band one standard deviation)",
+                XAxis::linear(&label),
+                &self.parameter,
+                &[mean, truth],
+            ));
+        }
+        body.push_str(&format!(
+            "<h2>Table</h2><pre>{}</pre><p>{}</p><p>{}</p>",
+            escape(&self.table()),
+            escape(&self.min_detectable.note),
+            escape(&self.policy)
+        ));
+        page(&body)
+    }
+
+    /// Writes `index.html` and `power.json` into a new directory `dir` (see
+    /// [`crate::output`]: never over anything this program did not write, nor an input).
+    pub fn write_report(&self, dir: &Path, inputs: &[std::path::PathBuf]) -> Result<()> {
+        let json = serde_json::to_string_pretty(self)
+            .map_err(|e| SimError::invalid("json", "serialisation", e.to_string()))?;
+        let html = self.html();
+        crate::output::write_dir_atomically(dir, inputs, |tmp| {
+            for (name, text) in [("index.html", &html), ("power.json", &json)] {
+                let path = tmp.join(name);
+                std::fs::write(&path, text).map_err(|e| SimError::io(&path, e))?;
+            }
+            Ok(())
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MODEL: &str = r#"
+name = "cart"
+states = ["x", "v"]
+inputs = ["F"]
+outputs = ["x"]
+[parameters]
+M = { value = 1.0, min = 0.1, max = 10.0 }
+[linear]
+A = [[0, 1], [0, 0]]
+B = [[0], ["1/M"]]
+C = [[1, 0]]
+[effects.friction]
+description = "viscous friction -b v"
+parameters = { b = { value = 0.5, min = 0.0, max = 50.0 } }
+A = { "v,v" = "-b/M" }
+[controller]
+sample_rate_hz = 50
+K = [[4.0, 3.0]]
+"#;
+
+    /// A periodic multisine excitation and noisy closed-loop logs of the model file's own
+    /// structure (the values and the noise level do not matter for what the tests check).
+    fn logs(experiments: usize) -> Dataset {
+        let (period, periods, transient) = (250, 4, 100);
+        let samples = transient + period * periods;
+        let structure = Arc::new(ModelFile::parse(MODEL, Path::new("cart.toml")).unwrap());
+        let ss = Model::new(structure.clone())
+            .with_effect("friction")
+            .unwrap()
+            .state_space(&[1.1, 0.8])
+            .unwrap();
+        let disc = ss.discretize(1.0 / 50.0).unwrap();
+        let controller =
+            super::super::model::ModelStructure::controller(structure.as_ref()).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        Dataset {
+            sample_rate_hz: 50.0,
+            inputs: vec!["F".into()],
+            outputs: vec!["x".into()],
+            experiments: (0..experiments)
+                .map(|e| {
+                    let r = DMatrix::from_fn(samples, 1, |k, _| {
+                        (1..40)
+                            .map(|l| {
+                                let w = 2.0 * std::f64::consts::PI * l as f64 / period as f64;
+                                (w * k as f64 + (l * l + e) as f64).sin()
+                            })
+                            .sum::<f64>()
+                            * 0.1
+                    });
+                    let (u, y) = run_loop(&disc, &controller, &r, &mut |w, v| {
+                        w[1] = 1e-3 * Distribution::<f64>::sample(&StandardNormal, &mut rng);
+                        v[0] = 1e-4 * Distribution::<f64>::sample(&StandardNormal, &mut rng);
+                    })
+                    .unwrap();
+                    Experiment {
+                        name: format!("e{e}"),
+                        u,
+                        y,
+                        r: Some(r),
+                        periodic: Some(Periodic {
+                            period,
+                            periods,
+                            transient,
+                        }),
+                    }
+                })
+                .collect(),
+        }
+    }
+
+    fn options(values: Vec<f64>, campaigns: usize) -> StudyOptions {
+        StudyOptions {
+            effect: "friction".into(),
+            values,
+            campaigns,
+            seed: 3,
+            estimator: "auto".into(),
+            band_hz: None,
+        }
+    }
+
+    #[test]
+    fn campaigns_are_pure_functions_of_spec_value_and_seed() {
+        let spec = prepare(
+            MODEL,
+            Path::new("cart.toml"),
+            logs(2),
+            &options(vec![0.0, 2.0], 3),
+        )
+        .unwrap();
+        // Through JSON (as shipped to a Dask worker) the spec is the same to the bit.
+        let text = serde_json::to_string(&spec).unwrap();
+        let back: StudySpec = serde_json::from_str(&text).unwrap();
+        assert_eq!(back, spec);
+        let study = Study::new(back).unwrap();
+        let jobs = study.jobs();
+        let serial = run(&study, &jobs, 1, &|_| {});
+        let reversed: Vec<_> = jobs.iter().rev().copied().collect();
+        let mut parallel = run(&study, &reversed, 3, &|_| {});
+        parallel.reverse();
+        assert_eq!(serial, parallel);
+        // Different campaigns draw different noise; the same campaign the same.
+        let a = study.simulate(1, 0).unwrap();
+        let b = study.simulate(1, 1).unwrap();
+        assert_eq!(a, study.simulate(1, 0).unwrap());
+        assert_ne!(a.experiments[0].y, b.experiments[0].y);
+        // Another seed, other noise.
+        let mut other = spec.clone();
+        other.seed = 4;
+        assert_ne!(Study::new(other).unwrap().simulate(1, 0).unwrap(), a);
+        assert!(serial.iter().all(|o| o.error.is_none()), "{serial:?}");
+    }
+
+    #[test]
+    fn simulated_noise_has_the_estimated_covariances() {
+        // With the effect at 0 and no excitation, the measured output is the loop's response
+        // to the drawn noise alone; its first differences are dominated by the sensor noise
+        // (2 sigma^2 for white noise), which is what the spec says.
+        let spec = prepare(
+            MODEL,
+            Path::new("cart.toml"),
+            logs(1),
+            &options(vec![0.0], 1),
+        )
+        .unwrap();
+        let mut quiet = spec.clone();
+        for row in &mut quiet.experiments[0].r {
+            row.fill(0.0);
+        }
+        quiet.process_noise.iter_mut().for_each(|r| r.fill(0.0));
+        quiet.sensor_noise = vec![4e-6];
+        let y = Study::new(quiet)
+            .unwrap()
+            .simulate(0, 0)
+            .unwrap()
+            .experiments[0]
+            .y
+            .clone();
+        let d: Vec<f64> = (1..y.nrows()).map(|k| y[(k, 0)] - y[(k - 1, 0)]).collect();
+        let ms = d.iter().map(|v| v * v).sum::<f64>() / d.len() as f64;
+        // Not exactly 2 sigma^2: the loop feeds the sensor noise back into the state.
+        assert!((ms / (2.0 * 4e-6) - 1.0).abs() < 0.25, "{ms}");
+        assert!(spec.sensor_noise[0] > 0.0 && spec.process_noise.len() == 2);
+        // Calibrated: the campaigns' period-to-period noise is the logs' (rms over campaigns).
+        let study = Study::new(spec.clone()).unwrap();
+        let measured = spec.measured_noise_rms.clone().unwrap()[0];
+        let draws = 32;
+        let simulated = ((0..draws)
+            .map(|c| period_noise_rms(&study.simulate(0, c).unwrap()).unwrap()[0].powi(2))
+            .sum::<f64>()
+            / draws as f64)
+            .sqrt();
+        assert!(
+            (simulated / measured - 1.0).abs() < 0.15,
+            "{simulated} {measured}"
+        );
+    }
+
+    fn outcome(v: usize, c: usize, found: bool, estimate: Option<f64>) -> Outcome {
+        Outcome {
+            value_index: v,
+            campaign: c,
+            found,
+            other_found: Vec::new(),
+            unexplained: false,
+            estimate,
+            error: None,
+            noise_rms: None,
+        }
+    }
+
+    fn spec_of(values: Vec<f64>, campaigns: usize) -> StudySpec {
+        StudySpec {
+            model_text: String::new(),
+            model_path: String::new(),
+            effect: "friction".into(),
+            parameter: "b".into(),
+            values,
+            campaigns,
+            seed: 0,
+            nominal: Vec::new(),
+            process_noise: Vec::new(),
+            sensor_noise: Vec::new(),
+            sample_rate_hz: 50.0,
+            experiments: Vec::new(),
+            estimator: "auto".into(),
+            band_hz: None,
+            measured_noise_rms: None,
+            noise_calibration: None,
+        }
+    }
+
+    #[test]
+    fn aggregates_rates_intervals_and_the_crossing() {
+        let spec = spec_of(vec![0.0, 1.0, 2.0], 4);
+        let mut out = Vec::new();
+        // Value 0: one false find of another effect, one failure.
+        for c in 0..4 {
+            let mut o = outcome(0, c, false, None);
+            if c == 1 {
+                o.other_found = vec!["actuator_lag".into()];
+            }
+            if c == 3 {
+                o.error = Some("diverged".into());
+            }
+            out.push(o);
+        }
+        // Value 1: 2 of 4 found, estimates 0.9 and 1.3. Value 2: all found.
+        for c in 0..4 {
+            out.push(outcome(1, c, c < 2, (c < 2).then(|| [0.9, 1.3][c])));
+            out.push(outcome(2, c, true, Some(2.0)));
+        }
+        let in_order = aggregate(&spec, &out).unwrap();
+        out.reverse();
+        let r = aggregate(&spec, &out).unwrap();
+        assert_eq!(r, in_order);
+        let v0 = &r.values[0];
+        assert_eq!((v0.completed, v0.failed), (3, 1));
+        assert_eq!(v0.detection_rate, 0.0);
+        assert!((v0.other_found_rate - 1.0 / 3.0).abs() < 1e-15);
+        assert_eq!(v0.false_discovery_rate, Some(1.0 / 3.0));
+        assert_eq!(r.failures.len(), 1);
+        assert_eq!(r.failures[0].error, "diverged");
+        let v1 = &r.values[1];
+        assert_eq!(v1.detection_rate, 0.5);
+        assert_eq!(v1.ci, {
+            let (a, b) = clopper_pearson(2, 4, 0.05);
+            [a, b]
+        });
+        assert!((v1.estimate_mean.unwrap() - 1.1).abs() < 1e-12);
+        assert!((v1.estimate_std.unwrap() - (0.08f64).sqrt()).abs() < 1e-12);
+        assert_eq!(v1.false_discovery_rate, None);
+        // 95 % between 1 (0.5) and 2 (1.0): 1 + 0.45 / 0.5.
+        assert!((r.min_detectable.value.unwrap() - 1.9).abs() < 1e-12);
+        // The upper bound is above 0.95 already at 1 (2 of 4); the lower bound at 2
+        // (4 of 4: 0.025^(1/4) = 0.398) never reaches it.
+        assert_eq!(r.min_detectable.ci[1], None);
+        assert!(r.min_detectable.ci[0].unwrap() <= 1.9);
+        // A campaign given twice, or not of the study, is refused.
+        out.push(outcome(2, 0, true, None));
+        assert!(aggregate(&spec, &out).is_err());
+        assert!(aggregate(&spec, &[outcome(5, 0, true, None)]).is_err());
+    }
+
+    #[test]
+    fn refuses_effects_values_and_logs_it_cannot_study() {
+        let bad = |o: StudyOptions| {
+            prepare(MODEL, Path::new("cart.toml"), logs(1), &o)
+                .unwrap_err()
+                .to_string()
+        };
+        assert!(bad(options(vec![1.0, 0.5], 1)).contains("must increase"));
+        assert!(bad(options(vec![-1.0], 1)).contains("bounds"));
+        let mut o = options(vec![1.0], 1);
+        o.effect = "nothing_like_it".into();
+        assert!(bad(o).contains("nothing_like_it"));
+        let mut data = logs(1);
+        data.experiments[0].r = None;
+        let msg = prepare(MODEL, Path::new("cart.toml"), data, &options(vec![1.0], 1))
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains("excitation"), "{msg}");
+        let no_controller = MODEL.split("[controller]").next().unwrap();
+        let msg = prepare(
+            no_controller,
+            Path::new("cart.toml"),
+            logs(1),
+            &options(vec![1.0], 1),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(msg.contains("[controller]"), "{msg}");
+    }
+}

@@ -1,0 +1,210 @@
+"""Issue 16: Monte-Carlo detection power and false discoveries of the workbench, in-process and
+on a Dask cluster, on the cart-pole model file (data/cart_pole.toml, declared effect
+`cart_friction`, its `[controller]`) and nominal logs of the independent simulator
+independent_cartpole.py.
+
+The logs are short (2 experiments x 4 periods of 1000 samples at 100 Hz) so that the studies
+stay within seconds; a campaign of the issue's 4 x 8300 samples takes about 0.2 s.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+from dask.distributed import Client, LocalCluster
+
+import independent_cartpole as ic
+import stabilis
+from test_interop import stabilis_bin
+from test_report_browser import measured_plots
+
+MODEL = Path(__file__).parent / "data" / "cart_pole.toml"
+SHORT = dict(experiments=2, periods=4, transient_samples=300)
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory):
+    """Nominal logs (no friction) of the independent simulator."""
+    out = tmp_path_factory.mktemp("cart_power")
+    ic.campaign(out, plant=ic.Plant(), seed=5, **SHORT)
+    return out
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    # Two worker processes of one thread: what a small remote cluster looks like.
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as c:
+        yield c
+
+
+STUDY = dict(effect="cart_friction", values=[0.0, 0.15, 0.4], campaigns=8, seed=11)
+
+
+def test_dask_local_cluster_gives_the_in_process_result_to_the_bit(logs, cluster):
+    local = stabilis.power(MODEL, [logs], threads=2, progress=False, **STUDY)
+    seen = []
+    with Client(cluster) as client:
+        remote = stabilis.power(MODEL, [logs], client=client, batch=3,
+                                progress=lambda done, total: seen.append((done, total)),
+                                **STUDY)
+    assert remote == local  # every float, every field
+    # 24 campaigns in batches of 3: 8 tasks, progress after each.
+    assert len(seen) == 8 and seen[-1] == (24, 24)
+    assert [v["completed"] for v in local["values"]] == [8, 8, 8]
+    # Not equal by being empty: the campaigns found friction at the largest value, with
+    # estimates that differ between campaigns (each draws its own noise).
+    top = local["values"][-1]
+    assert top["detection_rate"] > 0.5 and top["estimate_std"] > 0
+
+
+def test_cli_in_process_and_on_the_scheduler_agree_with_python(logs, cluster, tmp_path):
+    args = [stabilis_bin(), "power", "--model", str(MODEL), "--data", str(logs),
+            "--effect", STUDY["effect"], "--values", ",".join(map(str, STUDY["values"])),
+            "--campaigns", str(STUDY["campaigns"]), "--seed", str(STUDY["seed"])]
+    here = subprocess.run(args + ["--json", str(tmp_path / "here.json"), "--report",
+                                  str(tmp_path / "report")], capture_output=True, text=True)
+    assert here.returncode == 0, here.stderr
+    assert "campaigns" in here.stderr  # progress: done/total and rate
+    env = dict(os.environ, STABILIS_PYTHON=sys.executable,
+               PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    there = subprocess.run(args + ["--json", str(tmp_path / "there.json"), "--scheduler",
+                                   cluster.scheduler_address], capture_output=True, text=True,
+                           env=env)
+    assert there.returncode == 0, there.stderr
+    a = json.loads((tmp_path / "here.json").read_text())
+    b = json.loads((tmp_path / "there.json").read_text())
+    assert a == b
+    py = stabilis.power(MODEL, [logs], progress=False, **STUDY)
+    assert py == a
+    # The issue's fields.
+    assert a["effect"] == "cart_friction" and a["campaigns"] == 8
+    for v in a["values"]:
+        assert {"value", "detection_rate", "ci", "other_found_rate", "unexplained_rate",
+                "estimate_mean", "estimate_std"} <= set(v)
+    assert set(a["min_detectable"]) >= {"value", "ci"}
+    html = (tmp_path / "report" / "index.html").read_text()
+    assert html.count("<svg") >= 2 and "power" in html
+    assert json.loads((tmp_path / "report" / "power.json").read_text()) == a
+
+
+def test_scheduler_without_the_python_package_says_what_is_missing(logs, tmp_path):
+    env = dict(os.environ, STABILIS_PYTHON=sys.executable, PYTHONPATH=str(tmp_path))
+    env.pop("PYTHONHOME", None)
+    r = subprocess.run([stabilis_bin(), "power", "--model", str(MODEL), "--data", str(logs),
+                        "--effect", "cart_friction", "--values", "0", "--campaigns", "1",
+                        "--scheduler", "tcp://127.0.0.1:1"], capture_output=True, text=True,
+                       env=dict(env, PYTHONNOUSERSITE="1"), cwd=tmp_path)
+    if r.returncode == 0:
+        pytest.skip("this interpreter finds stabilis outside PYTHONPATH")
+    assert r.returncode == 2, r.stderr
+    assert "must import stabilis and dask.distributed" in r.stderr
+
+
+def cochran_armitage_z(values, successes, trials):
+    """Cochran-Armitage trend statistic (scores = the values), standard normal under no trend."""
+    n = sum(trials)
+    p = sum(successes) / n
+    t = sum(x * (s - m * p) for x, s, m in zip(values, successes, trials))
+    var = p * (1 - p) * (sum(m * x * x for x, m in zip(values, trials))
+                         - sum(m * x for x, m in zip(values, trials)) ** 2 / n)
+    return t / math.sqrt(var)
+
+
+LADDER = [0.0, 0.05, 0.1, 0.15, 0.2, 0.3, 0.6]
+B_LARGE = 0.6
+
+
+def test_power_rises_with_the_friction_and_reaches_95_percent_where_one_campaign_is_clear(
+        logs, tmp_path):
+    r = stabilis.power(MODEL, [logs], effect="cart_friction", values=LADDER, campaigns=20,
+                       seed=2, progress=False)
+    rates = [v["detection_rate"] for v in r["values"]]
+    done = [v["completed"] for v in r["values"]]
+    assert done == [20] * len(LADDER) and not r["failures"]
+    z = cochran_armitage_z(LADDER, [round(p * 20) for p in rates], done)
+    print("power", dict(zip(LADDER, rates)), "trend z", z, "min detectable",
+          r["min_detectable"], "noise ratio", r["noise_ratio"])
+    assert z > 3.09, z  # one-sided p < 0.001 for a rising trend
+    # No significant fall anywhere: later rates stay within the earlier interval.
+    for i in range(1, len(LADDER)):
+        assert rates[i] >= r["values"][i - 1]["ci"][0], (LADDER[i], rates)
+    # The campaigns have the logs' noise (calibrated to the period-to-period noise).
+    assert all(0.8 < q < 1.25 for q in r["noise_ratio"]), r["noise_ratio"]
+    # Where one campaign of the independent simulator (not the power study's) finds friction
+    # with a wide margin, the study's power is at least 95 % and the estimate unbiased.
+    clear = tmp_path / "clear"
+    ic.campaign(clear, plant=replace(ic.Plant(), b=B_LARGE), seed=9, **SHORT)
+    d = stabilis.Workbench(model=stabilis.Model.from_file(MODEL), data=[clear]).discover()
+    assert d["found"] == ["cart_friction"]
+    first = {c["effect"]: c for c in d["steps"][0]["candidates"]}["cart_friction"]
+    assert first["p_value"] < 1e-6 * d["level"], first
+    top = r["values"][-1]
+    assert top["detection_rate"] >= 0.95, top
+    assert abs(top["estimate_mean"] / B_LARGE - 1) < 0.05, top
+    md = r["min_detectable"]
+    assert LADDER[0] < md["value"] < B_LARGE
+
+
+def test_false_discovery_rate_at_zero_is_within_the_level_and_monte_carlo_error(logs):
+    n = 100
+    r = stabilis.power(MODEL, [logs], effect="cart_friction", values=[0.0], campaigns=n,
+                       seed=4, progress=False)
+    v = r["values"][0]
+    level = r["level"]
+    assert level == 0.01
+    # Any effect found while the nominal model is the truth, against the discovery's nominal
+    # level plus two binomial standard errors of a rate at that level over n campaigns.
+    bound = level + 2 * math.sqrt(level * (1 - level) / n)
+    print("false discoveries", v["false_discovery_rate"], v["false_discovery_ci"],
+          "bound", bound, "unexplained", v["unexplained_rate"])
+    assert v["completed"] == n
+    assert v["false_discovery_rate"] <= bound, v
+    # The verdict's noise test ("unexplained") is not an effect found; on logs of 4 periods
+    # it rejects the true model more often than its nominal level (4 of 100 measured), as its
+    # noise reference comes from 3 degrees of freedom of period-to-period variation per line.
+    assert v["unexplained_rate"] <= 0.1, v
+
+
+def test_a_diverging_campaign_is_counted_and_named_and_the_study_goes_on(logs):
+    # A transport delay of 0.1 s destabilises the experimenter's loop.
+    r = stabilis.power(MODEL, [logs], effect="input_delay", values=[0.0, 0.1], campaigns=2,
+                       seed=1, progress=False)
+    assert [v["completed"] for v in r["values"]] == [2, 0]
+    assert [v["failed"] for v in r["values"]] == [0, 2]
+    assert len(r["failures"]) == 2 and all("diverges" in f["error"] for f in r["failures"])
+    assert all(f["value"] == 0.1 for f in r["failures"])
+
+
+def test_bad_studies_are_refused_by_name(logs, tmp_path):
+    with pytest.raises(stabilis.Error, match="must increase"):
+        stabilis.power(MODEL, [logs], effect="cart_friction", values=[0.2, 0.1], campaigns=1)
+    with pytest.raises(stabilis.Error, match="no_such_effect"):
+        stabilis.power(MODEL, [logs], effect="no_such_effect", values=[0.1], campaigns=1)
+    bare = tmp_path / "no_controller.toml"
+    bare.write_text(MODEL.read_text().split("[controller]")[0])
+    with pytest.raises(stabilis.Error, match=r"\[controller\]"):
+        stabilis.power(bare, [logs], effect="cart_friction", values=[0.1], campaigns=1)
+    with pytest.raises(TypeError, match="path of a model file"):
+        stabilis.power(stabilis.Model.from_file(MODEL), [logs], effect="cart_friction",
+                       values=[0.1], campaigns=1)
+
+
+def test_every_plot_of_the_power_report_draws_in_a_browser(logs, tmp_path):
+    report = tmp_path / "report"
+    stabilis.power(MODEL, [logs], effect="cart_friction", values=[0.0, 0.2, 0.4], campaigns=3,
+                   progress=False, report=report)
+    html = (report / "index.html").read_text()
+    assert "<script" not in html
+    plots = measured_plots(html, tmp_path)
+    # Power with its band, the other rates, the estimates.
+    assert len(plots) == 3, plots
+    for p in plots:
+        assert p["width"] > 100 and p["height"] > 100 and p["marks"] >= 2, p
+    assert "power" in plots[0]["title"]
