@@ -201,7 +201,8 @@ impl ExtendedPredictor {
                 .map_err(|err| self.diverged(rec, k, &err.to_string()))?;
             for i in 0..p {
                 let v = rec.y[(k, i)] - work.y[i];
-                if !(v.abs() <= rec.limit[i]) {
+                let bounded = v.abs() <= rec.limit[i];
+                if !bounded {
                     return Err(self.diverged(
                         rec,
                         k,
@@ -219,10 +220,10 @@ impl ExtendedPredictor {
                 self.integrate(&mut x, &late, self.t, self.substeps, &mut work)
             }
             .map_err(|err| self.diverged(rec, k, &err.to_string()))?;
-            for i in 0..n {
-                x[i] += (0..p).map(|j| self.gain[(i, j)] * e[(k, j)]).sum::<f64>();
-                if !x[i].is_finite() {
-                    return Err(self.diverged(rec, k, &format!("state {i} is {}", x[i])));
+            for (i, xi) in x.iter_mut().enumerate() {
+                *xi += (0..p).map(|j| self.gain[(i, j)] * e[(k, j)]).sum::<f64>();
+                if !xi.is_finite() {
+                    return Err(self.diverged(rec, k, &format!("state {i} is {xi}")));
                 }
             }
         }

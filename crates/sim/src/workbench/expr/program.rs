@@ -39,7 +39,10 @@ pub struct Program {
 }
 
 /// The unary functions of `exmex`'s defaults (`log` is the natural logarithm there).
-const FUNCTIONS: [(&str, fn(f64) -> f64); 27] = [
+/// A function of one argument.
+type Unary = fn(f64) -> f64;
+
+const FUNCTIONS: [(&str, Unary); 27] = [
     ("abs", f64::abs),
     ("signum", f64::signum),
     ("sin", f64::sin),
@@ -323,7 +326,9 @@ impl Program {
                 continue;
             };
             let got = self.eval(&table);
-            if !((got - want).abs() <= 1e-9 * (1.0 + want.abs())) {
+            // A NaN is a disagreement too.
+            let close = (got - want).abs() <= 1e-9 * (1.0 + want.abs());
+            if !close {
                 return false;
             }
             compared += 1;
