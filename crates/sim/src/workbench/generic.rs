@@ -13,8 +13,27 @@ use super::model::{Effect, ModelStructure, Parameter, StateSpace};
 use crate::error::Result;
 
 /// `x_a' = (u - x_a) / tau` for every input, the plant driven by `x_a`.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct ActuatorLag;
+#[derive(Debug, Clone, Copy)]
+pub struct ActuatorLag {
+    /// Smallest `tau` searched, s.
+    min_tau: f64,
+}
+
+impl Default for ActuatorLag {
+    /// The lower bound is far below any sample period, so the lagged model nests the one
+    /// without lag and an FRF fit can never be worse than without it.
+    fn default() -> Self {
+        Self { min_tau: 1e-4 }
+    }
+}
+
+impl ActuatorLag {
+    /// For the time-domain criterion at sample period `t`: `tau` from a quarter sample (a
+    /// shorter lag, beyond what the samples resolve, would only make the integration stiff).
+    pub fn for_sample_period(t: f64) -> Self {
+        Self { min_tau: 0.25 * t }
+    }
+}
 
 /// `u(t - td)` for every input, exact for fractional delays.
 #[derive(Debug, Clone, Copy, Default)]
@@ -115,9 +134,13 @@ impl Effect for ActuatorLag {
     }
 
     fn parameters(&self) -> Vec<Parameter> {
-        // The lower bound is far below any sample period, so the lagged model nests the one
-        // without lag and the fit can never be worse than without it.
-        vec![Parameter::new("tau", 0.01, 1e-4, 0.5, "s")]
+        vec![Parameter::new(
+            "tau",
+            0.01f64.max(self.min_tau),
+            self.min_tau,
+            0.5,
+            "s",
+        )]
     }
 
     fn qualified_names(&self) -> bool {
@@ -189,7 +212,8 @@ impl Effect for InputDelay {
 /// nonlinear structure: the linear path compares deviations, where an offset cannot show).
 pub fn for_structure(structure: &dyn ModelStructure) -> Vec<Arc<dyn Effect>> {
     let own = structure.effects();
-    let mut all: Vec<Arc<dyn Effect>> = vec![Arc::new(ActuatorLag), Arc::new(InputDelay)];
+    let mut all: Vec<Arc<dyn Effect>> =
+        vec![Arc::new(ActuatorLag::default()), Arc::new(InputDelay)];
     if structure.is_nonlinear() {
         all.push(Arc::new(SensorBias::new(&structure.outputs())));
     }
@@ -219,7 +243,7 @@ mod tests {
     fn lag_and_delay_multiply_the_response_by_their_closed_forms() {
         let (tau, td) = (0.037, 0.0123);
         let mut lagged = plant();
-        ActuatorLag.apply(&[tau], &mut lagged).unwrap();
+        ActuatorLag::default().apply(&[tau], &mut lagged).unwrap();
         lagged.check().unwrap();
         let mut delayed = plant();
         InputDelay.apply(&[td], &mut delayed).unwrap();

@@ -166,6 +166,17 @@ impl Workbench {
         let criterion = options
             .criterion
             .unwrap_or_else(|| Criterion::default_for(&model));
+        if criterion == Criterion::Time
+            && !model
+                .structure()
+                .effects()
+                .iter()
+                .any(|e| e == "actuator_lag")
+        {
+            model = model.with_candidate(Arc::new(generic::ActuatorLag::for_sample_period(
+                1.0 / data.sample_rate_hz,
+            )))?;
+        }
         if criterion == Criterion::Time && !model.structure().is_nonlinear() {
             return Err(SimError::invalid(
                 "criterion",
