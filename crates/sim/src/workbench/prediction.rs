@@ -751,7 +751,7 @@ impl Workbench {
             (
                 Vec::new(),
                 found,
-                vec!["the final model's innovations still correlate with the inputs, which the tests that added them took for noise".to_string()],
+                vec!["the final model's innovations still correlate with the excitation, which the tests that added them took for noise".to_string()],
             )
         } else {
             (found, Vec::new(), Vec::new())
@@ -821,22 +821,46 @@ impl Workbench {
         });
         let residuals: Vec<DMatrix<f64>> = inn.runs.iter().map(|(e, _)| scored(e)).collect();
         let states: Vec<DMatrix<f64>> = inn.runs.iter().map(|(_, x)| scored(x)).collect();
-        let inputs: Vec<DMatrix<f64>> = self
+        // The prediction errors of a right model depend on the noise alone, whatever the gain
+        // (the input drives plant and predictor alike), so they cannot correlate with an
+        // external excitation. Against the inputs the test holds only for the optimal gain in
+        // closed loop (there the inputs carry past noise), and the gain here is the starting
+        // model's: the excitation is the regressor when it is logged.
+        let excitation: Option<Vec<DMatrix<f64>>> = self
             .data
             .experiments
             .iter()
-            .map(|e| scored(&centred(&e.u)))
+            .map(|e| e.r.as_ref().map(|r| scored(&centred(r))))
             .collect();
+        let (regressors, names, first_lag, against) = match excitation {
+            Some(r) => (
+                r,
+                self.data.inputs.iter().map(|i| format!("r_{i}")).collect(),
+                0,
+                "the logged excitation",
+            ),
+            None => (
+                self.data
+                    .experiments
+                    .iter()
+                    .map(|e| scored(&centred(&e.u)))
+                    .collect(),
+                self.data.inputs.clone(),
+                usize::from(!self.data.is_open_loop()),
+                "the inputs (no excitation logged)",
+            ),
+        };
         let mut tests = residual_tests(
             &residuals.iter().collect::<Vec<_>>(),
-            &inputs.iter().collect::<Vec<_>>(),
+            &regressors.iter().collect::<Vec<_>>(),
             &states.iter().collect::<Vec<_>>(),
             &self.data.outputs,
-            &self.data.inputs,
+            &names,
             DEFAULT_LAGS,
-            usize::from(!self.data.is_open_loop()),
+            first_lag,
         );
-        tests.residual = "innovations of the extended Kalman predictor".into();
+        tests.residual =
+            format!("innovations of the extended Kalman predictor, tested against {against}");
         let diagnosis = diagnose(&self.frf, &self.cost, &self.noise, &f.r.model_frf, f.r.free);
         Ok(Step {
             added: f.added,
@@ -855,8 +879,9 @@ impl Workbench {
     }
 }
 
-/// The verdict of the time-domain criterion: innovations that correlate with past inputs
-/// show a model error (whiteness alone tests the noise model, which is estimated).
+/// The verdict of the time-domain criterion: innovations that correlate with the excitation
+/// (or the past inputs) show a model error (whiteness alone tests the noise model, which is
+/// estimated, and the held gain, which is the starting model's).
 fn time_verdict(tests: &ResidualTests) -> Verdict {
     let flagged: Vec<String> = tests
         .channels
