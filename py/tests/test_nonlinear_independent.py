@@ -350,6 +350,20 @@ def test_python_discover_with_the_nonlinear_file_concludes_as_the_cli(campaigns,
     assert wb.discover()["found"] == discover(MODEL, data, tmp_path)["found"]
 
 
+def test_python_criterion_keyword_is_checked(campaigns):
+    # criterion="frf" fits the nonlinear file's linearization (its base step then equals the
+    # CLI's --criterion frf); an unknown name and the time criterion on a linear file are
+    # refused by name.
+    stabilis = python_model()
+    data = [str(campaigns("nothing", SEEDS["nothing"][0]))]
+    wb = stabilis.Workbench(model=str(MODEL), data=data, criterion="frf")
+    assert wb.fit()["found"] == []
+    with pytest.raises(ValueError, match="unknown criterion"):
+        stabilis.Workbench(model=str(MODEL), data=data, criterion="nope")
+    with pytest.raises(Exception, match="needs a nonlinear model"):
+        stabilis.Workbench(model=str(LINEAR), data=data, criterion="time")
+
+
 @pytest.mark.parametrize("seed", SEEDS["nothing"])
 def test_the_linear_file_keeps_the_frf_path_on_the_same_data(campaigns, tmp_path, seed):
     doc = discover(LINEAR, campaigns("nothing", seed), tmp_path)
