@@ -105,7 +105,7 @@ pub(super) fn polish(
     }
     let before = dual_cost(problem, ws);
     let p0 = ws.n_active;
-    ws.backup[..p0].copy_from_slice(&ws.active[..p0]);
+    ws.save();
     let mut changed = merge_closest_pair(problem, ws);
     if changed {
         seed(problem, settings, ws, stats);
@@ -123,9 +123,7 @@ pub(super) fn polish(
     if after >= before - 1e-12 * (1.0 + abs(before)) {
         stats.moves += 1;
     } else {
-        ws.active[..p0].copy_from_slice(&ws.backup[..p0]);
-        ws.n_active = p0;
-        seed(problem, settings, ws, stats);
+        ws.restore(p0);
     }
 }
 
