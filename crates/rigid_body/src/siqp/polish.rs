@@ -164,15 +164,18 @@ fn newton_step(
             worst = worst.max(f2 * f2 / (-2.0 * g2));
             ws.f2[j] = f2;
             ws.g2[j] = g2;
+        }
+        if p == 0 || worst <= 1e-3 * settings.tolerance {
+            return false;
+        }
+        for j in (0..p).filter(|&j| ws.g2[j] < 0.0) {
+            let a = ws.active[j];
             problem.phi_v(
                 a.row,
                 a.side.sign(),
                 &ws.dtau[j * s..(j + 1) * s],
                 &mut ws.up[j * d..(j + 1) * d],
             );
-        }
-        if p == 0 || worst <= 1e-3 * settings.tolerance {
-            return false;
         }
         // Unknowns (δλ, δt), equations F1_i = v_iᵀw − β_i and F2_i = v_i'ᵀw (or δt_i = 0).
         let n = 2 * p;
