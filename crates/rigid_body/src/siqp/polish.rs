@@ -110,17 +110,21 @@ pub(super) fn polish(
     if changed {
         seed(problem, settings, ws, stats);
     }
+    let floor = before - 1e-12 * (1.0 + abs(before));
     for _ in 0..settings.polish_steps {
         if !newton_step(problem, settings, ws, stats) {
             break;
         }
         changed = true;
+        // A step that lowered the cost is undone below: stop moving.
+        if dual_cost(problem, ws) < floor {
+            break;
+        }
     }
     if !changed {
         return;
     }
-    let after = dual_cost(problem, ws);
-    if after >= before - 1e-12 * (1.0 + abs(before)) {
+    if dual_cost(problem, ws) >= floor {
         stats.moves += 1;
     } else {
         ws.restore(p0);
