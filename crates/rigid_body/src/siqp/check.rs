@@ -5,7 +5,8 @@
 //! `b_l(τ) ≤ g ≤ b_u(τ)` with `b_{u,l} = f0 + f1 τ + f2 τ²/2 ± R τ³/6`, `R = c_τ |(Mᵀ)³ y|`.
 //! Either a bound proves a violation, or the constraint is certainly satisfied up to the
 //! first crossing τ_s of the widened limits, and the origin moves there by the closed-form
-//! shift. The tail certificate `c_τ |y| ≤ min(l_u, −l_l) + ε` ends the search.
+//! shift. The tail certificate `c_τ |y| ≤ min(l_u, −l_l) + ε`, or the polynomial one (no lobe
+//! beyond can cross a limit, see [`polynomial_tail`]), ends the search.
 
 use super::fmath::{abs, sqrt};
 use super::{Row, Settings, Side};
