@@ -285,9 +285,8 @@ fn infeasible_and_bad_input_are_reported() {
     ));
 }
 
-/// The polynomial tail certificate fires where it should: a positive combination (τ₁ + τ_s/s
-/// has P(x) = sqrt(2ν)(1 + L_{s−1}(x)/s) with alternating-sign coefficients that the
-/// Laguerre signs make all ≥ 0 ... only for small s), and not for a function that dips.
+/// The polynomial tail certificate holds for functions that stay non-negative by their
+/// polynomial factor (τ₁, τ₁ − τ₂) and fails for ones that go below the limit (τ₂, a dip).
 #[test]
 fn polynomial_tail_certifies_a_positive_function_and_refuses_a_dip() {
     let b = Laguerre::new(6, 0.7).unwrap();
