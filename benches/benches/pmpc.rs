@@ -18,7 +18,7 @@ fn budget(s: usize) -> usize {
     match s {
         ..=8 => 15,
         9..=10 => 6,
-        _ => 5,
+        _ => 4,
     }
 }
 

@@ -17,11 +17,12 @@ use rigid_body::siqp::Settings;
 /// (s, outer iterations per step) of the peer benchmark (README), and Taylor steps per row
 /// check. At s = 8 a budget below 13 makes fallbacks that cost 3-6 % in J_cl (which step
 /// falls back matters more than how many).
-const BUDGETS: [(usize, usize); 8] = [
+const BUDGETS: [(usize, usize); 9] = [
     (8, 15),
     (10, 6),
     (10, 8),
     (10, 15),
+    (12, 4),
     (12, 5),
     (12, 6),
     (12, 8),
