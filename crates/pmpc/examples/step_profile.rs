@@ -1,6 +1,8 @@
-//! Where the time of a pmpc step goes on the quadruple integrator: per-step wall time and the
-//! solver's work counters along the x0 = 0.3·𝟙 closed loop, with the slowest 1 % of steps
-//! listed (`cargo run --release -p pmpc --example step_profile -- [s] [budget]`).
+//! Where the time of a pmpc step goes on the quadruple integrator: per-step wall time (best of
+//! 5 replays) and the solver's work counters along the x0 = 0.3·𝟙 closed loop, with the 15
+//! slowest steps listed (`cargo run --release -p pmpc --example step_profile -- [s] [budget]`).
+//! `POLISH=k` sets the Newton moves per addition (`Settings::polish_steps`); `HOT=1` instead
+//! replays the 20 slowest steps from saved controller states many times, for a profiler.
 #![allow(clippy::unwrap_used)]
 
 use pmpc::{scenario, simulate, Pmpc};
@@ -8,15 +10,25 @@ use rigid_body::laguerre::Laguerre;
 use std::time::Instant;
 
 fn main() {
+    let number = |name: &str, text: String| -> usize {
+        text.parse().unwrap_or_else(|_| {
+            eprintln!("step_profile: {name} must be a positive integer, got {text:?}");
+            std::process::exit(2)
+        })
+    };
     let mut args = std::env::args().skip(1);
-    let s: usize = args.next().map_or(10, |a| a.parse().unwrap());
-    let budget: Option<usize> = args.next().map(|a| a.parse().unwrap());
+    let s = args.next().map_or(10, |a| number("s", a));
+    let budget = args.next().map(|a| number("budget", a));
+    let polish = std::env::var("POLISH").map_or(3, |v| number("POLISH", v));
     let sc = scenario::quad_integrator();
     let make = || -> Pmpc {
-        let polish = std::env::var("POLISH").map_or(3, |v| v.parse().unwrap());
-        let c = sc
-            .pmpc(Laguerre::new(s, scenario::NU).unwrap())
-            .unwrap()
+        let c = Laguerre::new(s, scenario::NU)
+            .map_err(pmpc::Error::from)
+            .and_then(|basis| sc.pmpc(basis))
+            .unwrap_or_else(|e| {
+                eprintln!("step_profile: s = {s}: {e}");
+                std::process::exit(2)
+            })
             .with_settings(rigid_body::siqp::Settings {
                 polish_steps: polish,
                 ..Default::default()
@@ -84,7 +96,6 @@ fn main() {
     }
 }
 
-#[allow(dead_code)]
 fn hot(ctrl_fresh: &mut Pmpc, xs: &[Vec<f64>], slow: &[usize]) {
     // Replay the slow steps from saved controller states (for a profiler).
     let mut saved = Vec::new();
