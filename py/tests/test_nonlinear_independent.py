@@ -340,6 +340,12 @@ def test_a_hidden_effect_is_found_as_its_effect_at_its_level(campaigns, tmp_path
         assert doc["found"] == [effect], why(doc)
     got = param(doc, name, effect)
     assert abs(got / level - 1) < TOLERANCE, (name, got, level)
+    # And the error falls where it shows: the nonlinear predictor's 10-step fit rises on some
+    # output by more than a point and falls on none by more than one.
+    before, after = (dict(s["time_fit"]["prediction_error"]["k_step"])
+                     for s in (doc["steps"][0], doc["steps"][-1]))
+    change = [after[o] - before[o] for o in before]
+    assert max(change) > 1.0 and min(change) > -1.0, (before, after)
 
 
 @pytest.mark.parametrize("case", ["nothing", *FOUND])

@@ -142,7 +142,8 @@ fn time_domain_table(s: &mut String, d: &Discovery) {
         let tf = &st.time_fit;
         let k = tf.horizon_samples;
         let kalman = tf.kalman.as_ref();
-        let rows = [
+        let nonlinear = tf.prediction_error.as_ref();
+        let mut rows = vec![
             ("simulation".to_string(), tf.simulation.as_ref()),
             (format!("{k}-step pred."), Some(&tf.prediction)),
             ("1-step pred.".to_string(), Some(&tf.one_step)),
@@ -153,6 +154,10 @@ fn time_domain_table(s: &mut String, d: &Discovery) {
                 tf.closed_loop.as_ref().map(|f| &f.fit),
             ),
         ];
+        if let Some(pe) = nonlinear {
+            rows.push(("EKF 1-step".to_string(), Some(&pe.one_step)));
+            rows.push((format!("EKF {}-step", pe.horizon_samples), Some(&pe.k_step)));
+        }
         let controller = tf.closed_loop.is_some() || tf.closed_loop_error.is_some();
         for (what, fits) in rows {
             if what == "closed loop" && !controller {
