@@ -13,29 +13,30 @@
 //!    the discovery loop ([`discover`]).
 pub mod closed_loop;
 pub mod cost;
-pub mod cubli;
 pub mod dataset;
 pub mod diagnose;
 pub mod discover;
 pub mod dynamics;
+pub mod error;
 pub mod expr;
 pub mod fit;
-pub mod flying_platform;
 pub mod frf;
 pub mod generic;
 pub mod identifiability;
 pub mod kalman;
+pub mod limits;
 pub mod load;
+pub mod log;
 pub mod model;
 pub mod model_file;
 pub mod noise;
+pub mod output;
 pub mod power;
 pub mod prediction;
 pub mod report;
 pub mod residual;
 pub mod spectra;
 pub mod stats;
-pub mod systems;
 pub mod timedomain;
 pub mod welch;
 
@@ -49,8 +50,8 @@ pub use model::{Effect, Model, ModelStructure, Parameter, StateSpace};
 pub use model_file::{Controller, ModelFile};
 pub use prediction::Criterion;
 
-use crate::error::{Result, SimError};
 use cost::WeightedCost;
+pub use error::{Result, SimError};
 use noise::NoiseReference;
 
 /// Monte-Carlo draws for the noise reference.
