@@ -11,6 +11,11 @@
 //! 4. diagnosis by line and channel ([`diagnose`]), in the time domain ([`timedomain`]: fit %
 //!    of simulation and k-step prediction; [`residual`]: whiteness and input correlation) and
 //!    the discovery loop ([`discover`]).
+//!
+//! The crate knows no system: a system is a [`ModelStructure`] (the simulator crate adapts the
+//! flying platform and the Cubli; a user writes a model file, [`ModelFile`]). Below the chain
+//! lie the data it reads and writes: [`log`] (MCAP and CSV logs), [`output`] (never over an
+//! input, temporary file + rename), [`limits`] (memory budgets) and the one [`error`] type.
 pub mod closed_loop;
 pub mod cost;
 pub mod dataset;
