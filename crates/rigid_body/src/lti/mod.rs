@@ -47,6 +47,12 @@ fn square(name: &'static str, m: &DMatrix<f64>) -> Result<usize> {
 
 /// Checks that `m` is `rows x cols` and finite.
 fn shaped(name: &'static str, m: &DMatrix<f64>, rows: usize, cols: usize) -> Result<()> {
+    sized(name, m, rows, cols)?;
+    finite(name, m)
+}
+
+/// Checks that `m` is `rows x cols`.
+fn sized(name: &'static str, m: &DMatrix<f64>, rows: usize, cols: usize) -> Result<()> {
     if m.nrows() != rows || m.ncols() != cols {
         return Err(Error::DimensionMismatch {
             name,
@@ -56,7 +62,7 @@ fn shaped(name: &'static str, m: &DMatrix<f64>, rows: usize, cols: usize) -> Res
             expected_cols: cols,
         });
     }
-    finite(name, m)
+    Ok(())
 }
 
 fn finite(name: &'static str, m: &DMatrix<f64>) -> Result<()> {

@@ -2,7 +2,7 @@
 //! the workbench: its frequency response (continuous, or of the sampled system under a
 //! zero-order hold), its zero-order-hold discretisation and its poles.
 
-use super::c2d_zoh;
+use super::{c2d_zoh, sized};
 use crate::{Error, Result};
 use nalgebra::{Complex, DMatrix};
 use std::vec::Vec;
@@ -76,22 +76,9 @@ impl StateSpace {
                 cols: self.a.ncols(),
             });
         }
-        for (name, mat, rows, cols) in [
-            ("B", &self.b, n, m),
-            ("C", &self.c, p, n),
-            ("D", &self.d, p, m),
-        ] {
-            if mat.nrows() != rows || mat.ncols() != cols {
-                return Err(Error::DimensionMismatch {
-                    name,
-                    rows: mat.nrows(),
-                    cols: mat.ncols(),
-                    expected_rows: rows,
-                    expected_cols: cols,
-                });
-            }
-        }
-        Ok(())
+        sized("B", &self.b, n, m)?;
+        sized("C", &self.c, p, n)?;
+        sized("D", &self.d, p, m)
     }
 
     /// Eigenvalues of `A`.
