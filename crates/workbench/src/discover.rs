@@ -40,6 +40,10 @@ pub struct CandidateScore {
     /// and lowers BIC; on FRF data its cost reduction also exceeds the noise (one standard
     /// deviation of the noise-only cost).
     pub significant: bool,
+    /// Its fit stopped once the linear model of its cost showed it could not become
+    /// significant (the time-domain criterion): `cost` is then where it stopped, an upper
+    /// bound of the fitted one.
+    pub abandoned: bool,
 }
 
 /// One step of the discovery: a model, its fit and diagnosis, and the candidates tried on it.
@@ -494,6 +498,7 @@ impl Workbench {
             delta_aic,
             delta_bic,
             significant,
+            abandoned: false,
         };
         Ok((with, r, score))
     }

@@ -8,8 +8,8 @@
 //! does not cover (an operator spelled as a word, say) keeps `exmex`.
 mod program;
 
-use exmex::{Differentiate, Express, FlatEx};
-use program::Program;
+pub use exmex::{Differentiate, Express, FlatEx};
+pub use program::Program;
 
 /// Names `exmex` reads as constants or functions: a parameter may not take them, or an
 /// expression would silently use the constant (`e` is Euler's number).
@@ -90,6 +90,11 @@ impl Expr {
             Some(p) => Ok(p.eval(table)),
             None => self.interpret(table),
         }
+    }
+
+    /// The compiled program, when the expression has one.
+    pub fn program(&self) -> Option<&Program> {
+        self.program.as_ref()
     }
 
     /// The value by `exmex`.

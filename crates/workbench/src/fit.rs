@@ -26,6 +26,9 @@ pub struct FitOptions {
     pub rank_tolerance: f64,
     /// Sample period of the held inputs (`None`: no zero-order-hold factor).
     pub hold: Option<f64>,
+    /// Stop as soon as the cost's Gauss-Newton model says it cannot fall below this even
+    /// with twice the predicted decrease (a candidate that cannot become significant).
+    pub give_up_above: Option<f64>,
 }
 
 impl Default for FitOptions {
@@ -36,6 +39,7 @@ impl Default for FitOptions {
             abs_tolerance: 1e-3,
             rank_tolerance: 1e-6,
             hold: None,
+            give_up_above: None,
         }
     }
 }
@@ -74,6 +78,9 @@ pub struct FitResult {
     pub iterations: usize,
     /// Number of free (estimated) parameters.
     pub free: usize,
+    /// Stopped by [`FitOptions::give_up_above`] (the cost is then an upper bound of the
+    /// fitted one).
+    pub gave_up: bool,
 }
 
 impl FitResult {
@@ -91,8 +98,9 @@ impl FitResult {
 pub trait LeastSquares: Sync {
     /// Whitened residuals at `theta` (their squared norm is the cost).
     fn residuals(&self, theta: &[f64]) -> Result<DVector<f64>>;
-    /// The residuals and their Jacobian by every parameter (columns in model order).
-    fn jacobian(&self, theta: &[f64]) -> Result<(DVector<f64>, DMatrix<f64>)>;
+    /// The Jacobian of the residuals by every parameter (columns in model order) at `theta`,
+    /// where they are `r` (a criterion that differences them starts from these).
+    fn jacobian(&self, theta: &[f64], r: &DVector<f64>) -> Result<DMatrix<f64>>;
 }
 
 /// The FRF criterion: the weighted misfit of the model FRF on the cost's lines.
@@ -108,11 +116,11 @@ impl LeastSquares for FrfCriterion<'_> {
         Ok(self.cost.residuals(&g))
     }
 
-    fn jacobian(&self, theta: &[f64]) -> Result<(DVector<f64>, DMatrix<f64>)> {
-        let (g, d) = self
+    fn jacobian(&self, theta: &[f64], _r: &DVector<f64>) -> Result<DMatrix<f64>> {
+        let (_, d) = self
             .model
             .frf_with_jacobian(theta, &self.cost.freqs_hz, self.hold)?;
-        Ok((self.cost.residuals(&g), self.cost.jacobian(&d)))
+        Ok(self.cost.jacobian(&d))
     }
 }
 
@@ -156,15 +164,23 @@ pub fn solve(
     clamp(&mut theta, params);
     let mut held = vec![false; params.len()];
     let mut iterations = 0;
+    let mut r = criterion.residuals(&theta)?;
     loop {
-        iterations += levenberg_marquardt(criterion, params, &held, &mut theta, opts)?;
-        let (r, d) = criterion.jacobian(&theta)?;
+        let (used, d, gave_up) =
+            levenberg_marquardt(criterion, params, &held, &mut theta, &mut r, opts)?;
+        iterations += used;
         let j = scaled_free_jacobian(&d, params, &held);
-        match weakest(&j, opts.rank_tolerance) {
+        let weak = if gave_up {
+            None
+        } else {
+            weakest(&j, opts.rank_tolerance)
+        };
+        match weak {
             Some(col) => {
                 let idx = free_indices(&held)[col];
                 held[idx] = true;
                 theta[idx] = params[idx].value;
+                r = criterion.residuals(&theta)?;
             }
             None => {
                 let v = r.norm_squared();
@@ -177,6 +193,7 @@ pub fn solve(
                     model_frf: Vec::new(),
                     iterations,
                     free,
+                    gave_up,
                 });
             }
         }
@@ -243,25 +260,30 @@ fn weakest(j: &DMatrix<f64>, tol: f64) -> Option<usize> {
         .map(|(i, _)| i)
 }
 
+/// Levenberg-Marquardt from `theta` (residuals `r` there) over the free parameters. Leaves
+/// `theta` and `r` at the end point and returns the iterations, the Jacobian there and
+/// whether it gave up ([`FitOptions::give_up_above`]).
 fn levenberg_marquardt(
     criterion: &dyn LeastSquares,
     params: &[Parameter],
     held: &[bool],
     theta: &mut [f64],
+    r: &mut DVector<f64>,
     opts: &FitOptions,
-) -> Result<usize> {
+) -> Result<(usize, DMatrix<f64>, bool)> {
     let free = free_indices(held);
+    let mut d = criterion.jacobian(theta, r)?;
     if free.is_empty() {
-        return Ok(0);
+        return Ok((0, d, false));
     }
     let scale: Vec<f64> = free.iter().map(|&i| params[i].scale()).collect();
-    let (mut r, d) = criterion.jacobian(theta)?;
     let mut v = r.norm_squared();
     let mut j = scaled_free_jacobian(&d, params, held);
     let mut lambda = 1e-3;
+    let mut growth = 2.0;
     for it in 0..opts.max_iterations {
         let jtj = j.transpose() * &j;
-        let grad = j.transpose() * &r;
+        let grad = j.transpose() * &*r;
         // Active set: a parameter on a bound whose descent direction leaves the box stays put.
         let moving: Vec<usize> = (0..free.len())
             .filter(|&k| {
@@ -270,12 +292,22 @@ fn levenberg_marquardt(
             })
             .collect();
         if moving.is_empty() {
-            return Ok(it);
+            return Ok((it, d, false));
         }
         let jtj_m = DMatrix::from_fn(moving.len(), moving.len(), |a, b| {
             jtj[(moving[a], moving[b])]
         });
         let grad_m = DVector::from_fn(moving.len(), |a, _| grad[moving[a]]);
+        if let Some(target) = opts.give_up_above {
+            // The linear model's smallest cost is v - g' (J'J)^-1 g.
+            let reachable = jtj_m
+                .clone()
+                .cholesky()
+                .map(|c| v - 2.0 * grad_m.dot(&c.solve(&grad_m)));
+            if reachable.is_some_and(|low| low > target) {
+                return Ok((it, d, true));
+            }
+        }
         let dmax = jtj_m.diagonal().max();
         let mut accepted = None;
         for _ in 0..30 {
@@ -288,41 +320,45 @@ fn levenberg_marquardt(
                 continue;
             };
             let step_m: DVector<f64> = -chol.solve(&grad_m);
-            let mut step = DVector::zeros(free.len());
-            for (a, &k) in moving.iter().enumerate() {
-                step[k] = step_m[a];
-            }
             let mut trial = theta.to_vec();
-            for (k, &i) in free.iter().enumerate() {
-                trial[i] += step[k] * scale[k];
+            for (a, &k) in moving.iter().enumerate() {
+                trial[free[k]] += step_m[a] * scale[k];
             }
             clamp(&mut trial, params);
             // A trial the criterion cannot evaluate (a predictor that diverges there) is a
             // failed step, like a rise in cost.
-            let vt = criterion
-                .residuals(&trial)
-                .map_or(f64::INFINITY, |r| r.norm_squared());
-            if vt.is_finite() && vt < v {
-                accepted = Some((trial, vt));
-                lambda = (lambda / 3.0).max(1e-12);
+            if let Some(rt) = criterion.residuals(&trial).ok().filter(|rt| {
+                let vt = rt.norm_squared();
+                vt.is_finite() && vt < v
+            }) {
+                // Nielsen's update: the damping falls by up to 3 when the linear model
+                // predicted the decrease well (gain ratio near 1), and stays when it did
+                // not, so that the next step is not one that fails.
+                let predicted = -(2.0 * step_m.dot(&grad_m) + step_m.dot(&(&jtj_m * &step_m)));
+                let ratio = (v - rt.norm_squared()) / predicted.max(f64::MIN_POSITIVE);
+                lambda = (lambda * (1.0 - (2.0 * ratio - 1.0).powi(3)).max(1.0 / 3.0)).max(1e-12);
+                growth = 2.0;
+                accepted = Some((trial, rt));
                 break;
             }
-            lambda *= 4.0;
+            lambda *= growth;
+            growth *= 2.0;
         }
-        let Some((trial, vt)) = accepted else {
-            return Ok(it);
+        let Some((trial, rt)) = accepted else {
+            return Ok((it, d, false));
         };
+        let vt = rt.norm_squared();
         let decrease = v - vt;
         theta.copy_from_slice(&trial);
+        *r = rt;
+        v = vt;
+        d = criterion.jacobian(theta, r)?;
         if decrease <= opts.rel_tolerance * vt || decrease <= opts.abs_tolerance {
-            return Ok(it + 1);
+            return Ok((it + 1, d, false));
         }
-        let (rn, d) = criterion.jacobian(theta)?;
-        r = rn;
-        v = r.norm_squared();
         j = scaled_free_jacobian(&d, params, held);
     }
-    Ok(opts.max_iterations)
+    Ok((opts.max_iterations, d, false))
 }
 
 fn report(

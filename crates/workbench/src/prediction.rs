@@ -437,16 +437,14 @@ impl LeastSquares for PredictionError<'_> {
         Ok(self.stack(&self.innovations(theta)?))
     }
 
-    fn jacobian(&self, theta: &[f64]) -> Result<(DVector<f64>, DMatrix<f64>)> {
+    fn jacobian(&self, theta: &[f64], r0: &DVector<f64>) -> Result<DMatrix<f64>> {
         let params = self.model.parameters()?;
-        let r0 = self.residuals(theta)?;
         // Forward differences, one column per parameter, in parallel; backwards at an
         // upper bound.
         let jobs: Vec<_> = params
             .iter()
             .enumerate()
             .map(|(i, p)| {
-                let r0 = &r0;
                 move || {
                     let h0 = 1e-6 * p.scale().max(theta[i].abs());
                     let h = if theta[i] + h0 <= p.upper { h0 } else { -h0 };
@@ -457,7 +455,7 @@ impl LeastSquares for PredictionError<'_> {
             })
             .collect();
         let cols = in_parallel(jobs, "prediction-error Jacobian")?;
-        Ok((r0.clone(), DMatrix::from_columns(&cols)))
+        Ok(DMatrix::from_columns(&cols))
     }
 }
 
@@ -589,7 +587,15 @@ impl Workbench {
             }
             start[i] = best.1;
         }
-        let mut r = solve(&pe, &params, Some(&start), &self.time_fit_options())?;
+        // A candidate is significant only if its cost falls below the base's by more than
+        // noise alone varies it (below); its fit stops once it cannot get there.
+        let n = r0.len() as f64;
+        let free = params.len() as f64;
+        let opts = super::FitOptions {
+            give_up_above: Some(r0.norm_squared() / (1.0 + (2.0 * n).sqrt() / (n - free))),
+            ..self.time_fit_options()
+        };
+        let mut r = solve(&pe, &params, Some(&start), &opts)?;
         r.model_frf = with.frf(&r.theta, &self.cost.freqs_hz, self.fit_options().hold)?;
         let p = design.whiten.nrows();
         let r1 = pe.residuals(&r.theta)?;
@@ -645,6 +651,7 @@ impl Workbench {
             delta_aic,
             delta_bic,
             significant,
+            abandoned: r.gave_up,
         };
         r.cost = v1;
         Ok((with, r, score))
@@ -687,7 +694,8 @@ impl Workbench {
                     move || self.score_time(current, (design, r0), name, n)
                 })
                 .collect();
-            let mut best: Option<(Model, usize)> = None;
+            // The best candidate's fit is the added model's fit under the same design.
+            let mut best: Option<(Model, FitResult, usize)> = None;
             let mut best_cost = f64::INFINITY;
             for outcome in in_parallel(jobs, "candidate fit")? {
                 let (with, r, score) = outcome;
@@ -695,28 +703,14 @@ impl Workbench {
                 current.candidates.push(score);
                 if r.cost < best_cost {
                     best_cost = r.cost;
-                    best = Some((with, current.candidates.len() - 1));
+                    best = Some((with, r, current.candidates.len() - 1));
                 }
             }
-            let chosen = best.filter(|(_, i)| current.candidates[*i].significant);
-            let Some((with, i)) = chosen else { break };
+            let chosen = best.filter(|(_, _, i)| current.candidates[*i].significant);
+            let Some((with, r, i)) = chosen else { break };
             let name = current.candidates[i].effect.clone();
             progress(&format!("adding {name}"));
             found.push(name.clone());
-            let start = {
-                let old = current.model.parameters()?;
-                let fresh = with.parameters()?;
-                let r = current.r.theta.clone();
-                fresh
-                    .iter()
-                    .map(|p| {
-                        old.iter()
-                            .position(|q| q.name == p.name)
-                            .map_or(p.value, |k| r[k])
-                    })
-                    .collect::<Vec<f64>>()
-            };
-            let (r, _) = self.fit_time(&with, Some(&start), Some(&design))?;
             let next = Fitted {
                 model: with,
                 added: Some(name),

@@ -947,6 +947,7 @@ impl CubliBench {
             delta_aic: -dv + 2.0 * q,
             delta_bic,
             significant: p_value < alpha && robust_p_value < alpha && delta_bic < 0.0,
+            abandoned: false,
         };
         Ok((next, score))
     }

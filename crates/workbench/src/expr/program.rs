@@ -30,6 +30,16 @@ enum Op {
     PowI(i32),
     Neg,
     Call(fn(f64) -> f64),
+    // Fused forms, made by `specialized`: the operation with its right operand a symbol or
+    // a constant, which halves the dispatches of a typical model expression.
+    AddVar(usize),
+    SubVar(usize),
+    MulVar(usize),
+    DivVar(usize),
+    AddConst(f64),
+    SubConst(f64),
+    MulConst(f64),
+    DivConst(f64),
 }
 
 /// A compiled expression.
@@ -247,17 +257,141 @@ impl Program {
         if p.peek().is_some() {
             return None;
         }
+        Self::checked(p.ops)
+    }
+
+    /// The program of `ops` if it leaves exactly one value and fits the stack.
+    fn checked(ops: Vec<Op>) -> Option<Self> {
         let mut depth = 0usize;
         let mut deepest = 0usize;
-        for op in &p.ops {
+        for op in &ops {
             match op {
                 Op::Const(_) | Op::Var(_) => depth += 1,
                 Op::Add | Op::Sub | Op::Mul | Op::Div | Op::Pow => depth = depth.checked_sub(1)?,
                 Op::PowI(_) | Op::Neg | Op::Call(_) => {}
+                Op::AddVar(_) | Op::SubVar(_) | Op::MulVar(_) | Op::DivVar(_) => {}
+                Op::AddConst(_) | Op::SubConst(_) | Op::MulConst(_) | Op::DivConst(_) => {}
+            }
+            if depth == 0 {
+                return None;
             }
             deepest = deepest.max(depth);
         }
-        (depth == 1 && deepest <= STACK).then_some(Self { ops: p.ops })
+        (depth == 1 && deepest <= STACK).then_some(Self { ops })
+    }
+
+    /// The constant `k`.
+    pub fn constant(k: f64) -> Self {
+        Self {
+            ops: vec![Op::Const(k)],
+        }
+    }
+
+    /// The sum of `self` and `other` (`None` if its stack would be too deep).
+    pub fn plus(&self, other: &Self) -> Option<Self> {
+        let mut ops = self.ops.clone();
+        ops.extend_from_slice(&other.ops);
+        ops.push(Op::Add);
+        Self::checked(ops)
+    }
+
+    /// This program with the symbols `known` gives a value for replaced by it, every
+    /// operation on constants alone carried out, and the remaining operations fused with a
+    /// symbol or constant right operand. Its value is the same for any table that holds
+    /// the known values (to the rounding of the folded operations, which is the same).
+    pub fn specialized(&self, known: &dyn Fn(usize) -> Option<f64>) -> Self {
+        // Fold: `out` is the program so far; a stack entry is constant when its whole code
+        // is one `Const` at the end of `out`.
+        let mut out: Vec<Op> = Vec::with_capacity(self.ops.len());
+        let mut constant: Vec<bool> = Vec::new();
+        for &op in &self.ops {
+            let last_const = |out: &[Op]| match out.last() {
+                Some(Op::Const(k)) => *k,
+                _ => f64::NAN,
+            };
+            match op {
+                Op::Var(i) => match known(i) {
+                    Some(k) => {
+                        out.push(Op::Const(k));
+                        constant.push(true);
+                    }
+                    None => {
+                        out.push(op);
+                        constant.push(false);
+                    }
+                },
+                Op::Const(_) => {
+                    out.push(op);
+                    constant.push(true);
+                }
+                Op::Add | Op::Sub | Op::Mul | Op::Div | Op::Pow => {
+                    let b = constant.pop().unwrap_or(false);
+                    let a = constant.last().copied().unwrap_or(false);
+                    if a && b {
+                        let y = last_const(&out);
+                        out.pop();
+                        let x = last_const(&out);
+                        out.pop();
+                        let v = Self {
+                            ops: vec![Op::Const(x), Op::Const(y), op],
+                        }
+                        .eval(&[]);
+                        out.push(Op::Const(v));
+                    } else {
+                        out.push(op);
+                        if let Some(c) = constant.last_mut() {
+                            *c = false;
+                        }
+                    }
+                }
+                Op::PowI(_) | Op::Neg | Op::Call(_) => {
+                    if constant.last().copied().unwrap_or(false) {
+                        let x = last_const(&out);
+                        out.pop();
+                        let v = Self {
+                            ops: vec![Op::Const(x), op],
+                        }
+                        .eval(&[]);
+                        out.push(Op::Const(v));
+                    } else {
+                        out.push(op);
+                    }
+                }
+                fused => {
+                    out.push(fused);
+                    if let Some(c) = constant.last_mut() {
+                        *c = false;
+                    }
+                }
+            }
+        }
+        // Fuse an operand pushed only to be consumed by the next operation.
+        let mut fused = Vec::with_capacity(out.len());
+        let mut i = 0;
+        while i < out.len() {
+            let pair = match (out[i], out.get(i + 1)) {
+                (Op::Var(k), Some(Op::Add)) => Some(Op::AddVar(k)),
+                (Op::Var(k), Some(Op::Sub)) => Some(Op::SubVar(k)),
+                (Op::Var(k), Some(Op::Mul)) => Some(Op::MulVar(k)),
+                (Op::Var(k), Some(Op::Div)) => Some(Op::DivVar(k)),
+                (Op::Const(k), Some(Op::Add)) => Some(Op::AddConst(k)),
+                (Op::Const(k), Some(Op::Sub)) => Some(Op::SubConst(k)),
+                (Op::Const(k), Some(Op::Mul)) => Some(Op::MulConst(k)),
+                (Op::Const(k), Some(Op::Div)) => Some(Op::DivConst(k)),
+                _ => None,
+            };
+            match pair {
+                Some(op) => {
+                    fused.push(op);
+                    i += 2;
+                }
+                None => {
+                    fused.push(out[i]);
+                    i += 1;
+                }
+            }
+        }
+        Self { ops: fused }
     }
 
     /// The value at the symbol values `table`.
@@ -297,6 +431,14 @@ impl Program {
                 Op::PowI(k) => stack[top - 1] = stack[top - 1].powi(k),
                 Op::Neg => stack[top - 1] = -stack[top - 1],
                 Op::Call(f) => stack[top - 1] = f(stack[top - 1]),
+                Op::AddVar(i) => stack[top - 1] += table[i],
+                Op::SubVar(i) => stack[top - 1] -= table[i],
+                Op::MulVar(i) => stack[top - 1] *= table[i],
+                Op::DivVar(i) => stack[top - 1] /= table[i],
+                Op::AddConst(k) => stack[top - 1] += k,
+                Op::SubConst(k) => stack[top - 1] -= k,
+                Op::MulConst(k) => stack[top - 1] *= k,
+                Op::DivConst(k) => stack[top - 1] /= k,
             }
         }
         stack[0]
@@ -340,6 +482,50 @@ impl Program {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Folding the known symbols and fusing operands gives the same value to the bit
+        /// (or NaN where the program gives NaN), whichever symbols are known.
+        #[test]
+        fn specialized_is_the_same_function(
+            values in proptest::collection::vec(-3.0f64..3.0, 4),
+            known in proptest::collection::vec(any::<bool>(), 4),
+            which in 0usize..6,
+        ) {
+            let sym = names(&["a", "b", "c", "d"]);
+            let text = [
+                "a*b + c/d - a^2",
+                "(a + b)*(c - d)/(a*b - 1)",
+                "sin(a)*cos(b)*tanh(c/0.05) + exp(-d)",
+                "-a*b^3 + 2^c - d/2/a",
+                "a + 1 + 2*3 - b*(4 - 1)",
+                "sqrt(abs(a*b)) + log(1 + c^2) + d^0.5",
+            ][which];
+            let p = Program::compile(text, &sym).unwrap();
+            let q = p.specialized(&|i| known[i].then_some(values[i]));
+            let (want, got) = (p.eval(&values), q.eval(&values));
+            prop_assert!(
+                want.to_bits() == got.to_bits() || (want.is_nan() && got.is_nan()),
+                "{text}: {want} against {got}"
+            );
+            prop_assert!(q.ops.len() <= p.ops.len());
+        }
+    }
+
+    /// A sum of programs is the sum of their values; constants fold away entirely.
+    #[test]
+    fn sums_and_constants() {
+        let sym = names(&["a", "b"]);
+        let p = Program::compile("a*b", &sym).unwrap();
+        let q = Program::compile("-2*tanh(b/0.5)", &sym).unwrap();
+        let t = [1.5, -0.25];
+        let s = p.plus(&q).unwrap();
+        assert_eq!(s.eval(&t), p.eval(&t) + q.eval(&t));
+        let folded = s.specialized(&|_| Some(0.0)).specialized(&|i| Some(t[i]));
+        assert!(matches!(folded.ops[..], [Op::Const(_)]), "{:?}", folded.ops);
+        assert_eq!(Program::constant(4.0).eval(&[]), 4.0);
+    }
 
     fn names(list: &[&str]) -> Vec<String> {
         list.iter().map(|s| s.to_string()).collect()

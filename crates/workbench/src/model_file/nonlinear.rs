@@ -9,7 +9,7 @@ use nalgebra::DMatrix;
 use toml::{Table, Value};
 
 use super::super::dynamics::Dynamics;
-use super::super::expr::Derivative;
+use super::super::expr::{Derivative, Program};
 use super::{number, Entry, Reader};
 use crate::error::{Result, SimError};
 
@@ -301,17 +301,41 @@ impl Section {
                 }
             }
         }
-        let dynamic_h = dynamic
+        let dynamic_h: Vec<usize> = (0..dynamic.len())
+            .filter(|&k| reached[self.definitions[dynamic[k]].0])
+            .collect();
+        // Everything but the states, the inputs and the moving definitions is a constant of
+        // this parameter vector.
+        let known = |slot: usize| (!moving[slot]).then(|| table[slot]);
+        let with_adds = |node: &Node, target: Target| {
+            let mut parts = vec![node.clone()];
+            parts.extend(
+                adds.iter()
+                    .filter(|a| a.target == target)
+                    .map(|a| a.node.clone()),
+            );
+            Hot::new(parts, &known)
+        };
+        let dynamic = dynamic
             .iter()
-            .copied()
-            .filter(|&i| reached[self.definitions[i].0])
+            .map(|&i| {
+                let (slot, node) = &self.definitions[i];
+                (*slot, with_adds(node, Target::Definition(*slot)))
+            })
+            .collect();
+        let f = (0..self.n)
+            .map(|i| with_adds(&self.f[i], Target::F(i)))
+            .collect();
+        let h = (0..self.p)
+            .map(|i| with_adds(&self.h[i], Target::H(i)))
             .collect();
         FileDynamics {
             section: self.clone(),
             table,
-            adds,
             dynamic,
             dynamic_h,
+            f,
+            h,
         }
     }
 
@@ -399,22 +423,63 @@ pub struct FileDynamics {
     section: Arc<Section>,
     /// Symbol values: parameters, definitions at the operating point.
     table: Vec<f64>,
-    /// The enabled effects' terms.
-    adds: Vec<Addition>,
-    /// Indices (into the section's definitions) evaluated per call of `f`.
-    dynamic: Vec<usize>,
-    /// Those `h` reads.
+    /// Per definition evaluated per call of `f` (it moves with the states or inputs): its
+    /// slot and its expression with the enabled effects' terms.
+    dynamic: Vec<(usize, Hot)>,
+    /// How many of those `h` needs, and which: indices into `dynamic`.
     dynamic_h: Vec<usize>,
+    /// `f` and `h`, each with the enabled effects' terms.
+    f: Vec<Hot>,
+    h: Vec<Hot>,
+}
+
+/// An expression with the terms effects add to it, as the predictor evaluates it millions of
+/// times: one program with the parameters (and the definitions that do not move) folded in,
+/// or, when a part has no compiled program, the parts.
+#[derive(Debug)]
+enum Hot {
+    Program(Program),
+    Parts(Vec<Node>),
+}
+
+impl Hot {
+    fn new(parts: Vec<Node>, known: &dyn Fn(usize) -> Option<f64>) -> Self {
+        let programs: Option<Vec<Program>> = parts
+            .iter()
+            .map(|n| match &n.entry {
+                Entry::Number(x) => Some(Program::constant(*x)),
+                Entry::Expr(e) => e.program().cloned(),
+            })
+            .collect();
+        let summed = programs.and_then(|ps| {
+            let mut it = ps.into_iter();
+            let first = it.next()?;
+            it.try_fold(first, |acc, p| acc.plus(&p))
+        });
+        match summed {
+            Some(p) => Self::Program(p.specialized(known)),
+            None => Self::Parts(parts),
+        }
+    }
+
+    fn eval(&self, section: &Section, table: &[f64]) -> Result<f64> {
+        match self {
+            Self::Program(p) => Ok(p.eval(table)),
+            Self::Parts(parts) => parts
+                .iter()
+                .try_fold(0.0, |acc, n| Ok(acc + section.value(n, table)?)),
+        }
+    }
 }
 
 impl FileDynamics {
-    /// Fills `scratch` with the symbol values at `(x, u)`, evaluating the definitions
-    /// `dynamic` (indices into the section's).
+    /// Fills `scratch` with the symbol values at `(x, u)`, evaluating the moving definitions
+    /// `which` (indices into `dynamic`; all of them when `None`).
     fn prepare(
         &self,
         x: &[f64],
         u: &[f64],
-        dynamic: &[usize],
+        which: Option<&[usize]>,
         scratch: &mut Vec<f64>,
     ) -> Result<()> {
         let s = &self.section;
@@ -422,34 +487,26 @@ impl FileDynamics {
         scratch.extend_from_slice(&self.table);
         scratch[s.state0..s.state0 + s.n].copy_from_slice(x);
         scratch[s.state0 + s.n..].copy_from_slice(u);
-        for &i in dynamic {
-            let (slot, node) = &s.definitions[i];
-            let mut v = s.value(node, scratch)?;
-            for a in self
-                .adds
-                .iter()
-                .filter(|a| a.target == Target::Definition(*slot))
-            {
-                v += s.value(&a.node, scratch)?;
-            }
-            scratch[*slot] = v;
+        let set = |(slot, hot): &(usize, Hot), scratch: &mut Vec<f64>| -> Result<()> {
+            scratch[*slot] = hot.eval(s, scratch)?;
+            Ok(())
+        };
+        match which {
+            None => self.dynamic.iter().try_for_each(|d| set(d, scratch)),
+            Some(ks) => ks.iter().try_for_each(|&k| set(&self.dynamic[k], scratch)),
         }
-        Ok(())
     }
 
     fn outputs_of(
         &self,
+        hot: &[Hot],
         nodes: &[Node],
-        target: fn(usize) -> Target,
         scratch: &[f64],
         out: &mut [f64],
     ) -> Result<()> {
         let s = &self.section;
-        for (i, (node, o)) in nodes.iter().zip(out.iter_mut()).enumerate() {
-            let mut v = s.value(node, scratch)?;
-            for a in self.adds.iter().filter(|a| a.target == target(i)) {
-                v += s.value(&a.node, scratch)?;
-            }
+        for ((hot, node), o) in hot.iter().zip(nodes).zip(out.iter_mut()) {
+            let v = hot.eval(s, scratch)?;
             if !v.is_finite() {
                 return Err(s.err(&node.key, format!("is {v} at {}", s.point_text(scratch))));
             }
@@ -470,12 +527,12 @@ impl Dynamics for FileDynamics {
         self.section.p
     }
     fn f(&self, x: &[f64], u: &[f64], dx: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
-        self.prepare(x, u, &self.dynamic, scratch)?;
-        self.outputs_of(&self.section.f, Target::F, scratch, dx)
+        self.prepare(x, u, None, scratch)?;
+        self.outputs_of(&self.f, &self.section.f, scratch, dx)
     }
     fn h(&self, x: &[f64], u: &[f64], y: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
-        self.prepare(x, u, &self.dynamic_h, scratch)?;
-        self.outputs_of(&self.section.h, Target::H, scratch, y)
+        self.prepare(x, u, Some(&self.dynamic_h), scratch)?;
+        self.outputs_of(&self.h, &self.section.h, scratch, y)
     }
     fn operating_point(&self) -> (Vec<f64>, Vec<f64>) {
         (self.section.x_op.clone(), self.section.u_op.clone())
