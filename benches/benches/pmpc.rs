@@ -12,9 +12,15 @@ use rigid_body::siqp::Settings;
 use std::hint::black_box;
 use std::time::Instant;
 
-/// Per-step iteration budget of the real-time configuration (shifted previous plan as
-/// fallback), as in `crates/pmpc/tests/budget.rs` and `py/bench/pmpc_peers.py`.
-const BUDGET: usize = 8;
+/// Per-step iteration budget of the real-time configuration for each s (shifted previous plan
+/// as fallback), as in `crates/pmpc/tests/budget.rs` and `py/bench/pmpc_peers.py`.
+fn budget(s: usize) -> usize {
+    match s {
+        ..=8 => 15,
+        9..=10 => 6,
+        _ => 4,
+    }
+}
 
 fn pmpc_controller(s: usize, budget: Option<usize>) -> Pmpc {
     let sc = scenario::quad_integrator();
@@ -65,7 +71,7 @@ fn quad_integrator_step(c: &mut Criterion) {
     let sc = scenario::quad_integrator();
     let mut group = c.benchmark_group("quad_integrator_step");
     for s in [8, 10, 12] {
-        for budget in [None, Some(BUDGET)] {
+        for budget in [None, Some(budget(s))] {
             let mut ctrl = pmpc_controller(s, budget);
             let states = simulate::run_pmpc(&mut ctrl, &sc.x0, scenario::STEPS, 1)
                 .unwrap()

@@ -4,7 +4,7 @@ DARE terminal cost, |u| <= 0.5, x_1 >= 0 at k = 1..N), all in one process and on
 
 How each contender is called (the fastest way its Python API allows):
   * stabilis.pmpc: `Controller.step(x)`, warm-started from the shifted working set, without
-    and with the per-step iteration budgets given by --budget (default 8 and 15; the shifted
+    and with the per-step iteration budgets given by --budget (default 4, 5, 6 and 8; the shifted
     previous plan is applied when a budget runs out).
   * DAQP: one `daqp.Model`, `setup` once, then per step `update(f=, bupper=, blower=)` and
     `solve()`: H is factorised once and the working set carries over (hot start).
@@ -269,7 +269,7 @@ def main():
                     help="only scan the discrete MPC's stabilizing horizons (e.g. 80 81 82 83 92 93)")
     ap.add_argument("--chain", type=int, default=None,
                     help="only the chain of n integrators: pmpc s = 12 against DAQP N = 450")
-    ap.add_argument("--budget", type=int, nargs="*", default=[8, 15],
+    ap.add_argument("--budget", type=int, nargs="*", default=[4, 5, 6, 8],
                     help="pmpc per-step iteration budgets to run besides the unbudgeted one")
     ap.add_argument("--quick", action="store_true", help="x0 = 0.3 set only")
     args = ap.parse_args()

@@ -3,6 +3,7 @@
 //! one line; the Python package re-exports it from `python/stabilis/<domain>.py`.
 use pyo3::prelude::*;
 
+mod callables;
 mod cubli;
 mod errors;
 mod event_est;

@@ -15,10 +15,12 @@ use sim::systems::cubli::{write_cubli_report, CubliBench, CubliDiscovery};
 use sim::systems::flying_platform::embedded_dataset;
 use sim::systems::{self, Source};
 use workbench::dataset::detect_period;
+use workbench::dynamics::Dynamics;
 use workbench::model::{Effect as EffectTrait, Parameter, StateSpace};
 use workbench::report::{json, write_report};
 use workbench::{load, Dataset, Discovery, EstimatorChoice, Experiment, ModelFile, ModelStructure};
 
+use crate::callables::{Callables, PyDynamics};
 use crate::errors::to_py_err;
 
 fn to_dict<'py>(py: Python<'py>, value: &serde_json::Value) -> PyResult<Bound<'py, PyAny>> {
@@ -235,6 +237,10 @@ impl PyEffect {
 }
 
 impl EffectTrait for PyEffect {
+    fn parallel(&self) -> bool {
+        false
+    }
+
     fn name(&self) -> &str {
         &self.effect.get().name
     }
@@ -262,8 +268,8 @@ impl EffectTrait for PyEffect {
     }
 }
 
-/// A user's model as a workbench structure: a Python callable `matrices(params) -> (A, B, C, D)`
-/// evaluated under the GIL, its first exception kept for the caller like an effect's.
+/// A user's model as a workbench structure: Python callables evaluated under the GIL, their
+/// first exception kept for the caller like an effect's.
 #[derive(Debug)]
 struct PyStructure {
     name: String,
@@ -272,8 +278,17 @@ struct PyStructure {
     outputs: Vec<String>,
     params: Vec<Parameter>,
     fixed: Vec<(String, f64)>,
-    matrices: Py<PyAny>,
+    form: Form,
     error: Arc<Mutex<Option<PyErr>>>,
+}
+
+/// How a Python model is given.
+#[derive(Debug)]
+enum Form {
+    /// `matrices(params) -> (A, B, C, D)`.
+    Linear(Py<PyAny>),
+    /// `f(x, u, params)` and `h(x, u, params)`.
+    Nonlinear(Arc<Callables>),
 }
 
 impl PyStructure {
@@ -286,12 +301,16 @@ impl PyStructure {
             outputs: self.outputs.clone(),
             params: self.params.clone(),
             fixed: self.fixed.clone(),
-            matrices: self.matrices.clone_ref(py),
+            form: match &self.form {
+                Form::Linear(m) => Form::Linear(m.clone_ref(py)),
+                Form::Nonlinear(c) => Form::Nonlinear(Arc::new(c.clone_ref(py))),
+            },
             error: Arc::clone(&self.error),
         }
     }
 
-    fn call(&self, py: Python<'_>, theta: &[f64]) -> PyResult<StateSpace> {
+    /// The parameter values `{name: float}` the callables receive, fixed ones included.
+    fn params_at<'py>(&self, py: Python<'py>, theta: &[f64]) -> PyResult<Bound<'py, PyDict>> {
         let params = PyDict::new(py);
         for (p, v) in self.params.iter().zip(theta) {
             params.set_item(&p.name, v)?;
@@ -299,7 +318,16 @@ impl PyStructure {
         for (name, v) in &self.fixed {
             params.set_item(name, v)?;
         }
-        let out = self.matrices.call1(py, (params,))?;
+        Ok(params)
+    }
+
+    fn call(&self, py: Python<'_>, theta: &[f64]) -> PyResult<StateSpace> {
+        let params = self.params_at(py, theta)?;
+        let matrices = match &self.form {
+            Form::Linear(m) => m,
+            Form::Nonlinear(c) => return c.linearize(py, &self.name, &params),
+        };
+        let out = matrices.call1(py, (params,))?;
         let out = out.bind(py);
         let parts: Vec<Bound<'_, PyAny>> = out
             .try_iter()
@@ -392,13 +420,47 @@ impl ModelStructure for PyStructure {
     }
 
     fn state_space(&self, _enabled: &[String], theta: &[f64]) -> sim::Result<StateSpace> {
-        Python::attach(|py| self.call(py, theta)).map_err(|err| {
-            let message = err.to_string();
-            if let Ok(mut slot) = self.error.lock() {
-                slot.get_or_insert(err);
-            }
-            sim::SimError::invalid(format!("model {}", self.name), "Python callable", message)
-        })
+        Python::attach(|py| self.call(py, theta)).map_err(|err| self.stash(err))
+    }
+
+    fn parallel(&self) -> bool {
+        false
+    }
+
+    fn is_nonlinear(&self) -> bool {
+        matches!(self.form, Form::Nonlinear(_))
+    }
+
+    fn dynamics(
+        &self,
+        _enabled: &[String],
+        theta: &[f64],
+    ) -> Option<sim::Result<Box<dyn Dynamics>>> {
+        let Form::Nonlinear(callables) = &self.form else {
+            return None;
+        };
+        Some(
+            Python::attach(|py| {
+                Ok(Box::new(PyDynamics {
+                    model: self.name.clone(),
+                    callables: Arc::clone(callables),
+                    params: self.params_at(py, theta)?.unbind(),
+                    error: Arc::clone(&self.error),
+                }) as Box<dyn Dynamics>)
+            })
+            .map_err(|err| self.stash(err)),
+        )
+    }
+}
+
+impl PyStructure {
+    /// Keeps the first exception of a user's callable for the caller.
+    fn stash(&self, err: PyErr) -> sim::SimError {
+        let message = err.to_string();
+        if let Ok(mut slot) = self.error.lock() {
+            slot.get_or_insert(err);
+        }
+        sim::SimError::invalid(format!("model {}", self.name), "Python callable", message)
     }
 }
 
@@ -460,7 +522,9 @@ fn py_parameter(name: &str, spec: &Bound<'_, PyAny>) -> PyResult<(Parameter, boo
 /// `Model(states=, inputs=, outputs=, parameters=, matrices=callable, effects=[...], name=)`,
 /// where `matrices(params)` returns `(A, B, C, D)` (numpy arrays) of the continuous-time model
 /// for the parameter values `{name: float}`, and `effects` are [`Effect`]s that discovery
-/// tries next to the generic `actuator_lag` and `input_delay`.
+/// tries next to the generic `actuator_lag` and `input_delay`. A nonlinear model gives
+/// `f=`, `h=` (`f(x, u, params) -> dx`, `h(x, u, params) -> y`) and `operating_point=`
+/// (`{name: value}` for every state and input) instead of `matrices`.
 #[pyclass(name = "Model", module = "stabilis._stabilis.workbench", frozen)]
 #[derive(Debug)]
 struct Model {
@@ -474,7 +538,7 @@ struct Model {
 #[pymethods]
 impl Model {
     #[new]
-    #[pyo3(signature = (states, inputs, outputs, parameters, matrices, effects = None, name = None))]
+    #[pyo3(signature = (states, inputs, outputs, parameters, matrices = None, effects = None, name = None, f = None, h = None, operating_point = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -482,9 +546,12 @@ impl Model {
         inputs: Vec<String>,
         outputs: Vec<String>,
         parameters: &Bound<'_, PyDict>,
-        matrices: Py<PyAny>,
+        matrices: Option<Py<PyAny>>,
         effects: Option<Vec<Py<Effect>>>,
         name: Option<String>,
+        f: Option<Py<PyAny>>,
+        h: Option<Py<PyAny>>,
+        operating_point: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
         // Without a name the system is read from the logs' topics when the workbench loads them.
         let name = name.unwrap_or_default();
@@ -509,11 +576,74 @@ impl Model {
                 )));
             }
         }
-        if !matrices.bind(py).is_callable() {
-            return Err(PyTypeError::new_err(format!(
-                "model {name}: matrices must be callable"
-            )));
-        }
+        let form = match (matrices, f, h) {
+            (Some(m), None, None) => {
+                if !m.bind(py).is_callable() {
+                    return Err(PyTypeError::new_err(format!(
+                        "model {name}: matrices must be callable"
+                    )));
+                }
+                if operating_point.is_some() {
+                    return Err(PyValueError::new_err(format!(
+                        "model {name}: operating_point belongs to a nonlinear model (f=, h=)"
+                    )));
+                }
+                Form::Linear(m)
+            }
+            (None, Some(f), Some(h)) => {
+                for (label, c) in [("f", &f), ("h", &h)] {
+                    if !c.bind(py).is_callable() {
+                        return Err(PyTypeError::new_err(format!(
+                            "model {name}: {label} must be callable"
+                        )));
+                    }
+                }
+                let point = operating_point.ok_or_else(|| {
+                    PyValueError::new_err(format!(
+                        "model {name}: a nonlinear model needs operating_point={{name: value}} for every state and input"
+                    ))
+                })?;
+                let value_of = |n: &String| -> PyResult<f64> {
+                    let v = point.get_item(n)?.ok_or_else(|| {
+                        PyValueError::new_err(format!(
+                            "model {name}: operating_point is missing {n:?}"
+                        ))
+                    })?;
+                    let v: f64 = v.extract().map_err(|_| {
+                        PyTypeError::new_err(format!(
+                            "model {name}: operating_point[{n:?}] must be a number"
+                        ))
+                    })?;
+                    if v.is_finite() {
+                        Ok(v)
+                    } else {
+                        Err(PyValueError::new_err(format!(
+                            "model {name}: operating_point[{n:?}] = {v} must be finite"
+                        )))
+                    }
+                };
+                for key in point.keys() {
+                    let key: String = key.extract()?;
+                    if !states.contains(&key) && !inputs.contains(&key) {
+                        return Err(PyValueError::new_err(format!(
+                            "model {name}: operating_point names {key:?}, which is neither a state nor an input"
+                        )));
+                    }
+                }
+                Form::Nonlinear(Arc::new(Callables {
+                    f,
+                    h,
+                    x_op: states.iter().map(value_of).collect::<PyResult<_>>()?,
+                    u_op: inputs.iter().map(value_of).collect::<PyResult<_>>()?,
+                    outputs: outputs.len(),
+                }))
+            }
+            _ => {
+                return Err(PyTypeError::new_err(format!(
+                "model {name}: give matrices= (a linear model) or both f= and h= (a nonlinear one)"
+            )))
+            }
+        };
         let mut params = Vec::new();
         let mut fixed = Vec::new();
         for (k, v) in parameters.iter() {
@@ -534,7 +664,7 @@ impl Model {
             outputs,
             params,
             fixed,
-            matrices,
+            form,
             error: Arc::clone(&error),
         };
         let theta: Vec<f64> = structure.params.iter().map(|p| p.value).collect();

@@ -3,8 +3,9 @@
 //! [0, 0.2]⁴ for 250 steps each. On every step after the first the solver stays within the
 //! bound stated before the run; where the budget runs out the shifted previous plan is
 //! applied, and the closed loop still satisfies the constraints on a 0.5 ms grid, keeps the
-//! MPC value function decreasing, and reaches a closed-loop cost within 1 % of the
-//! unbudgeted controller's.
+//! MPC value function decreasing, and reaches a closed-loop cost at most 1 % above the
+//! unbudgeted controller's (a fallback may also lower it: the budgeted loop is a different
+//! controller, and the shifted plan is sometimes the cheaper one).
 #![allow(clippy::unwrap_used)]
 
 use pmpc::{scenario, simulate, Pmpc, Source};
@@ -14,8 +15,19 @@ use rigid_body::laguerre::Laguerre;
 use rigid_body::siqp::Settings;
 
 /// (s, outer iterations per step) of the peer benchmark (README), and Taylor steps per row
-/// check. At s = 8 a budget below 13 makes fallbacks that cost 3-6 % in J_cl.
-const BUDGETS: [(usize, usize); 5] = [(8, 15), (10, 8), (10, 15), (12, 8), (12, 15)];
+/// check. At s = 8 a budget below 13 makes fallbacks that cost 3-6 % in J_cl (which step
+/// falls back matters more than how many).
+const BUDGETS: [(usize, usize); 9] = [
+    (8, 15),
+    (10, 6),
+    (10, 8),
+    (10, 15),
+    (12, 4),
+    (12, 5),
+    (12, 6),
+    (12, 8),
+    (12, 15),
+];
 const CHECK_STEPS: usize = 100;
 
 fn controller(s: usize, budget: Option<usize>) -> Pmpc {
@@ -50,6 +62,7 @@ fn budget_bounds_every_step_of_both_trajectory_sets() {
         assert_eq!(bound.taylor_steps, budget * 2 * CHECK_STEPS);
         let mut free = controller(s, None);
         let (mut steps, mut fallbacks, mut worst) = (0, 0, 0);
+        let (mut lowest, mut highest) = (f64::INFINITY, f64::NEG_INFINITY);
         for (x0, n) in starts() {
             let cl = simulate::run_pmpc(&mut budgeted, &x0, n, 40).unwrap();
             let reference = simulate::run_pmpc(&mut free, &x0, n, 40).unwrap();
@@ -73,15 +86,21 @@ fn budget_bounds_every_step_of_both_trajectory_sets() {
             for w in cl.steps.windows(2) {
                 assert!(w[1].cost <= w[0].cost + 1e-5, "s={s} x0={x0:?}");
             }
+            let change = cl.cost / reference.cost - 1.0;
+            lowest = lowest.min(change);
+            highest = highest.max(change);
             assert!(
-                (cl.cost - reference.cost).abs() <= 0.01 * reference.cost,
+                change <= 0.01,
                 "s={s} x0={x0:?}: J_cl {} vs unbudgeted {}",
                 cl.cost,
                 reference.cost
             );
         }
         eprintln!(
-            "s={s}: budget {budget}, worst {worst} iterations, fallbacks {fallbacks}/{steps} steps"
+            "s={s}: budget {budget}, worst {worst} iterations, fallbacks {fallbacks}/{steps} steps, \
+             J_cl change vs unbudgeted {:+.2} % ... {:+.2} % over the starts",
+            100.0 * lowest,
+            100.0 * highest
         );
     }
 }

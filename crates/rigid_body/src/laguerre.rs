@@ -28,6 +28,24 @@ fn sqrt(x: f64) -> f64 {
     <f64 as ComplexField>::sqrt(x)
 }
 
+/// 1/k for the three-term recurrences: a table lookup for k ≤ 64 keeps the division off
+/// their dependency chain (τ(t) and the shift run in every step of the constraint check).
+fn reciprocal(k: usize) -> f64 {
+    const TABLE: [f64; 65] = {
+        let mut t = [0.0; 65];
+        let mut k = 1;
+        while k < 65 {
+            t[k] = 1.0 / k as f64;
+            k += 1;
+        }
+        t
+    };
+    match TABLE.get(k) {
+        Some(&r) => r,
+        None => 1.0 / k as f64,
+    }
+}
+
 /// Length check of a flat slice, reported as a column of the wrong height.
 pub(crate) fn check_len(name: &'static str, found: usize, expected: usize) -> Result<(), Error> {
     if found == expected {
@@ -100,7 +118,7 @@ impl Laguerre {
         for (k, o) in out.iter_mut().take(self.s).enumerate() {
             *o = scale * cur;
             let kf = k as f64;
-            let next = ((2.0 * kf + 1.0 - x) * cur - kf * prev) / (kf + 1.0);
+            let next = ((2.0 * kf + 1.0 - x) * cur - kf * prev) * reciprocal(k + 1);
             prev = cur;
             cur = next;
         }
@@ -158,7 +176,7 @@ impl Laguerre {
             let coeff = if d == 0 { decay } else { decay * (cur - prev) };
             f(d, coeff);
             let kf = d as f64;
-            let next = ((2.0 * kf + 1.0 - x) * cur - kf * prev) / (kf + 1.0);
+            let next = ((2.0 * kf + 1.0 - x) * cur - kf * prev) * reciprocal(d + 1);
             prev = cur;
             cur = next;
         }

@@ -248,7 +248,7 @@ impl<'a> Problem<'a> {
         let (d, c, s) = (self.dim(), self.max_active, self.basis.dim());
         let nc = self.rows.len();
         (
-            4 * d + 2 * c * d + 5 * c * c + 8 * c + 2 * c * s + 6 * s + nc,
+            5 * d + 3 * c * d + 6 * c * c + 9 * c + 3 * c * s + 6 * s + nc,
             2 * c + nc,
         )
     }
@@ -272,6 +272,17 @@ impl<'a> Problem<'a> {
             }
         }
     }
+}
+
+/// Copy of the iterate and its factor, so that a rejected polish is undone by a copy rather
+/// than a refactorisation.
+#[derive(Debug)]
+struct Saved<'a> {
+    w: &'a mut [f64],
+    u: &'a mut [f64],
+    taus: &'a mut [f64],
+    lambda: &'a mut [f64],
+    l: &'a mut [f64],
 }
 
 /// Borrowed solver memory; build it from slices or from a [`WorkspaceStorage`].
@@ -306,6 +317,7 @@ pub struct Workspace<'a> {
     f2: &'a mut [f64],
     g2: &'a mut [f64],
     backup: &'a mut [Active],
+    saved: Saved<'a>,
     cands: &'a mut [Active],
     cand_excess: &'a mut [f64],
 }
@@ -343,7 +355,12 @@ impl<'a> Workspace<'a> {
         let (jac, rest) = rest.split_at_mut(4 * c * c);
         let (rhs, rest) = rest.split_at_mut(2 * c);
         let (f2, rest) = rest.split_at_mut(c);
-        let (g2, cand_excess) = rest.split_at_mut(c);
+        let (g2, rest) = rest.split_at_mut(c);
+        let (saved_w, rest) = rest.split_at_mut(d);
+        let (saved_u, rest) = rest.split_at_mut(c * d);
+        let (saved_taus, rest) = rest.split_at_mut(c * s);
+        let (saved_lambda, rest) = rest.split_at_mut(c);
+        let (saved_l, cand_excess) = rest.split_at_mut(c * c);
         let (active, rest) = active.split_at_mut(c);
         let (backup, cands) = rest.split_at_mut(c);
         Ok(Self {
@@ -379,6 +396,13 @@ impl<'a> Workspace<'a> {
             f2,
             g2,
             backup,
+            saved: Saved {
+                w: saved_w,
+                u: saved_u,
+                taus: saved_taus,
+                lambda: saved_lambda,
+                l: saved_l,
+            },
             cands,
             cand_excess,
         })
@@ -409,6 +433,29 @@ impl<'a> Workspace<'a> {
             }
         }
         self.n_active = k;
+    }
+
+    /// Save the working set, iterate, multipliers and factor (see [`Workspace::restore`]).
+    fn save(&mut self) {
+        let (p, d, s) = (self.n_active, self.dim, self.s);
+        self.backup[..p].copy_from_slice(&self.active[..p]);
+        self.saved.w.copy_from_slice(self.w);
+        self.saved.u[..p * d].copy_from_slice(&self.u[..p * d]);
+        self.saved.taus[..p * s].copy_from_slice(&self.taus[..p * s]);
+        self.saved.lambda[..p].copy_from_slice(&self.lambda[..p]);
+        self.saved.l.copy_from_slice(self.chol.l);
+    }
+
+    /// Return to the state of the last [`Workspace::save`], which held `p` instants.
+    fn restore(&mut self, p: usize) {
+        let (d, s) = (self.dim, self.s);
+        self.active[..p].copy_from_slice(&self.backup[..p]);
+        self.w.copy_from_slice(self.saved.w);
+        self.u[..p * d].copy_from_slice(&self.saved.u[..p * d]);
+        self.taus[..p * s].copy_from_slice(&self.saved.taus[..p * s]);
+        self.lambda[..p].copy_from_slice(&self.saved.lambda[..p]);
+        self.chol.l.copy_from_slice(self.saved.l);
+        self.n_active = p;
     }
 
     fn v_dot(&self, j: usize, x: &[f64]) -> f64 {

@@ -595,7 +595,7 @@ impl Workbench {
             .into_iter()
             .map(|f| move || self.step_from(f, base))
             .collect();
-        in_parallel(jobs, "discovery step record")
+        in_parallel(self.model.parallel(), jobs, "discovery step record")
     }
 
     /// Runs the discovery loop from the current model.
@@ -626,7 +626,7 @@ impl Workbench {
                     move || self.score(model, current, name, n)
                 })
                 .collect();
-            for (with, r, score) in in_parallel(jobs, "candidate fit")? {
+            for (with, r, score) in in_parallel(self.model.parallel(), jobs, "candidate fit")? {
                 progress(&format!("tried {}", score.effect));
                 let better = best.as_ref().is_none_or(|(_, b, _)| r.cost < b.cost);
                 scores.push(score);
@@ -688,13 +688,16 @@ impl Workbench {
     }
 }
 
-/// Runs independent jobs on scoped threads and returns their results in order (a job that
-/// panics is reported as an error naming `what`).
-pub(crate) fn in_parallel<T, F>(jobs: Vec<F>, what: &str) -> Result<Vec<T>>
+/// Runs independent jobs on scoped threads (on this one, in order, when not `parallel`) and
+/// returns their results in order (a job that panics is reported as an error naming `what`).
+pub(crate) fn in_parallel<T, F>(parallel: bool, jobs: Vec<F>, what: &str) -> Result<Vec<T>>
 where
     T: Send,
     F: FnOnce() -> Result<T> + Send,
 {
+    if !parallel {
+        return jobs.into_iter().map(|f| f()).collect();
+    }
     std::thread::scope(|scope| {
         let handles: Vec<_> = jobs.into_iter().map(|f| scope.spawn(f)).collect();
         handles

@@ -183,7 +183,7 @@ pub fn load(
         .iter()
         .map(|file| move || experiment(system, inputs, outputs, file))
         .collect();
-    for (exp, fs) in in_parallel(jobs, "reading a log")? {
+    for (exp, fs) in in_parallel(true, jobs, "reading a log")? {
         match rate {
             Some(r0) if (r0 - fs).abs() > 1e-6 * r0 => {
                 return Err(SimError::invalid(

@@ -111,6 +111,10 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn qualified_names(&self) -> bool {
         true
     }
+    /// Whether several threads may evaluate it at once (see [`ModelStructure::parallel`]).
+    fn parallel(&self) -> bool {
+        true
+    }
     /// Adds the effect's terms to `ss` for parameter values `theta` (same order as
     /// [`Effect::parameters`]). It may add states (a lag) or change the delay.
     fn apply(&self, theta: &[f64], ss: &mut StateSpace) -> Result<()>;
@@ -153,6 +157,12 @@ pub trait ModelStructure: Send + Sync + std::fmt::Debug {
     /// Quantities held at documented values by construction, `(name, value, why)`.
     fn fixed(&self) -> Vec<(String, f64, String)> {
         Vec::new()
+    }
+    /// Whether several threads may evaluate it at once. Python callables take the
+    /// interpreter's lock on every call, so threads would only queue for it, paying a context
+    /// switch per call (ten times the calls' own cost, measured): their fits run on one.
+    fn parallel(&self) -> bool {
+        true
     }
     /// Parameters with `enabled` effects on, base parameters first.
     fn parameters(&self, enabled: &[String]) -> Result<Vec<Parameter>>;
@@ -197,6 +207,11 @@ impl Model {
             enabled: Vec::new(),
             added: Vec::new(),
         }
+    }
+
+    /// Whether the structure and every effect it may use can be evaluated on several threads.
+    pub fn parallel(&self) -> bool {
+        self.structure.parallel() && self.pool.iter().chain(&self.added).all(|e| e.parallel())
     }
 
     /// The structure.

@@ -382,7 +382,7 @@ impl<'a> PredictionError<'a> {
             .iter()
             .map(|r| move || predictor.run(r))
             .collect();
-        let runs = in_parallel(jobs, "prediction")?;
+        let runs = in_parallel(self.model.parallel(), jobs, "prediction")?;
         Ok(Innovations { runs })
     }
 
@@ -454,7 +454,7 @@ impl LeastSquares for PredictionError<'_> {
                 }
             })
             .collect();
-        let cols = in_parallel(jobs, "prediction-error Jacobian")?;
+        let cols = in_parallel(self.model.parallel(), jobs, "prediction-error Jacobian")?;
         Ok(DMatrix::from_columns(&cols))
     }
 }
@@ -697,7 +697,7 @@ impl Workbench {
             // The best candidate's fit is the added model's fit under the same design.
             let mut best: Option<(Model, FitResult, usize)> = None;
             let mut best_cost = f64::INFINITY;
-            for outcome in in_parallel(jobs, "candidate fit")? {
+            for outcome in in_parallel(self.model.parallel(), jobs, "candidate fit")? {
                 let (with, r, score) = outcome;
                 progress(&format!("tried {}", score.effect));
                 current.candidates.push(score);
@@ -735,7 +735,7 @@ impl Workbench {
             .into_iter()
             .map(|f| move || self.time_step(f, design, base_cost))
             .collect();
-        let steps = in_parallel(jobs, "discovery step record")?;
+        let steps = in_parallel(self.model.parallel(), jobs, "discovery step record")?;
         let last = steps
             .last()
             .ok_or_else(|| SimError::invalid("discovery", "no step", "nothing was fitted"))?;

@@ -66,8 +66,17 @@ pub fn table(wb: &Workbench, d: &Discovery) -> String {
         for c in &st.candidates {
             let _ = writeln!(
                 s,
-                "  not added: {:<15} reduction {:>6.2}%  +{} params  p = {:.2e}  dBIC {:+.1}",
-                c.effect, c.reduction_percent, c.added_parameters, c.p_value, c.delta_bic
+                "  not added: {:<15} reduction {:>6.2}%  +{} params  p = {:.2e}  dBIC {:+.1}{}",
+                c.effect,
+                c.reduction_percent,
+                c.added_parameters,
+                c.p_value,
+                c.delta_bic,
+                if c.abandoned {
+                    "  (fit stopped: cannot reach the noise threshold)"
+                } else {
+                    ""
+                }
             );
         }
         let lists: [(&str, Pick); 2] = [

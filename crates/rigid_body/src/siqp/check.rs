@@ -5,7 +5,8 @@
 //! `b_l(τ) ≤ g ≤ b_u(τ)` with `b_{u,l} = f0 + f1 τ + f2 τ²/2 ± R τ³/6`, `R = c_τ |(Mᵀ)³ y|`.
 //! Either a bound proves a violation, or the constraint is certainly satisfied up to the
 //! first crossing τ_s of the widened limits, and the origin moves there by the closed-form
-//! shift. The tail certificate `c_τ |y| ≤ min(l_u, −l_l) + ε` ends the search.
+//! shift. The tail certificate `c_τ |y| ≤ min(l_u, −l_l) + ε`, or the polynomial one (no lobe
+//! beyond can cross a limit, see [`polynomial_tail`]), ends the search.
 
 use super::fmath::{abs, sqrt};
 use super::{Row, Settings, Side};
@@ -43,7 +44,14 @@ fn norm(v: &[f64]) -> f64 {
     sqrt(v.iter().map(|x| x * x).sum())
 }
 
-/// Smallest positive root of a3 τ³ + a2 τ² + a1 τ + a0 with a0 < 0 < a3.
+/// Relative accuracy of the certified step: a step at most this much shorter than the
+/// bound allows costs as little in extra steps, and saves Newton iterations.
+const ROOT_RTOL: f64 = 1e-4;
+
+/// A point at or just below the smallest positive root of a3 τ³ + a2 τ² + a1 τ + a0 with
+/// a0 < 0 < a3, with the polynomial negative on [0, result) (to rounding): the step the check
+/// may certify. Newton from the quadratic model at the start of the bracket, then a probe just
+/// below a converged iterate, so a step costs a handful of evaluations.
 pub(super) fn first_positive_root(a3: f64, a2: f64, a1: f64, a0: f64) -> f64 {
     let p = |t: f64| ((a3 * t + a2) * t + a1) * t + a0;
     let dp = |t: f64| (3.0 * a3 * t + 2.0 * a2) * t + a1;
@@ -73,8 +81,18 @@ pub(super) fn first_positive_root(a3: f64, a2: f64, a1: f64, a0: f64) -> f64 {
             lo = c;
         }
     }
-    // Safeguarded Newton on the monotone bracket [lo, hi] with p(lo) < 0 <= p(hi).
-    let mut t = 0.5 * (lo + hi);
+    // p is increasing on [lo, hi] with p(lo) < 0 <= p(hi). Start at the root of the quadratic
+    // Taylor model at lo (below p for τ > lo, so its root is at or beyond p's).
+    let (v0, d0, c0) = (p(lo), dp(lo), 6.0 * a3 * lo + 2.0 * a2);
+    let q = d0 * d0 - 2.0 * c0 * v0;
+    let mut t = if q >= 0.0 {
+        lo - 2.0 * v0 / (d0 + sqrt(q))
+    } else {
+        f64::NAN
+    };
+    if !(t > lo && t < hi) {
+        t = 0.5 * (lo + hi);
+    }
     for _ in 0..100 {
         let v = p(t);
         if v < 0.0 {
@@ -82,21 +100,68 @@ pub(super) fn first_positive_root(a3: f64, a2: f64, a1: f64, a0: f64) -> f64 {
         } else {
             hi = t;
         }
-        if hi - lo <= 1e-15 * hi {
+        if hi - lo <= ROOT_RTOL * hi {
             break;
         }
         let d = dp(t);
-        let newton = t - v / d;
+        let step = v / d;
+        if v >= 0.0 && d > 0.0 && step <= 0.25 * ROOT_RTOL * t {
+            // Converged from above: the probe below it closes the bracket from the other side.
+            let probe = t - 2.0 * step - 0.25 * ROOT_RTOL * t;
+            if probe > lo && p(probe) < 0.0 {
+                lo = probe;
+                break;
+            }
+        }
+        let newton = t - step;
         t = if d > 0.0 && newton > lo && newton < hi {
             newton
         } else {
             0.5 * (lo + hi)
         };
-        if abs(v) <= 1e-300 {
-            break;
-        }
     }
-    hi
+    if lo > 0.0 && hi - lo <= ROOT_RTOL * hi {
+        lo
+    } else {
+        hi
+    }
+}
+
+/// Tail certificate from the polynomial factor: `τ(σ)ᵀy = e^{−x/2} P(x)` with x = 2νσ and
+/// `P(x) = sqrt(2ν) Σ_i y_i L_i(x) = Σ_k c_k x^k`, `c_k = sqrt(2ν) (−1)^k S_k / k!`,
+/// `S_k = Σ_i C(i, k) y_i`. As `e^{x/2} ≥ Σ_{k<s} (x/2)^k / k!`, the function stays within
+/// the widened limits on [0, ∞) if `sqrt(2ν)(−1)^k S_k ≥ (lower − ε)/2^k` and
+/// `≤ (upper + ε)/2^k` for every k. This ends the walk once no lobe beyond can cross a limit,
+/// where the norm certificate would walk on until the whole function is below ε (the lower
+/// limit 0 of a state makes that tail ε). `s_k` is scratch of length s; O(s²) additions.
+pub(super) fn polynomial_tail(
+    basis: &Laguerre,
+    row: Row,
+    eps: f64,
+    y: &[f64],
+    s_k: &mut [f64],
+) -> bool {
+    let s = basis.dim();
+    // Σ_i y_i (1 + z)^i by Horner in (1 + z): coefficient k of z is S_k.
+    s_k[..s].fill(0.0);
+    for (i, &yi) in y[..s].iter().enumerate().rev() {
+        // Multiply by (1 + z) (degree s − 2 − i so far), then add y_i.
+        for k in (1..s - i).rev() {
+            s_k[k] += s_k[k - 1];
+        }
+        s_k[0] += yi;
+    }
+    let c0 = basis.tau0_entry();
+    let (lo, up) = (row.lower - eps, row.upper + eps);
+    let mut scale = 1.0;
+    for (k, &sk) in s_k[..s].iter().enumerate() {
+        let c = if k % 2 == 0 { c0 * sk } else { -c0 * sk };
+        if c < lo * scale || c > up * scale {
+            return false;
+        }
+        scale *= 0.5;
+    }
+    true
 }
 
 /// Check `row.lower − ε ≤ τ(t)ᵀ w ≤ row.upper + ε` on [0, horizon) (∞ if `None`).
@@ -143,7 +208,7 @@ pub(super) fn check_row(
                 excess: lo - f0,
             });
         }
-        if ctau * norm(y) <= tail {
+        if ctau * norm(y) <= tail || polynomial_tail(basis, row, eps, y, sc.d3) {
             return RowCheck::Satisfied;
         }
         basis.mt_apply(y, sc.d1);

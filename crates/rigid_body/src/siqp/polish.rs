@@ -105,27 +105,29 @@ pub(super) fn polish(
     }
     let before = dual_cost(problem, ws);
     let p0 = ws.n_active;
-    ws.backup[..p0].copy_from_slice(&ws.active[..p0]);
+    ws.save();
     let mut changed = merge_closest_pair(problem, ws);
     if changed {
         seed(problem, settings, ws, stats);
     }
+    let floor = before - 1e-12 * (1.0 + abs(before));
     for _ in 0..settings.polish_steps {
         if !newton_step(problem, settings, ws, stats) {
             break;
         }
         changed = true;
+        // A step that lowered the cost is undone below: stop moving.
+        if dual_cost(problem, ws) < floor {
+            break;
+        }
     }
     if !changed {
         return;
     }
-    let after = dual_cost(problem, ws);
-    if after >= before - 1e-12 * (1.0 + abs(before)) {
+    if dual_cost(problem, ws) >= floor {
         stats.moves += 1;
     } else {
-        ws.active[..p0].copy_from_slice(&ws.backup[..p0]);
-        ws.n_active = p0;
-        seed(problem, settings, ws, stats);
+        ws.restore(p0);
     }
 }
 
@@ -166,15 +168,18 @@ fn newton_step(
             worst = worst.max(f2 * f2 / (-2.0 * g2));
             ws.f2[j] = f2;
             ws.g2[j] = g2;
+        }
+        if p == 0 || worst <= 1e-3 * settings.tolerance {
+            return false;
+        }
+        for j in (0..p).filter(|&j| ws.g2[j] < 0.0) {
+            let a = ws.active[j];
             problem.phi_v(
                 a.row,
                 a.side.sign(),
                 &ws.dtau[j * s..(j + 1) * s],
                 &mut ws.up[j * d..(j + 1) * d],
             );
-        }
-        if p == 0 || worst <= 1e-3 * settings.tolerance {
-            return false;
         }
         // Unknowns (δλ, δt), equations F1_i = v_iᵀw − β_i and F2_i = v_i'ᵀw (or δt_i = 0).
         let n = 2 * p;

@@ -1,0 +1,176 @@
+//! A nonlinear model given as Python callables, `f(x, u, params) -> dx` and
+//! `h(x, u, params) -> y` (`x`, `u` numpy arrays, `params` a dict `{name: float}`): the
+//! workbench's [`Dynamics`], and its linearization at the operating point by central
+//! differences. Every call takes the GIL, so the predictor's records and candidates share
+//! one interpreter: a fit costs about one Python call per model evaluation (README, "Your own
+//! system").
+use std::sync::{Arc, Mutex};
+
+use nalgebra::DMatrix;
+use numpy::{PyArray1, PyArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use workbench::dynamics::Dynamics;
+use workbench::model::StateSpace;
+
+/// `f`, `h` and where the model is linearized and the predictor starts.
+#[derive(Debug)]
+pub struct Callables {
+    pub f: Py<PyAny>,
+    pub h: Py<PyAny>,
+    pub x_op: Vec<f64>,
+    pub u_op: Vec<f64>,
+    pub outputs: usize,
+}
+
+impl Callables {
+    pub fn clone_ref(&self, py: Python<'_>) -> Self {
+        Self {
+            f: self.f.clone_ref(py),
+            h: self.h.clone_ref(py),
+            x_op: self.x_op.clone(),
+            u_op: self.u_op.clone(),
+            outputs: self.outputs,
+        }
+    }
+
+    /// `f` (`output = false`) or `h` at `(x, u)` into `out`, checking the length and that
+    /// every value is finite.
+    fn eval(
+        &self,
+        py: Python<'_>,
+        model: &str,
+        output: bool,
+        (x, u): (&[f64], &[f64]),
+        params: &Bound<'_, PyDict>,
+        out: &mut [f64],
+    ) -> PyResult<()> {
+        let model = if model.is_empty() { "(unnamed)" } else { model };
+        let (func, label, what) = if output {
+            (&self.h, "h", "outputs")
+        } else {
+            (&self.f, "f", "states")
+        };
+        let value = func.call1(
+            py,
+            (
+                PyArray1::from_slice(py, x),
+                PyArray1::from_slice(py, u),
+                params,
+            ),
+        )?;
+        let value = value.bind(py);
+        // A float64 array is read directly; anything else (a list) as a sequence.
+        let values: Vec<f64> = match value.cast::<PyArray1<f64>>() {
+            Ok(a) => a.readonly().as_array().to_vec(),
+            Err(_) => value.extract::<Vec<f64>>().map_err(|_| {
+                PyValueError::new_err(format!(
+                    "model {model}: {label}(x, u, params) must return a 1-D sequence of numbers"
+                ))
+            })?,
+        };
+        if values.len() != out.len() {
+            return Err(PyValueError::new_err(format!(
+                "model {model}: {label}(x, u, params) returned {} values, expected {} ({what})",
+                values.len(),
+                out.len()
+            )));
+        }
+        if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            return Err(PyValueError::new_err(format!(
+                "model {model}: {label}(x, u, params)[{i}] = {v} at x = {x:?}, u = {u:?}"
+            )));
+        }
+        out.copy_from_slice(&values);
+        Ok(())
+    }
+
+    /// The Jacobians `(A, B, C, D)` at the operating point, by central differences with steps
+    /// of 1e-6 relative (truncation and rounding both near 1e-10 relative).
+    pub fn linearize(
+        &self,
+        py: Python<'_>,
+        model: &str,
+        params: &Bound<'_, PyDict>,
+    ) -> PyResult<StateSpace> {
+        let (n, m, p) = (self.x_op.len(), self.u_op.len(), self.outputs);
+        let mut z: Vec<f64> = self.x_op.iter().chain(&self.u_op).copied().collect();
+        let mut jac = DMatrix::zeros(n + p, n + m);
+        let (mut plus, mut minus) = (vec![0.0; n + p], vec![0.0; n + p]);
+        for j in 0..n + m {
+            let step = 1e-6 * z[j].abs().max(1.0);
+            let z0 = z[j];
+            for (sign, out) in [(1.0, &mut plus), (-1.0, &mut minus)] {
+                z[j] = z0 + sign * step;
+                let (x, u) = z.split_at(n);
+                let (df, dh) = out.split_at_mut(n);
+                self.eval(py, model, false, (x, u), params, df)?;
+                self.eval(py, model, true, (x, u), params, dh)?;
+            }
+            z[j] = z0;
+            for i in 0..n + p {
+                jac[(i, j)] = (plus[i] - minus[i]) / (2.0 * step);
+            }
+        }
+        let j = jac;
+        Ok(StateSpace {
+            a: j.view((0, 0), (n, n)).into_owned(),
+            b: j.view((0, n), (n, m)).into_owned(),
+            c: j.view((n, 0), (p, n)).into_owned(),
+            d: j.view((n, n), (p, m)).into_owned(),
+            delay: 0.0,
+        })
+    }
+}
+
+/// The callables at one parameter vector: what the time-domain criterion integrates.
+#[derive(Debug)]
+pub struct PyDynamics {
+    pub model: String,
+    pub callables: Arc<Callables>,
+    pub params: Py<PyDict>,
+    /// The first exception of a user's callable, for the caller.
+    pub error: Arc<Mutex<Option<PyErr>>>,
+}
+
+impl PyDynamics {
+    fn eval(&self, output: bool, x: &[f64], u: &[f64], out: &mut [f64]) -> sim::Result<()> {
+        Python::attach(|py| {
+            self.callables
+                .eval(py, &self.model, output, (x, u), self.params.bind(py), out)
+        })
+        .map_err(|err| {
+            let message = err.to_string();
+            if let Ok(mut slot) = self.error.lock() {
+                slot.get_or_insert(err);
+            }
+            sim::SimError::invalid(
+                format!("model {}", self.model),
+                if output { "h" } else { "f" },
+                message,
+            )
+        })
+    }
+}
+
+impl Dynamics for PyDynamics {
+    fn states(&self) -> usize {
+        self.callables.x_op.len()
+    }
+    fn inputs(&self) -> usize {
+        self.callables.u_op.len()
+    }
+    fn outputs(&self) -> usize {
+        self.callables.outputs
+    }
+    fn f(&self, x: &[f64], u: &[f64], dx: &mut [f64], _scratch: &mut Vec<f64>) -> sim::Result<()> {
+        self.eval(false, x, u, dx)
+    }
+    fn h(&self, x: &[f64], u: &[f64], y: &mut [f64], _scratch: &mut Vec<f64>) -> sim::Result<()> {
+        self.eval(true, x, u, y)
+    }
+    fn operating_point(&self) -> (Vec<f64>, Vec<f64>) {
+        (self.callables.x_op.clone(), self.callables.u_op.clone())
+    }
+}
