@@ -12,8 +12,8 @@ use nalgebra::{DMatrix, DVector};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
-use sim::workbench::flying_platform::{embedded_dataset, FlyingPlatform};
-use sim::workbench::{
+use sim::systems::flying_platform::{embedded_dataset, FlyingPlatform};
+use workbench::{
     Controller, Dataset, EstimatorChoice, Experiment, ModelFile, ModelStructure, Periodic,
     Workbench,
 };

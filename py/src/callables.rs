@@ -11,8 +11,8 @@ use numpy::{PyArray1, PyArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use sim::workbench::dynamics::Dynamics;
-use sim::workbench::model::StateSpace;
+use workbench::dynamics::Dynamics;
+use workbench::model::StateSpace;
 
 /// `f`, `h` and where the model is linearized and the predictor starts.
 #[derive(Debug)]

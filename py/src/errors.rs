@@ -46,7 +46,10 @@ impl IntoPyError for sim::SimError {
         use sim::SimError as E;
         let message = self.to_string();
         match self {
-            E::LengthMismatch { .. } => PyValueError::new_err(message),
+            E::LengthMismatch { .. }
+            | E::StateSpace(
+                rigid_body::Error::NotSquare { .. } | rigid_body::Error::DimensionMismatch { .. },
+            ) => PyValueError::new_err(message),
             E::FileNotFound { .. }
             | E::Io { .. }
             | E::NotMcap { .. }
@@ -57,7 +60,9 @@ impl IntoPyError for sim::SimError {
             | E::NotFinite { .. }
             | E::BadMessage { .. } => LogError::new_err(message),
             E::ModelFile { .. } => ModelError::new_err(message),
-            E::InvalidParameter { .. } | E::Domain { .. } => SimError::new_err(message),
+            E::InvalidParameter { .. } | E::Domain { .. } | E::StateSpace(_) => {
+                SimError::new_err(message)
+            }
             E::UnsafeOutput { .. } => Error::new_err(message),
         }
     }

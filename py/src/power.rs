@@ -1,4 +1,4 @@
-//! Python binding of the power study ([`sim::workbench::power`]): prepare a study as JSON text,
+//! Python binding of the power study ([`workbench::power`]): prepare a study as JSON text,
 //! run batches of its campaigns with the GIL released (one Dask task is one batch), aggregate
 //! the outcomes. The study travels as text (the model file's contents and the excitation
 //! arrays), so a worker on another machine needs no file of the client's.
@@ -6,9 +6,9 @@ use std::path::PathBuf;
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use sim::workbench::model::ModelStructure;
-use sim::workbench::model_file::ModelFile;
-use sim::workbench::power::{self, Outcome, Study, StudyOptions, StudySpec};
+use workbench::model::ModelStructure;
+use workbench::model_file::ModelFile;
+use workbench::power::{self, Outcome, Study, StudyOptions, StudySpec};
 
 use crate::errors::to_py_err;
 
@@ -41,7 +41,7 @@ fn prepare(
             let text = std::fs::read_to_string(&model).map_err(|e| sim::SimError::io(&model, e))?;
             let file = ModelFile::parse(&text, &model)?;
             let logs =
-                sim::workbench::load::load(file.system(), &file.inputs(), &file.outputs(), &data)?;
+                workbench::load::load(file.system(), &file.inputs(), &file.outputs(), &data)?;
             power::prepare(
                 &text,
                 &model,

@@ -11,16 +11,14 @@ use numpy::{Complex64, IntoPyArray, PyArray1, PyReadonlyArray2};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use sim::workbench::cubli::{CubliBench, CubliDiscovery};
-use sim::workbench::dataset::detect_period;
-use sim::workbench::dynamics::Dynamics;
-use sim::workbench::flying_platform::embedded_dataset;
-use sim::workbench::model::{Effect as EffectTrait, Parameter, StateSpace};
-use sim::workbench::report::{json, write_cubli_report, write_report};
-use sim::workbench::systems::{self, Source};
-use sim::workbench::{
-    load, Dataset, Discovery, EstimatorChoice, Experiment, ModelFile, ModelStructure,
-};
+use sim::systems::cubli::{write_cubli_report, CubliBench, CubliDiscovery};
+use sim::systems::flying_platform::embedded_dataset;
+use sim::systems::{self, Source};
+use workbench::dataset::detect_period;
+use workbench::dynamics::Dynamics;
+use workbench::model::{Effect as EffectTrait, Parameter, StateSpace};
+use workbench::report::{json, write_report};
+use workbench::{load, Dataset, Discovery, EstimatorChoice, Experiment, ModelFile, ModelStructure};
 
 use crate::callables::{Callables, PyDynamics};
 use crate::errors::to_py_err;
@@ -97,7 +95,7 @@ impl Effect {
                 Parameter::new(p, value, lower, upper, unit)
             })
             .collect();
-        sim::workbench::model::check_parameters(&params).map_err(to_py_err)?;
+        workbench::model::check_parameters(&params).map_err(to_py_err)?;
         if !func.bind(py).is_callable() {
             return Err(PyTypeError::new_err(format!(
                 "effect {name}: func must be callable"
@@ -657,7 +655,7 @@ impl Model {
                 params.push(p);
             }
         }
-        sim::workbench::model::check_parameters(&params).map_err(to_py_err)?;
+        workbench::model::check_parameters(&params).map_err(to_py_err)?;
         let error = Arc::new(Mutex::new(None));
         let structure = PyStructure {
             name: name.to_string(),
@@ -805,7 +803,7 @@ fn dataset_from_arrays(
 enum Inner {
     /// FRF-based (flying platform).
     Frf {
-        wb: Box<sim::workbench::Workbench>,
+        wb: Box<workbench::Workbench>,
         last: Option<Discovery>,
     },
     /// Time-domain prediction error (Cubli).
@@ -928,8 +926,8 @@ impl Workbench {
     ) -> PyResult<Self> {
         let criterion = match criterion {
             None => None,
-            Some("frf") => Some(sim::workbench::Criterion::Frf),
-            Some("time") => Some(sim::workbench::Criterion::Time),
+            Some("frf") => Some(workbench::Criterion::Frf),
+            Some("time") => Some(workbench::Criterion::Time),
             Some(other) => {
                 return Err(PyValueError::new_err(format!(
                     "unknown criterion {other:?}; use \"frf\" or \"time\" (default: time for a nonlinear model)"
@@ -1019,11 +1017,11 @@ impl Workbench {
                             ))
                         }
                     };
-                    sim::workbench::Workbench::with_options(
+                    workbench::Workbench::with_options(
                         s,
                         dataset,
                         choice,
-                        sim::workbench::DataOptions {
+                        workbench::DataOptions {
                             criterion,
                             ..Default::default()
                         },

@@ -31,47 +31,10 @@ pub(crate) mod idx {
     pub const WZ: usize = 8;
 }
 
-/// Continuous-time model `x' = A x + B u(t - delay)`, `y = C x + D u(t - delay)`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct StateSpace {
-    /// State matrix (n x n).
-    pub a: DMatrix<f64>,
-    /// Input matrix (n x 9).
-    pub b: DMatrix<f64>,
-    /// Output matrix (6 x n).
-    pub c: DMatrix<f64>,
-    /// Feed-through (6 x 9, zero).
-    pub d: DMatrix<f64>,
-    /// Input delay in seconds.
-    pub delay: f64,
-}
-
-impl StateSpace {
-    /// Transfer matrix `C (jw I - A)^-1 B e^{-jw delay} + D` at one angular frequency (rad/s).
-    pub fn frequency_response_at(&self, omega: f64) -> Result<DMatrix<Complex<f64>>> {
-        let n = self.a.nrows();
-        let jw = Complex::new(0.0, omega);
-        let m = DMatrix::<Complex<f64>>::from_fn(n, n, |i, j| {
-            let diag = if i == j { jw } else { Complex::new(0.0, 0.0) };
-            diag - Complex::new(self.a[(i, j)], 0.0)
-        });
-        let b = self.b.map(|v| Complex::new(v, 0.0));
-        let x = m
-            .lu()
-            .solve(&b)
-            .ok_or_else(|| Error::Numerical(format!("jwI - A is singular at w = {omega} rad/s")))?;
-        let delay = Complex::new(0.0, -omega * self.delay).exp();
-        Ok(
-            (self.c.map(|v| Complex::new(v, 0.0)) * x + self.d.map(|v| Complex::new(v, 0.0)))
-                * delay,
-        )
-    }
-
-    /// Eigenvalues of `A`.
-    pub fn poles(&self) -> Vec<Complex<f64>> {
-        self.a.complex_eigenvalues().iter().copied().collect()
-    }
-}
+/// Continuous-time model `x' = A x + B u(t - delay)`, `y = C x + D u(t - delay)`; here A is
+/// n x n (n = 9, or 18 with the actuator lag), B n x 9, C 6 x n, D 6 x 9 (zero). The one
+/// state-space type of stabilis, shared with the workbench.
+pub use rigid_body::lti::StateSpace;
 
 /// A flying-platform model: vehicle parameters plus a set of enabled effects.
 ///
@@ -252,7 +215,10 @@ impl Model {
                     });
                 }
                 let lag = Complex::new(1.0, 0.0) / Complex::new(1.0, w * tau);
-                Ok(ss.frequency_response_at(w)? * lag)
+                let g = ss
+                    .frequency_response_at(w)
+                    .map_err(|e| Error::Numerical(e.to_string()))?;
+                Ok(g * lag)
             })
             .collect()
     }

@@ -138,4 +138,12 @@ pub enum Error {
         /// Name of the matrix.
         name: &'static str,
     },
+    /// A frequency response cannot be evaluated: its matrix is singular at that frequency.
+    #[error("{name} is singular at {frequency_hz:.4} Hz")]
+    SingularAt {
+        /// Name of the matrix and what its singularity means.
+        name: &'static str,
+        /// The frequency, Hz.
+        frequency_hz: f64,
+    },
 }

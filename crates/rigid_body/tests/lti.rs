@@ -367,3 +367,95 @@ fn controllability_matrix_and_gramian() {
     let err = lti::ctrb_gramian(&m(2, 2, &[0.0, 1.0, 0.0, 0.0]), &b).unwrap_err();
     assert!(err.to_string().starts_with("A is not Hurwitz"), "{err}");
 }
+
+// ---------- the state-space model ----------
+
+/// The lag `b / (s + a)` with input delay `tau`.
+fn lag(a: f64, b: f64, tau: f64) -> lti::StateSpace {
+    lti::StateSpace {
+        a: m(1, 1, &[-a]),
+        b: m(1, 1, &[b]),
+        c: m(1, 1, &[1.0]),
+        d: m(1, 1, &[0.0]),
+        delay: tau,
+    }
+}
+
+#[test]
+fn state_space_check_names_the_matrix_that_does_not_fit() {
+    let mut ss = lag(1.0, 1.0, 0.0);
+    assert!(ss.check().is_ok());
+    ss.b = m(2, 1, &[1.0, 0.0]);
+    assert_eq!(
+        ss.check(),
+        Err(Error::DimensionMismatch {
+            name: "B",
+            rows: 2,
+            cols: 1,
+            expected_rows: 1,
+            expected_cols: 1
+        })
+    );
+    ss.a = m(1, 2, &[1.0, 0.0]);
+    assert!(matches!(
+        ss.check(),
+        Err(Error::NotSquare { name: "A", .. })
+    ));
+    // An integrator has a pole at w = 0: named, not a NaN.
+    let integrator = lag(0.0, 1.0, 0.0);
+    assert!(matches!(
+        integrator.frequency_response_at(0.0),
+        Err(Error::SingularAt { .. })
+    ));
+    assert!(matches!(
+        lag(1.0, 1.0, 0.0).discretize(0.0),
+        Err(Error::InvalidParameter {
+            name: "sample period",
+            ..
+        })
+    ));
+}
+
+proptest! {
+    #![proptest_config(config())]
+
+    /// Continuous response against `b e^{-jw tau} / (jw + a)`, and the FRF lines are that
+    /// response at `w = 2 pi f`.
+    #[test]
+    fn continuous_response_of_a_delayed_lag(
+        a in 0.1f64..10.0, b in -5.0f64..5.0, tau in 0.0f64..0.2, f in 0.01f64..20.0,
+    ) {
+        let ss = lag(a, b, tau);
+        let w = 2.0 * std::f64::consts::PI * f;
+        let want = nalgebra::Complex::new(0.0, -w * tau).exp() * b
+            / nalgebra::Complex::new(a, w);
+        let g = ss.frequency_response_at(w).unwrap()[(0, 0)];
+        prop_assert!((g - want).norm() <= 1e-12 * want.norm().max(1.0));
+        let lines = ss.frf_lines(&[f], None).unwrap();
+        prop_assert!((lines[0][(0, 0)] - g).norm() <= 1e-12 * want.norm().max(1.0));
+        prop_assert_eq!(ss.poles()[0].re, -a);
+    }
+
+    /// Held (zero-order hold, period T) response of the lag with delay `d T + f0`, against the
+    /// sampled model written out by hand: `x_{k+1} = e^{-aT} x_k + g0 u_{k-d} + g1 u_{k-d-1}`
+    /// with `g0 = b (1 - e^{-a(T - f0)}) / a`, `g1 = b e^{-a(T - f0)} (1 - e^{-a f0}) / a`,
+    /// so `G(z) = z^{-d} (g0 + g1 / z) / (z - e^{-aT})`.
+    #[test]
+    fn held_response_of_a_delayed_lag(
+        a in 0.1f64..10.0, b in -5.0f64..5.0, whole in 0usize..4, frac in 0.0f64..0.95,
+        f in 0.01f64..20.0,
+    ) {
+        let t = 0.02;
+        let f0 = frac * t;
+        let ss = lag(a, b, whole as f64 * t + f0);
+        let phi = (-a * t).exp();
+        let g0 = b * (1.0 - (-a * (t - f0)).exp()) / a;
+        let g1 = b * (-a * (t - f0)).exp() * (1.0 - (-a * f0).exp()) / a;
+        let z = nalgebra::Complex::new(0.0, 2.0 * std::f64::consts::PI * f * t).exp();
+        let want = z.powi(-(whole as i32)) * (g0 + g1 / z) / (z - phi);
+        let g = ss.frf_lines(&[f], Some(t)).unwrap()[0][(0, 0)];
+        prop_assert!((g - want).norm() <= 1e-9 * want.norm().max(1.0), "{} vs {}", g, want);
+        let disc = ss.discretize(t).unwrap();
+        prop_assert!((disc.spectral_radius() - phi).abs() < 1e-12);
+    }
+}

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use sim::log::LogWriter;
-use sim::workbench::flying_platform::embedded_dataset;
+use sim::systems::flying_platform::embedded_dataset;
 
 fn stabilis(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_stabilis"))
@@ -302,7 +302,7 @@ fn cubli_compare_fit_discover_and_report() {
 
 /// Writes one Cubli run as CSV with `t`, the inputs and the outputs, changed by `edit`.
 fn cubli_csv(path: &Path, source: &Path, edit: impl Fn(&mut Vec<String>, &mut Vec<Vec<String>>)) {
-    let data = sim::workbench::cubli::load_cubli(&[source.to_path_buf()]).unwrap();
+    let data = sim::systems::cubli::load_cubli(&[source.to_path_buf()]).unwrap();
     let e = &data.experiments[0];
     let mut header: Vec<String> = ["t"]
         .iter()
@@ -363,7 +363,7 @@ fn cubli_bad_data_is_named_and_no_report_is_left() {
     );
     // Output and input logs of different lengths.
     let short = temp("cubli-short.mcap");
-    let data = sim::workbench::cubli::load_cubli(&[source]).unwrap();
+    let data = sim::systems::cubli::load_cubli(&[source]).unwrap();
     let e = &data.experiments[0];
     let mut w = LogWriter::create(&short).unwrap();
     let ti = w.add_topic("/cubli/input", &data.inputs).unwrap();

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use sim::progress::Progress;
 use sim::scenarios::cubli::{Args, Kind};
 use sim::scenarios::{run, Common};
-use sim::workbench::cubli::{discover, load_cubli, CubliDiscovery, CubliOptions};
+use sim::systems::cubli::{discover, load_cubli, CubliDiscovery, CubliOptions};
 
 /// Writes six 40 s balancing runs with the given hidden effects and returns their paths.
 fn logs(tag: &str, hide: impl Fn(&mut Args)) -> Vec<PathBuf> {

@@ -7,8 +7,8 @@ use flying_platform::{
     ActuatorLimits, CascadedController, Dynamics, Effect, EffectSet, ExperimentDesign, Model,
     PlatformParams, SimConfig, Tuning,
 };
-use sim::workbench::flying_platform::{dataset_from_experiments, FlyingPlatform};
-use sim::workbench::{Dataset, Estimator, EstimatorChoice, Verdict, Workbench};
+use sim::systems::flying_platform::{dataset_from_experiments, FlyingPlatform};
+use workbench::{Dataset, Estimator, EstimatorChoice, Verdict, Workbench};
 
 fn data(effects: &[(Effect, &[(&str, f64)])], seed: u64) -> (Dataset, Model) {
     data_tuned(
@@ -45,17 +45,14 @@ fn data_tuned(
     (dataset_from_experiments(&runs, &design).unwrap(), truth)
 }
 
-fn discover(effects: &[(Effect, &[(&str, f64)])], seed: u64) -> (sim::workbench::Discovery, Model) {
+fn discover(effects: &[(Effect, &[(&str, f64)])], seed: u64) -> (workbench::Discovery, Model) {
     let (d, truth) = data(effects, seed);
     (workbench_discover(d), truth)
 }
 
 /// Experiments flown with the slow-actuator tuning and the within-limits excitation (with a
 /// 60-80 ms lag the paper's amplitudes drive the clipped loop into a limit cycle).
-fn discover_slow(
-    effects: &[(Effect, &[(&str, f64)])],
-    seed: u64,
-) -> (sim::workbench::Discovery, Model) {
+fn discover_slow(effects: &[(Effect, &[(&str, f64)])], seed: u64) -> (workbench::Discovery, Model) {
     let (d, truth) = data_tuned(
         effects,
         seed,
@@ -65,7 +62,7 @@ fn discover_slow(
     (workbench_discover(d), truth)
 }
 
-fn workbench_discover(d: Dataset) -> sim::workbench::Discovery {
+fn workbench_discover(d: Dataset) -> workbench::Discovery {
     let wb = Workbench::new(
         Arc::new(FlyingPlatform::default()),
         d,
@@ -74,13 +71,13 @@ fn workbench_discover(d: Dataset) -> sim::workbench::Discovery {
     .unwrap();
     assert_eq!(
         wb.frf().estimator,
-        sim::workbench::Estimator::InstrumentalVariable
+        workbench::Estimator::InstrumentalVariable
     );
     wb.discover().unwrap()
 }
 
 /// Relative error of each named fitted parameter against the truth, checked against `tol`.
-fn check_params(d: &sim::workbench::Discovery, truth: &Model, tol: &[(&str, f64)]) {
+fn check_params(d: &workbench::Discovery, truth: &Model, tol: &[(&str, f64)]) {
     let last = d.steps.last().unwrap();
     for (name, t) in tol {
         let fitted = last.params.iter().find(|p| p.name == *name).unwrap();
@@ -97,7 +94,7 @@ fn check_params(d: &sim::workbench::Discovery, truth: &Model, tol: &[(&str, f64)
     }
 }
 
-fn explained(d: &sim::workbench::Discovery) {
+fn explained(d: &workbench::Discovery) {
     assert!(
         matches!(d.verdict, Verdict::ExplainedToNoiseLevel { .. }),
         "{}",

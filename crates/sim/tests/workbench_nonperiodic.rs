@@ -13,9 +13,7 @@ use nalgebra::DMatrix;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
-use sim::workbench::{
-    DataOptions, Dataset, Estimator, EstimatorChoice, Experiment, Verdict, Workbench,
-};
+use workbench::{DataOptions, Dataset, Estimator, EstimatorChoice, Experiment, Verdict, Workbench};
 
 /// Samples of the flight (3000 s at 50 Hz, three times the 18 periodic experiments: the
 /// closed-loop instrumental-variable estimate needs many segments at the low lines).
@@ -94,16 +92,16 @@ fn flight(effects: &[Effect], seed: u64) -> Dataset {
     }
 }
 
-fn discover(effects: &[Effect], seed: u64) -> sim::workbench::Discovery {
+fn discover(effects: &[Effect], seed: u64) -> workbench::Discovery {
     // The excitation was designed for 0.2-4 Hz and the experimenter says so: its soft
     // filters leave power within 20 dB of the peak, coherent with the inputs, down to
     // 0.03-0.12 Hz (by seed and truth) and up to 6.3-6.8 Hz: the band the data alone give is
     // wider than the designed one on both sides.
     let data = flight(effects, seed);
-    let found = sim::workbench::welch::excited_band(&data).unwrap();
+    let found = workbench::welch::excited_band(&data).unwrap();
     assert!(found.0 < 0.2 && found.1 > 6.0, "{found:?}");
     let wb = Workbench::with_options(
-        Arc::new(sim::workbench::flying_platform::FlyingPlatform::default()),
+        Arc::new(sim::systems::flying_platform::FlyingPlatform::default()),
         data,
         EstimatorChoice::Auto,
         DataOptions {

@@ -8,8 +8,8 @@ use std::sync::Arc;
 use flying_platform::{
     Dynamics, Effect, EffectSet, ExperimentDesign, Model, PlatformParams, SimConfig,
 };
-use sim::workbench::flying_platform::{dataset_from_experiments, FlyingPlatform};
-use sim::workbench::{Dataset, Estimator, EstimatorChoice, Periodic, Workbench};
+use sim::systems::flying_platform::{dataset_from_experiments, FlyingPlatform};
+use workbench::{Dataset, Estimator, EstimatorChoice, Periodic, Workbench};
 
 /// The paper's design (50 Hz, 250-sample period, lines 0.2-4 Hz, 200 transient samples)
 /// with four periods and a shorter phase search, and the data of a truth with `effects`.

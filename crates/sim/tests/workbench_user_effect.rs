@@ -8,10 +8,10 @@ use std::sync::Arc;
 
 use flying_platform::{Effect as FpEffect, EffectSet, Model, PlatformParams};
 use sim::cli::SimSystem;
-use sim::workbench::flying_platform::FlyingPlatform;
-use sim::workbench::load;
-use sim::workbench::model::{Effect, Parameter, StateSpace};
-use sim::workbench::{EstimatorChoice, ModelStructure, Workbench};
+use sim::systems::flying_platform::FlyingPlatform;
+use workbench::load;
+use workbench::model::{Effect, Parameter, StateSpace};
+use workbench::{EstimatorChoice, ModelStructure, Workbench};
 
 /// `vz' += -d vz`: linear vertical drag, `d` in 1/s.
 #[derive(Debug)]

@@ -1,7 +1,8 @@
 //! Continuous and discrete Lyapunov equations by the Bartels–Stewart method on the complex
 //! Schur form of `A` (nalgebra's Schur decomposition; O(n^3)).
 
-use super::schur::{complexify, CMatrix, ComplexSchur};
+use super::schur::{complexify, ComplexSchur};
+use super::CMatrix;
 use super::{shaped, square};
 use crate::{Error, Result};
 use nalgebra::{Complex, DMatrix};

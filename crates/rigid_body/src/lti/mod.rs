@@ -1,4 +1,5 @@
-//! Linear time-invariant systems on dense `DMatrix<f64>` (feature `std`): matrix exponential and
+//! Linear time-invariant systems on dense `DMatrix<f64>` (feature `std`): the state-space model
+//! with an input delay ([`StateSpace`]: frequency response, sampling, poles), matrix exponential and
 //! zero-order-hold discretisation, Lyapunov and Riccati equations, LQR gains and
 //! controllability. Every function validates shapes and finiteness and returns a named
 //! [`Error`](crate::Error) instead of panicking.
@@ -20,11 +21,13 @@ mod discretize;
 mod lyapunov;
 mod riccati;
 mod schur;
+mod state_space;
 
 pub use controllability::{ctrb_gramian, ctrb_matrix};
 pub use discretize::{c2d_zoh, c2d_zoh_delay, expm, DelayedZoh, MAX_DELAY_STEPS};
 pub use lyapunov::{dlyap, lyap};
 pub use riccati::{care, dare, dlqr, lqr, Lqr};
+pub use state_space::{CMatrix, Discrete, StateSpace};
 
 use crate::{Error, Result};
 use nalgebra::DMatrix;
@@ -44,6 +47,12 @@ fn square(name: &'static str, m: &DMatrix<f64>) -> Result<usize> {
 
 /// Checks that `m` is `rows x cols` and finite.
 fn shaped(name: &'static str, m: &DMatrix<f64>, rows: usize, cols: usize) -> Result<()> {
+    sized(name, m, rows, cols)?;
+    finite(name, m)
+}
+
+/// Checks that `m` is `rows x cols`.
+fn sized(name: &'static str, m: &DMatrix<f64>, rows: usize, cols: usize) -> Result<()> {
     if m.nrows() != rows || m.ncols() != cols {
         return Err(Error::DimensionMismatch {
             name,
@@ -53,7 +62,7 @@ fn shaped(name: &'static str, m: &DMatrix<f64>, rows: usize, cols: usize) -> Res
             expected_cols: cols,
         });
     }
-    finite(name, m)
+    Ok(())
 }
 
 fn finite(name: &'static str, m: &DMatrix<f64>) -> Result<()> {

@@ -3,8 +3,7 @@
 use crate::{Error, Result};
 use nalgebra::{Complex, DMatrix};
 
-/// Complex matrices.
-pub(super) type CMatrix = DMatrix<Complex<f64>>;
+use super::CMatrix;
 
 /// `A = U T U^H` with `U` unitary and `T` upper triangular (complex, so no 2x2 blocks).
 #[derive(Debug)]

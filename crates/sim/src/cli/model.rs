@@ -9,8 +9,8 @@ use serde_json::json;
 
 use super::Output;
 use crate::error::Result;
-use crate::workbench::identifiability;
-use crate::workbench::{Model, ModelFile, ModelStructure};
+use workbench::identifiability;
+use workbench::{Model, ModelFile, ModelStructure};
 
 /// Verbs on model files.
 #[derive(Debug, Clone, PartialEq, clap::Subcommand)]

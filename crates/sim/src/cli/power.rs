@@ -1,5 +1,5 @@
 //! `stabilis power`: Monte-Carlo detection power and false discoveries of the workbench for a
-//! planned experiment ([`crate::workbench::power`]).
+//! planned experiment ([`workbench::power`]).
 //!
 //! Campaigns run on threads of this process by default. With `--scheduler ADDRESS` they run on
 //! a Dask cluster through the Python package: the study is prepared here, sent as JSON to
@@ -17,10 +17,10 @@ use super::workbench::EstimatorArg;
 use super::Output;
 use crate::error::{Result, SimError};
 use crate::progress::Progress;
-use crate::workbench::load;
-use crate::workbench::model::ModelStructure;
-use crate::workbench::model_file::ModelFile;
-use crate::workbench::power::{self, Outcome, Study, StudyOptions, StudySpec};
+use workbench::load;
+use workbench::model::ModelStructure;
+use workbench::model_file::ModelFile;
+use workbench::power::{self, Outcome, Study, StudyOptions, StudySpec};
 
 /// Environment variable naming the Python interpreter of `--scheduler`.
 pub const PYTHON_VAR: &str = "STABILIS_PYTHON";

@@ -7,11 +7,11 @@ use std::path::PathBuf;
 use super::Output;
 use crate::error::{Result, SimError};
 use crate::progress::Progress;
-use crate::workbench::cubli::{CubliBench, CubliDiscovery};
-use crate::workbench::flying_platform::embedded_dataset;
-use crate::workbench::report::{json, table, write_cubli_report, write_report};
-use crate::workbench::systems::{self, Source};
-use crate::workbench::{load, Criterion, DataOptions, Discovery, EstimatorChoice, Workbench};
+use crate::systems::cubli::{write_cubli_report, CubliBench, CubliDiscovery};
+use crate::systems::flying_platform::embedded_dataset;
+use crate::systems::{self, Source};
+use workbench::report::{json, table, write_report};
+use workbench::{load, Criterion, DataOptions, Discovery, EstimatorChoice, Workbench};
 
 /// Non-parametric estimator.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]

@@ -15,72 +15,7 @@ use crate::error::{Result, SimError};
 /// Default prediction horizon in samples.
 pub const DEFAULT_HORIZON: usize = 10;
 
-/// The model sampled with a zero-order hold at period `t`, input delay `whole T + f`:
-/// `x_{k+1} = Φ x_k + Γ0 u_{k-whole} + Γ1 u_{k-whole-1}`, `y_k = C x_k + D u_{k-d_shift}`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Discrete {
-    /// State transition Φ.
-    pub phi: DMatrix<f64>,
-    /// Input matrix of `u_{k-whole}`.
-    pub gamma0: DMatrix<f64>,
-    /// Input matrix of `u_{k-whole-1}` (zero without a fractional delay).
-    pub gamma1: DMatrix<f64>,
-    /// Output matrix.
-    pub c: DMatrix<f64>,
-    /// Feed-through.
-    pub d: DMatrix<f64>,
-    /// Whole samples of input delay.
-    pub whole: usize,
-    /// Delay of the feed-through in samples (`whole`, plus one with a fractional delay).
-    pub d_shift: usize,
-}
-
-impl StateSpace {
-    /// Samples the model with a zero-order hold at period `t` (exact, with the fractional part
-    /// of the delay split over two input samples, Åström-Wittenmark).
-    pub fn discretize(&self, t: f64) -> Result<Discrete> {
-        self.check()?;
-        if !(t.is_finite() && t > 0.0) {
-            return Err(SimError::invalid(
-                "sample period",
-                t,
-                "must be positive and finite",
-            ));
-        }
-        if !(self.delay.is_finite() && self.delay >= 0.0) {
-            return Err(SimError::invalid(
-                "delay",
-                self.delay,
-                "must be non-negative and finite",
-            ));
-        }
-        let whole = (self.delay / t).floor();
-        let frac = self.delay - whole * t;
-        let lti = |h: f64| {
-            rigid_body::lti::c2d_zoh(&self.a, &self.b, h)
-                .map_err(|e| SimError::domain("sampling the model (zero-order hold)", e))
-        };
-        let (phi, g_full) = lti(t)?;
-        let fractional = frac > 1e-12 * t;
-        let (gamma0, gamma1) = if fractional {
-            let (phi_rest, g0) = lti(t - frac)?;
-            let (_, gf) = lti(frac)?;
-            (g0, &phi_rest * gf)
-        } else {
-            (g_full, DMatrix::zeros(self.b.nrows(), self.b.ncols()))
-        };
-        let whole = whole as usize;
-        Ok(Discrete {
-            phi,
-            gamma0,
-            gamma1,
-            c: self.c.clone(),
-            d: self.d.clone(),
-            whole,
-            d_shift: whole + usize::from(fractional),
-        })
-    }
-}
+pub use rigid_body::lti::Discrete;
 
 /// Default length (samples after the first) of the output window the state is fitted to.
 pub const DEFAULT_WINDOW: usize = 25;
@@ -243,43 +178,32 @@ impl<'a> Runner<'a> {
     }
 }
 
-impl Discrete {
-    /// Spectral radius of Φ (above one: the free-run simulation diverges).
-    pub fn spectral_radius(&self) -> f64 {
-        self.phi
-            .complex_eigenvalues()
-            .iter()
-            .map(|l| l.norm())
-            .fold(0.0, f64::max)
-    }
+/// Free-run simulation of `disc` from the state fitted to the first `m + 1` output samples:
+/// outputs (samples x outputs) and states (samples x states); scored from sample `m`.
+pub fn simulate(
+    disc: &Discrete,
+    u: &DMatrix<f64>,
+    y: &DMatrix<f64>,
+    m: usize,
+) -> Result<(DMatrix<f64>, DMatrix<f64>)> {
+    let r = Runner::new(disc, m)?;
+    Ok(r.simulate(&r.prepare(u, y), y))
+}
 
-    /// Free-run simulation from the state fitted to the first `m + 1` output samples:
-    /// outputs (samples x outputs) and states (samples x states); scored from sample `m`.
-    pub fn simulate(
-        &self,
-        u: &DMatrix<f64>,
-        y: &DMatrix<f64>,
-        m: usize,
-    ) -> Result<(DMatrix<f64>, DMatrix<f64>)> {
-        let r = Runner::new(self, m)?;
-        Ok(r.simulate(&r.prepare(u, y), y))
-    }
-
-    /// k-step-ahead predictions for each horizon in `ks`: for every sample `t >= m + k` the
-    /// state at `t - k` is fitted to the outputs `y_{t-k-m} .. y_{t-k}` and run `k` steps on
-    /// the measured inputs. Rows before `m + k` are copied from the measurement (not scored).
-    /// Also returns, per horizon, the predicted states.
-    pub fn predict(
-        &self,
-        u: &DMatrix<f64>,
-        y: &DMatrix<f64>,
-        ks: &[usize],
-        m: usize,
-    ) -> Result<Vec<(DMatrix<f64>, DMatrix<f64>)>> {
-        let r = Runner::new(self, m)?;
-        let pre = r.prepare(u, y);
-        Ok(ks.iter().map(|&k| r.predict(&pre, y, k)).collect())
-    }
+/// k-step-ahead predictions of `disc` for each horizon in `ks`: for every sample `t >= m + k`
+/// the state at `t - k` is fitted to the outputs `y_{t-k-m} .. y_{t-k}` and run `k` steps on
+/// the measured inputs. Rows before `m + k` are copied from the measurement (not scored).
+/// Also returns, per horizon, the predicted states.
+pub fn predict(
+    disc: &Discrete,
+    u: &DMatrix<f64>,
+    y: &DMatrix<f64>,
+    ks: &[usize],
+    m: usize,
+) -> Result<Vec<(DMatrix<f64>, DMatrix<f64>)>> {
+    let r = Runner::new(disc, m)?;
+    let pre = r.prepare(u, y);
+    Ok(ks.iter().map(|&k| r.predict(&pre, y, k)).collect())
 }
 
 /// Accumulates `|y - ŷ|²` and `|y - mean y|²` per output over several records.
@@ -617,7 +541,7 @@ mod tests {
             x = p * x + g * u[(k, 0)];
         }
         // The window fit recovers the state exactly from noise-free outputs.
-        let (ys, _) = disc.simulate(&u, &y, 5).unwrap();
+        let (ys, _) = simulate(&disc, &u, &y, 5).unwrap();
         for k in 5..200 {
             assert!((ys[(k, 0)] - y[(k, 0)]).abs() < 1e-10, "sample {k}");
         }
@@ -633,8 +557,8 @@ mod tests {
         let late = lag(1.0, 1.0, 3.0 * t).discretize(t).unwrap();
         assert_eq!(late.whole, 3);
         // Zero outputs over the window: the fitted initial state is zero in both runs.
-        let (a, _) = plain.simulate(&u, &y, 0).unwrap();
-        let (b, _) = late.simulate(&u, &y, 0).unwrap();
+        let (a, _) = simulate(&plain, &u, &y, 0).unwrap();
+        let (b, _) = simulate(&late, &u, &y, 0).unwrap();
         for k in 3..100 {
             assert!((b[(k, 0)] - a[(k - 3, 0)]).abs() < 1e-12);
         }
@@ -663,8 +587,8 @@ mod tests {
             y[(k, 0)] = x[0];
             x = &disc.phi * x + &disc.gamma0 * u[(k, 0)];
         }
-        let (ys, _) = disc.simulate(&u, &y, 10).unwrap();
-        let p = disc.predict(&u, &y, &[5, 1], 10).unwrap();
+        let (ys, _) = simulate(&disc, &u, &y, 10).unwrap();
+        let p = predict(&disc, &u, &y, &[5, 1], 10).unwrap();
         let score = |yhat: &DMatrix<f64>, from: usize| {
             let mut acc = FitAccumulator::new(1);
             acc.add(&y, yhat, from);
@@ -676,8 +600,8 @@ mod tests {
         let mut wrong = oscillator();
         wrong.a[(1, 0)] = -6.0;
         let wd = wrong.discretize(0.05).unwrap();
-        let (yw, _) = wd.simulate(&u, &y, 10).unwrap();
-        let pw = wd.predict(&u, &y, &[5, 1], 10).unwrap();
+        let (yw, _) = simulate(&wd, &u, &y, 10).unwrap();
+        let pw = predict(&wd, &u, &y, &[5, 1], 10).unwrap();
         let (fs, f5, f1) = (score(&yw, 10), score(&pw[0].0, 15), score(&pw[1].0, 11));
         // A wrong stiffness hurts the free run most and the one-step prediction least.
         assert!(fs < 90.0 && f1 > f5 && f5 > fs, "{fs} {f5} {f1}");
@@ -742,8 +666,8 @@ mod tests {
                     + &disc.gamma1 * at(s, disc.whole + 1);
             }
             let m = 4;
-            let (ys, _) = disc.simulate(&u, &y, m).unwrap();
-            let p = disc.predict(&u, &y, &[k, 1], m).unwrap();
+            let (ys, _) = simulate(&disc, &u, &y, m).unwrap();
+            let p = predict(&disc, &u, &y, &[k, 1], m).unwrap();
             let scale = y.amax().max(1e-3);
             for s in m..n {
                 for i in 0..2 {

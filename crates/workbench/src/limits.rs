@@ -28,9 +28,9 @@ pub fn budget() -> f64 {
 /// [`budget`]; `name = value` is the option as the user spelled it. Returns `count` rounded.
 ///
 /// ```
-/// let err = sim::limits::check("duration", 1e9, 1e11, 200.0).unwrap_err();
+/// let err = workbench::limits::check("duration", 1e9, 1e11, 200.0).unwrap_err();
 /// assert!(err.to_string().starts_with("invalid duration = 1000000000:"), "{err}");
-/// assert_eq!(sim::limits::check("duration", 10.0, 1000.0, 200.0).unwrap(), 1000);
+/// assert_eq!(workbench::limits::check("duration", 10.0, 1000.0, 200.0).unwrap(), 1000);
 /// ```
 pub fn check(name: &str, value: impl ToString, count: f64, bytes_per_item: f64) -> Result<usize> {
     if !(count.is_finite() && count >= 0.0) {

@@ -119,7 +119,7 @@ mod tests {
     use std::sync::Arc;
 
     use super::*;
-    use crate::workbench::ModelFile;
+    use crate::ModelFile;
 
     /// `G = (1/Jp) / (s^2 - m g l / Jp)` with `Jp = J + m l^2`: the response fixes two
     /// combinations of m, l, J, so the three are one unseparated group; a parameter that enters

@@ -8,7 +8,7 @@ use super::*;
 use crate::error::SimError;
 
 fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("sim-log-tests-{}", std::process::id()));
+    let dir = std::env::temp_dir().join(format!("workbench-log-tests-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     dir.join(name)
 }

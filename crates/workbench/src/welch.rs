@@ -571,7 +571,7 @@ mod tests {
     /// power it is refused.
     #[test]
     fn excited_band_is_read_from_the_excitation() {
-        use crate::workbench::dataset::Experiment;
+        use crate::dataset::Experiment;
         let (fs, n) = (50.0, 20_000);
         let bin = fs / ((2 * n / (MIN_SEGMENTS + 1)) & !1) as f64;
         let r = DMatrix::from_fn(n, 1, |k, _| {
@@ -606,8 +606,8 @@ mod tests {
         let msg = excited_band(&data).unwrap_err().to_string();
         assert!(msg.contains("carries no power"), "{msg}");
     }
-    use crate::workbench::cost::WeightedCost;
-    use crate::workbench::dataset::Experiment;
+    use crate::cost::WeightedCost;
+    use crate::dataset::Experiment;
     use proptest::prelude::*;
     use rand::{Rng, SeedableRng};
     use rand_distr::StandardNormal;

@@ -32,7 +32,7 @@ struct Topic {
 /// Writes one run to an MCAP file.
 ///
 /// ```
-/// use sim::log::{LogWriter, read_mcap};
+/// use workbench::log::{LogWriter, read_mcap};
 /// let path = std::env::temp_dir().join("sim_doc_writer.mcap");
 /// let mut log = LogWriter::create(&path).unwrap();
 /// let output = log.add_topic("/demo/output", &["x"]).unwrap();

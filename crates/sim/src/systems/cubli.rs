@@ -18,7 +18,7 @@
 //! only through window integrals of many samples, which averages it out; the residual variance
 //! of each channel is estimated from the data (the fit with every candidate), not assumed.
 //!
-//! Significance follows the flying-platform loop ([`super::discover`]): F test of the nested
+//! Significance follows the flying-platform loop ([`workbench::discover`]): F test of the nested
 //! models at the Bonferroni-corrected level and a lower BIC, best candidate first, repeat;
 //! a candidate is added only if it then leaves no structured misfit, or stays significant
 //! with the generic probes below as nuisance columns (see [`CubliBench::discover`]).
@@ -32,18 +32,19 @@
 //! mean gravity direction is held at zero (near upright it is indistinguishable from a slow
 //! yaw rate of the housing).
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use serde::Serialize;
 use serde_json::{json, Value};
 
-use super::dataset::Dataset;
-use super::diagnose::LEVEL;
-use super::discover::CandidateScore;
-use super::load;
-use super::stats::f_sf;
-use crate::error::{Result, SimError};
+use workbench::dataset::Dataset;
+use workbench::diagnose::LEVEL;
+use workbench::discover::CandidateScore;
+use workbench::load;
+use workbench::report::{chart, cost_bars, escape, page, per_step, publish, XAxis};
+use workbench::stats::f_sf;
+use workbench::{Result, SimError};
 
 /// Candidate effects, in the order tried.
 pub const CANDIDATES: [&str; 4] = [
@@ -1009,6 +1010,91 @@ impl CubliBench {
 /// Runs the discovery loop on Cubli data from the nominal model.
 pub fn discover(data: &Dataset, opts: &CubliOptions) -> Result<CubliDiscovery> {
     CubliBench::new(data, opts)?.discover()
+}
+
+/// Writes the Cubli HTML report into `dir` (same rules).
+pub fn write_cubli_report(dir: &Path, d: &CubliDiscovery) -> Result<()> {
+    publish(dir, &cubli_html(d), &d.json())
+}
+
+/// The Cubli report: summary, error per step, parameter table, residual level per channel
+/// and step, the residual over time of the worst channel, verdict.
+fn cubli_html(d: &CubliDiscovery) -> String {
+    let mut body = String::new();
+    let _ = write!(
+        body,
+        "<h1>stabilis workbench: cubli</h1><p>Time-domain prediction error over {} windows of {} samples from {} experiments; residual channels {}.</p><h2>Verdict</h2><p><b>{}</b>. Found: [{}]. Tentative: [{}].</p>",
+        d.windows,
+        d.window_samples,
+        d.experiments,
+        CHANNELS.join(", "),
+        escape(&d.verdict()),
+        escape(&d.found.join(", ")),
+        escape(&d.tentative.join(", "))
+    );
+    let _ = write!(body, "<h2>Summary</h2><pre>{}</pre>", escape(&d.table()));
+    let bars: Vec<(String, f64)> = d
+        .steps
+        .iter()
+        .map(|s| (s.added.clone().unwrap_or_else(|| "start".into()), s.cost))
+        .collect();
+    // The weighted cost of noise alone is about the number of residual rows.
+    body.push_str(&cost_bars(&bars, (d.windows * CHANNELS.len()) as f64));
+    body.push_str("<h2>Parameters</h2><table><tr><th>step</th><th>effect added</th><th>parameter</th><th>value</th><th>standard error</th></tr>");
+    for (i, st) in d.steps.iter().enumerate() {
+        for p in &st.params {
+            let _ = write!(
+                body,
+                "<tr><td>{i}</td><td>{}</td><td>{}</td><td>{:.5e}</td><td>{:.2e}</td></tr>",
+                escape(st.added.as_deref().unwrap_or("start")),
+                escape(&p.name),
+                p.value,
+                p.std
+            );
+        }
+    }
+    body.push_str("</table>");
+    let label =
+        |k: usize, st: &CubliStep| format!("{k}: {}", st.added.as_deref().unwrap_or("start"));
+    let rms = per_step(&d.steps, label, true, |st| {
+        st.channel_rms_over_noise
+            .iter()
+            .enumerate()
+            .map(|(c, v)| ((c + 1) as f64, *v))
+            .collect()
+    });
+    let channel_axis = XAxis::linear("channel (1-3 p_w, 4-6 p_h, 7-9 g)");
+    let _ = write!(
+        body,
+        "<h2>Residuals</h2><p>RMS window residual over the estimated noise standard deviation per channel (1 = noise level).</p>{}",
+        chart("residual rms / noise", channel_axis, "ratio", &rms)
+    );
+    let worst = d.steps.first().map_or(0, |st| {
+        st.channel_rms_over_noise
+            .iter()
+            .enumerate()
+            .fold(
+                (0, f64::NEG_INFINITY),
+                |a, (c, v)| if *v > a.1 { (c, *v) } else { a },
+            )
+            .0
+    });
+    let series = per_step(&d.steps, label, false, |st| {
+        d.rows
+            .iter()
+            .zip(&st.whitened_residuals)
+            .filter(|((c, e, _), _)| *c == worst && *e == 0)
+            .map(|((_, _, t), v)| (*t, *v))
+            .collect()
+    });
+    let time_axis = XAxis::linear("time (s), experiment 1");
+    let _ = write!(
+        body,
+        "<p>Residual of channel {} (largest misfit of the starting model) over the windows of the first experiment, in noise standard deviations.</p>{}",
+        CHANNELS[worst],
+        chart(&format!("{} residual / noise", CHANNELS[worst]), time_axis, "residual / std", &series)
+    );
+    page(&body)
 }
 
 #[cfg(test)]

@@ -225,7 +225,7 @@ pub fn for_structure(structure: &dyn ModelStructure) -> Vec<Arc<dyn Effect>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::workbench::spectra::C64;
+    use crate::spectra::C64;
 
     fn plant() -> StateSpace {
         StateSpace {
@@ -269,9 +269,8 @@ mod tests {
         let text = "name = \"p\"\nstates = [\"x\"]\ninputs = [\"u\"]\noutputs = [\"x\"]\n\
                     [parameters]\ntau = { value = 0.5, min = 0.01 }\n\
                     [linear]\nA = [[\"-1/tau\"]]\nB = [[1]]\nC = [[1]]\n";
-        let file =
-            crate::workbench::ModelFile::parse(text, std::path::Path::new("p.toml")).unwrap();
-        let model = crate::workbench::Model::new(Arc::new(file))
+        let file = crate::ModelFile::parse(text, std::path::Path::new("p.toml")).unwrap();
+        let model = crate::Model::new(Arc::new(file))
             .with_effect("actuator_lag")
             .unwrap();
         let names: Vec<String> = model

@@ -10,7 +10,7 @@ pub const UNIFORM_TOLERANCE: f64 = 0.01;
 /// Time-stamped samples of named fields, stored by column.
 ///
 /// ```
-/// use sim::log::Table;
+/// use workbench::log::Table;
 /// let mut table = Table::new("/demo/output", ["x", "v"]);
 /// table.push(0.0, &[1.0, 0.0]).unwrap();
 /// table.push(0.1, &[0.9, -1.0]).unwrap();

@@ -8,11 +8,11 @@ use nalgebra::DMatrix;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
-use sim::workbench::{
+use workbench::Result;
+use workbench::{
     Dataset, Estimator, EstimatorChoice, Experiment, Model, ModelStructure, Parameter, Periodic,
     StateSpace, Verdict, Workbench,
 };
-use sim::Result;
 
 /// `x' = A x + B u`, `A = [[-a1, k], [0, -a2]]`, `B = diag(g1, g2)`; effect `coupling` is `k`,
 /// effect `lag` a first-order lag `tau` on both inputs, effect `leak` a direct feed-through
@@ -47,7 +47,7 @@ impl ModelStructure for Toy {
             match e.as_str() {
                 "coupling" => p.push(Parameter::new("k", 0.5, -20.0, 20.0, "1/s")),
                 "lag" => p.push(Parameter::new("tau", 0.02, 1e-3, 1.0, "s")),
-                _ => return Err(sim::SimError::invalid("effect", e, "unknown")),
+                _ => return Err(workbench::SimError::invalid("effect", e, "unknown")),
             }
         }
         Ok(p)
@@ -76,7 +76,7 @@ impl ModelStructure for Toy {
                     a = a4;
                     b = b4;
                 }
-                _ => return Err(sim::SimError::invalid("effect", e, "unknown")),
+                _ => return Err(workbench::SimError::invalid("effect", e, "unknown")),
             }
         }
         let n = a.nrows();
@@ -210,7 +210,7 @@ fn frf_of_noise_free_closed_loop_equals_sampled_model() {
         EstimatorChoice::LeastSquares,
         EstimatorChoice::InstrumentalVariable,
     ] {
-        let frf = sim::workbench::frf::periodic_frf(&data, choice).unwrap();
+        let frf = workbench::frf::periodic_frf(&data, choice).unwrap();
         assert_eq!(frf.lines.len(), 15);
         let model = Model::new(Arc::new(Toy)).with_effect("coupling").unwrap();
         let g = model

@@ -401,7 +401,7 @@ pub(crate) fn gain(disc: &Discrete, q: &DMatrix<f64>, r: &DMatrix<f64>) -> Resul
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::workbench::StateSpace;
+    use crate::StateSpace;
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
     use rand_distr::StandardNormal;

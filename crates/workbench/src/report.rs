@@ -5,7 +5,6 @@ use std::path::Path;
 
 use serde_json::{json, Value};
 
-use super::cubli::{CubliDiscovery, CubliStep, CHANNELS as CUBLI_CHANNELS};
 use super::discover::{Discovery, Step};
 use super::fit::ParamEstimate;
 use super::frf::CMatrix;
@@ -290,13 +289,8 @@ pub fn write_report(dir: &Path, wb: &Workbench, d: &Discovery) -> Result<()> {
     publish(dir, &html(wb, d), &json(wb, d))
 }
 
-/// Writes the Cubli HTML report into `dir` (same rules).
-pub fn write_cubli_report(dir: &Path, d: &CubliDiscovery) -> Result<()> {
-    publish(dir, &cubli_html(d), &d.json())
-}
-
 /// Writes `index.html` and `discover.json` into a new directory `dir`.
-fn publish(dir: &Path, html: &str, json: &Value) -> Result<()> {
+pub fn publish(dir: &Path, html: &str, json: &Value) -> Result<()> {
     output::write_dir_atomically(dir, &[], |tmp| {
         let index = tmp.join("index.html");
         std::fs::write(&index, html).map_err(|e| SimError::io(&index, e))?;
@@ -309,7 +303,8 @@ pub(crate) const COLORS: [&str; 6] = [
 ];
 
 /// A plotted series.
-pub(crate) struct Series<'a> {
+#[derive(Debug)]
+pub struct Series<'a> {
     pub(crate) name: String,
     pub(crate) color: &'a str,
     pub(crate) points: Vec<(f64, f64)>,
@@ -318,14 +313,15 @@ pub(crate) struct Series<'a> {
 }
 
 /// The x axis of a chart.
-#[derive(Clone, Copy)]
-pub(crate) struct XAxis<'a> {
+#[derive(Debug, Clone, Copy)]
+pub struct XAxis<'a> {
     label: &'a str,
     log: bool,
 }
 
 impl<'a> XAxis<'a> {
-    pub(crate) fn linear(label: &'a str) -> Self {
+    /// A linear axis with this label.
+    pub fn linear(label: &'a str) -> Self {
         Self { label, log: false }
     }
 }
@@ -346,7 +342,7 @@ const LAG: XAxis<'static> = XAxis {
 };
 
 /// One series per step, coloured by step.
-fn per_step<S>(
+pub fn per_step<S>(
     steps: &[S],
     label: impl Fn(usize, &S) -> String,
     markers: bool,
@@ -366,12 +362,7 @@ fn per_step<S>(
 }
 
 /// An SVG chart with a logarithmic or linear x axis and a linear y axis.
-pub(crate) fn chart(
-    title: &str,
-    x_axis: XAxis<'_>,
-    y_label: &str,
-    series: &[Series<'_>],
-) -> String {
+pub fn chart(title: &str, x_axis: XAxis<'_>, y_label: &str, series: &[Series<'_>]) -> String {
     let (w, h, l, r, t, b) = (520.0, 300.0, 60.0, 150.0, 28.0, 40.0);
     let xs = series.iter().flat_map(|s| s.points.iter().map(|p| p.0));
     let (xmin, xmax) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
@@ -569,7 +560,8 @@ fn fmt_num(v: f64) -> String {
     format!("{v:.decimals$}")
 }
 
-pub(crate) fn escape(s: &str) -> String {
+/// Escapes `&`, `<` and `>` for HTML text.
+pub fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
@@ -722,10 +714,9 @@ fn parameter_table(wb: &Workbench, d: &Discovery) -> String {
         .and_then(|st| {
             st.effects
                 .iter()
-                .try_fold(
-                    crate::workbench::Model::new(wb.model().structure().clone()),
-                    |m, e| m.with_effect(e),
-                )
+                .try_fold(crate::Model::new(wb.model().structure().clone()), |m, e| {
+                    m.with_effect(e)
+                })
                 .ok()
         })
         .and_then(|m| m.parameters().ok())
@@ -802,10 +793,12 @@ fn time_series(wb: &Workbench, d: &Discovery) -> String {
     );
     let mut predicted = Vec::new();
     for st in [first, last] {
-        let model = st.effects.iter().try_fold(
-            crate::workbench::Model::new(wb.model().structure().clone()),
-            |m, e| m.with_effect(e),
-        );
+        let model = st
+            .effects
+            .iter()
+            .try_fold(crate::Model::new(wb.model().structure().clone()), |m, e| {
+                m.with_effect(e)
+            });
         let series = model
             .and_then(|m| m.state_space(&st.theta))
             .and_then(|ss| super::timedomain::kalman_series(data, &ss, k, 0, SERIES_SAMPLES));
@@ -906,13 +899,13 @@ fn autocorrelation(d: &Discovery) -> String {
 }
 
 /// The HTML page around `body` (inline style, no scripts).
-pub(crate) fn page(body: &str) -> String {
+pub fn page(body: &str) -> String {
     format!("<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>stabilis workbench</title><style>body{{font-family:sans-serif;max-width:1100px;margin:auto}} svg{{margin:4px}} pre{{background:#f4f4f4;padding:8px;overflow-x:auto}} td,th{{padding:2px 8px;text-align:right}}</style></head><body>{body}</body></html>")
 }
 
 /// "Error per step": one bar per step, height log10 of the weighted cost, with the level
 /// noise alone gives as a dashed line.
-fn cost_bars(steps: &[(String, f64)], noise: f64) -> String {
+pub fn cost_bars(steps: &[(String, f64)], noise: f64) -> String {
     let mut body = String::from("<h2>Error per step</h2><svg xmlns=\"http://www.w3.org/2000/svg\" width=\"520\" height=\"220\" font-family=\"sans-serif\" font-size=\"11\">");
     let logs: Vec<f64> = steps.iter().map(|(_, c)| c.max(1e-300).log10()).collect();
     let noise = noise.max(1e-300).log10();
@@ -940,86 +933,6 @@ fn cost_bars(steps: &[(String, f64)], noise: f64) -> String {
         ny - 4.0
     );
     body
-}
-
-/// The Cubli report: summary, error per step, parameter table, residual level per channel
-/// and step, the residual over time of the worst channel, verdict.
-fn cubli_html(d: &CubliDiscovery) -> String {
-    let mut body = String::new();
-    let _ = write!(
-        body,
-        "<h1>stabilis workbench: cubli</h1><p>Time-domain prediction error over {} windows of {} samples from {} experiments; residual channels {}.</p><h2>Verdict</h2><p><b>{}</b>. Found: [{}]. Tentative: [{}].</p>",
-        d.windows,
-        d.window_samples,
-        d.experiments,
-        CUBLI_CHANNELS.join(", "),
-        escape(&d.verdict()),
-        escape(&d.found.join(", ")),
-        escape(&d.tentative.join(", "))
-    );
-    let _ = write!(body, "<h2>Summary</h2><pre>{}</pre>", escape(&d.table()));
-    let bars: Vec<(String, f64)> = d
-        .steps
-        .iter()
-        .map(|s| (s.added.clone().unwrap_or_else(|| "start".into()), s.cost))
-        .collect();
-    // The weighted cost of noise alone is about the number of residual rows.
-    body.push_str(&cost_bars(&bars, (d.windows * CUBLI_CHANNELS.len()) as f64));
-    body.push_str("<h2>Parameters</h2><table><tr><th>step</th><th>effect added</th><th>parameter</th><th>value</th><th>standard error</th></tr>");
-    for (i, st) in d.steps.iter().enumerate() {
-        for p in &st.params {
-            let _ = write!(
-                body,
-                "<tr><td>{i}</td><td>{}</td><td>{}</td><td>{:.5e}</td><td>{:.2e}</td></tr>",
-                escape(st.added.as_deref().unwrap_or("start")),
-                escape(&p.name),
-                p.value,
-                p.std
-            );
-        }
-    }
-    body.push_str("</table>");
-    let label =
-        |k: usize, st: &CubliStep| format!("{k}: {}", st.added.as_deref().unwrap_or("start"));
-    let rms = per_step(&d.steps, label, true, |st| {
-        st.channel_rms_over_noise
-            .iter()
-            .enumerate()
-            .map(|(c, v)| ((c + 1) as f64, *v))
-            .collect()
-    });
-    let channel_axis = XAxis::linear("channel (1-3 p_w, 4-6 p_h, 7-9 g)");
-    let _ = write!(
-        body,
-        "<h2>Residuals</h2><p>RMS window residual over the estimated noise standard deviation per channel (1 = noise level).</p>{}",
-        chart("residual rms / noise", channel_axis, "ratio", &rms)
-    );
-    let worst = d.steps.first().map_or(0, |st| {
-        st.channel_rms_over_noise
-            .iter()
-            .enumerate()
-            .fold(
-                (0, f64::NEG_INFINITY),
-                |a, (c, v)| if *v > a.1 { (c, *v) } else { a },
-            )
-            .0
-    });
-    let series = per_step(&d.steps, label, false, |st| {
-        d.rows
-            .iter()
-            .zip(&st.whitened_residuals)
-            .filter(|((c, e, _), _)| *c == worst && *e == 0)
-            .map(|((_, _, t), v)| (*t, *v))
-            .collect()
-    });
-    let time_axis = XAxis::linear("time (s), experiment 1");
-    let _ = write!(
-        body,
-        "<p>Residual of channel {} (largest misfit of the starting model) over the windows of the first experiment, in noise standard deviations.</p>{}",
-        CUBLI_CHANNELS[worst],
-        chart(&format!("{} residual / noise", CUBLI_CHANNELS[worst]), time_axis, "residual / std", &series)
-    );
-    page(&body)
 }
 
 #[cfg(test)]

@@ -11,31 +11,37 @@
 //! 4. diagnosis by line and channel ([`diagnose`]), in the time domain ([`timedomain`]: fit %
 //!    of simulation and k-step prediction; [`residual`]: whiteness and input correlation) and
 //!    the discovery loop ([`discover`]).
+//!
+//! The crate knows no system: a system is a [`ModelStructure`] (the simulator crate adapts the
+//! flying platform and the Cubli; a user writes a model file, [`ModelFile`]). Below the chain
+//! lie the data it reads and writes: [`log`] (MCAP and CSV logs), [`output`] (never over an
+//! input, temporary file + rename), [`limits`] (memory budgets) and the one [`error`] type.
 pub mod closed_loop;
 pub mod cost;
-pub mod cubli;
 pub mod dataset;
 pub mod diagnose;
 pub mod discover;
 pub mod dynamics;
+pub mod error;
 pub mod expr;
 pub mod fit;
-pub mod flying_platform;
 pub mod frf;
 pub mod generic;
 pub mod identifiability;
 pub mod kalman;
+pub mod limits;
 pub mod load;
+pub mod log;
 pub mod model;
 pub mod model_file;
 pub mod noise;
+pub mod output;
 pub mod power;
 pub mod prediction;
 pub mod report;
 pub mod residual;
 pub mod spectra;
 pub mod stats;
-pub mod systems;
 pub mod timedomain;
 pub mod welch;
 
@@ -49,8 +55,8 @@ pub use model::{Effect, Model, ModelStructure, Parameter, StateSpace};
 pub use model_file::{Controller, ModelFile};
 pub use prediction::Criterion;
 
-use crate::error::{Result, SimError};
 use cost::WeightedCost;
+pub use error::{Result, SimError};
 use noise::NoiseReference;
 
 /// Monte-Carlo draws for the noise reference.

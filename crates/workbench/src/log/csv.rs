@@ -10,7 +10,7 @@ use crate::error::{Result, SimError};
 /// ```
 /// let path = std::env::temp_dir().join("sim_doc_read.csv");
 /// std::fs::write(&path, "t,x\n0,1.5\n0.1,2.5\n").unwrap();
-/// let table = sim::log::read_csv(&path).unwrap();
+/// let table = workbench::log::read_csv(&path).unwrap();
 /// assert_eq!(table.column("x").unwrap(), &[1.5, 2.5]);
 /// ```
 pub fn read_csv(path: impl AsRef<Path>) -> Result<Table> {

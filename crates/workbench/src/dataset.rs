@@ -170,7 +170,7 @@ const REPETITION_TOLERANCE: f64 = 1e-6;
 ///
 /// ```
 /// use nalgebra::DMatrix;
-/// use sim::workbench::dataset::detect_period;
+/// use workbench::dataset::detect_period;
 ///
 /// let r = DMatrix::from_fn(110, 1, |i, _| [0.0, 1.0, -2.0, 0.5, 3.0][i % 5]);
 /// let p = detect_period(&r).unwrap();

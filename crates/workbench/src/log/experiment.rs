@@ -23,7 +23,7 @@ pub struct Periodic {
 /// What a log's `experiment` record says.
 ///
 /// ```
-/// use sim::log::Experiment;
+/// use workbench::log::Experiment;
 /// let mut experiment = Experiment::new(100.0);
 /// experiment.extra.insert("system".into(), "wheel-pendulum".into());
 /// let record = experiment.to_metadata();

@@ -1,11 +1,11 @@
 //! The workbench's model interface: a structure with named parameters and switchable physical
 //! effects that yields a continuous-time state-space model for a parameter vector.
 //!
-//! Domain crates export their effects as plain types; sim adapts them to [`ModelStructure`].
+//! Domain crates export their effects as plain types; the simulator crate (`sim::systems`)
+//! adapts them to [`ModelStructure`].
 //! A user-defined effect is an [`Effect`] that edits the state-space model of any structure.
 use std::sync::Arc;
 
-use nalgebra::DMatrix;
 use serde::Serialize;
 
 use super::dynamics::Dynamics;
@@ -79,148 +79,20 @@ pub fn check_parameters(params: &[Parameter]) -> Result<()> {
     Ok(())
 }
 
-/// Continuous-time `x' = A x + B u(t - delay)`, `y = C x + D u(t - delay)`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct StateSpace {
-    /// State matrix.
-    pub a: DMatrix<f64>,
-    /// Input matrix.
-    pub b: DMatrix<f64>,
-    /// Output matrix.
-    pub c: DMatrix<f64>,
-    /// Feed-through.
-    pub d: DMatrix<f64>,
-    /// Input delay in seconds.
-    pub delay: f64,
-}
+/// The state-space model every structure yields: one type for the domain crates and the
+/// workbench ([`rigid_body::lti::StateSpace`]).
+pub use rigid_body::lti::StateSpace;
 
-impl StateSpace {
-    /// Checks the four matrices fit together, naming the one that does not.
-    pub fn check(&self) -> Result<()> {
-        let n = self.a.nrows();
-        let dims = [
-            ("A columns", self.a.ncols(), n),
-            ("B rows", self.b.nrows(), n),
-            ("C columns", self.c.ncols(), n),
-            ("D rows", self.d.nrows(), self.c.nrows()),
-            ("D columns", self.d.ncols(), self.b.ncols()),
-        ];
-        for (what, found, expected) in dims {
-            if found != expected {
-                return Err(SimError::LengthMismatch {
-                    what: format!("state-space {what}"),
-                    expected,
-                    found,
-                });
-            }
+/// The factor that turns the delay-free continuous response at `omega` into the model's: the
+/// delay, and with a zero-order hold of period T its droop `e^{-jwT/2} sin(wT/2) / (wT/2)`.
+fn factor(ss: &StateSpace, omega: f64, hold: Option<f64>) -> C64 {
+    let delay = C64::new(0.0, -omega * ss.delay).exp();
+    match hold {
+        Some(t) if omega > 0.0 => {
+            let x = 0.5 * omega * t;
+            delay * C64::new(0.0, -x).exp() * (x.sin() / x)
         }
-        Ok(())
-    }
-
-    /// Frequency responses at `freqs_hz`. With `hold = None` the continuous-time response with
-    /// the delay, `(C (jwI - A)^-1 B + D) e^{-jw delay}`. With `hold = Some(T)` the exact response
-    /// of the sampled system whose inputs are held over each period T and whose outputs are
-    /// sampled at the period boundaries: with the delay `tau = d T + f`,
-    /// `x_{k+1} = Φ x_k + Γ0 u_{k-d} + Γ1 u_{k-d-1}` (Åström-Wittenmark), evaluated at
-    /// `z = e^{jwT}`. This includes the hold's droop and the aliasing of the plant response.
-    pub fn frf_lines(&self, freqs_hz: &[f64], hold: Option<f64>) -> Result<Vec<CMatrix>> {
-        let two_pi = 2.0 * std::f64::consts::PI;
-        let Some(t) = hold else {
-            return freqs_hz
-                .iter()
-                .map(|f| {
-                    let w = two_pi * f;
-                    Ok(self.resolvent_frf(w)?.0 * C64::new(0.0, -w * self.delay).exp())
-                })
-                .collect();
-        };
-        let super::timedomain::Discrete {
-            phi,
-            gamma0,
-            gamma1,
-            whole,
-            d_shift,
-            ..
-        } = self.discretize(t)?;
-        let (whole, d_shift) = (whole as f64, d_shift as f64);
-        let n = self.a.nrows();
-        let c = self.c.map(C64::from);
-        freqs_hz
-            .iter()
-            .map(|f| {
-                let w = two_pi * f;
-                let z = C64::new(0.0, w * t).exp();
-                let m = CMatrix::from_fn(n, n, |i, j| {
-                    let a = C64::from(-phi[(i, j)]);
-                    if i == j {
-                        a + z
-                    } else {
-                        a
-                    }
-                });
-                let rhs = gamma0.map(C64::from) + gamma1.map(C64::from) / z;
-                let x = m.lu().solve(&rhs).ok_or_else(|| {
-                    SimError::invalid(
-                        "model",
-                        format!("pole on the unit circle at {f:.4} Hz"),
-                        "zI - Φ is singular on an excited line",
-                    )
-                })?;
-                let delay = C64::new(0.0, -w * t * whole).exp();
-                let feed = self.d.map(C64::from) * C64::new(0.0, -w * t * d_shift).exp();
-                Ok(&c * x * delay + feed)
-            })
-            .collect()
-    }
-
-    fn factor(&self, omega: f64, hold: Option<f64>) -> C64 {
-        let delay = C64::new(0.0, -omega * self.delay).exp();
-        match hold {
-            Some(t) if omega > 0.0 => {
-                let x = 0.5 * omega * t;
-                delay * C64::new(0.0, -x).exp() * (x.sin() / x)
-            }
-            _ => delay,
-        }
-    }
-
-    /// `C (jwI - A)^-1 B + D` and the resolvent pieces `(C X, X B)` used for derivatives.
-    fn resolvent_frf(&self, omega: f64) -> Result<(CMatrix, (CMatrix, CMatrix))> {
-        let n = self.a.nrows();
-        let s = C64::new(0.0, omega);
-        let m = CMatrix::from_fn(n, n, |i, j| {
-            let a = C64::from(-self.a[(i, j)]);
-            if i == j {
-                a + s
-            } else {
-                a
-            }
-        });
-        let lu = m.clone().lu();
-        let bc = self.b.map(C64::from);
-        let xb = lu.solve(&bc).ok_or_else(|| {
-            SimError::invalid(
-                "model",
-                format!("pole at j{omega:.4} rad/s"),
-                "sI - A is singular on an excited line",
-            )
-        })?;
-        let ct = self.c.transpose().map(C64::from);
-        // (C X)^T = X^T C^T: solve with the transposed matrix.
-        let cx = m
-            .transpose()
-            .lu()
-            .solve(&ct)
-            .ok_or_else(|| {
-                SimError::invalid(
-                    "model",
-                    format!("pole at j{omega:.4} rad/s"),
-                    "sI - A is singular",
-                )
-            })?
-            .transpose();
-        let g = self.c.map(C64::from) * &xb + self.d.map(C64::from);
-        Ok((g, (cx, xb)))
+        _ => delay,
     }
 }
 
@@ -523,7 +395,7 @@ impl Model {
 
     /// FRF on `freqs_hz` at `theta`.
     pub fn frf(&self, theta: &[f64], freqs_hz: &[f64], hold: Option<f64>) -> Result<Vec<CMatrix>> {
-        self.state_space(theta)?.frf_lines(freqs_hz, hold)
+        Ok(self.state_space(theta)?.frf_lines(freqs_hz, hold)?)
     }
 
     /// FRF and its derivatives with respect to each parameter, `out[k][i] = dG(w_k)/dtheta_i`.
@@ -582,8 +454,8 @@ impl Model {
         let mut js = Vec::with_capacity(freqs_hz.len());
         for f in freqs_hz {
             let w = 2.0 * std::f64::consts::PI * f;
-            let (g0, (cx, xb)) = ss.resolvent_frf(w)?;
-            let fac = ss.factor(w, hold);
+            let (g0, (cx, xb)) = ss.resolvent(w)?;
+            let fac = factor(&ss, w, hold);
             let g = &g0 * fac;
             let mut jac = Vec::with_capacity(derivs.len());
             for (da, db, dc, dd, ddelay) in &derivs {

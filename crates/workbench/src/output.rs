@@ -14,10 +14,10 @@
 //! Refusals are [`SimError::UnsafeOutput`] (exit code 2) naming the path.
 //!
 //! ```
-//! use sim::output::{write_atomically, Kind};
+//! use workbench::output::{write_atomically, Kind};
 //! let path = std::env::temp_dir().join(format!("sim_doc_output_{}.json", std::process::id()));
 //! write_atomically(&path, Kind::Json, &[], |tmp| {
-//!     std::fs::write(tmp, "{}").map_err(|e| sim::SimError::io(tmp, e))
+//!     std::fs::write(tmp, "{}").map_err(|e| workbench::SimError::io(tmp, e))
 //! })
 //! .unwrap();
 //! // The output can never be an input.

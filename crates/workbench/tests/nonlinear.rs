@@ -11,7 +11,7 @@ use proptest::prelude::*;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
-use sim::workbench::{
+use workbench::{
     Criterion, DataOptions, Dataset, EstimatorChoice, Experiment, ModelFile, ModelStructure,
     Workbench,
 };
@@ -42,7 +42,7 @@ parameters = { b = { value = 0.05, min = 0.0, max = 5.0 } }
 add.torque = "-b*omega"
 "#;
 
-fn file(text: &str) -> sim::Result<ModelFile> {
+fn file(text: &str) -> workbench::Result<ModelFile> {
     ModelFile::parse(text, Path::new("pend.toml"))
 }
 

@@ -1,5 +1,6 @@
-//! The one error type of the simulator crate: every message names the file, topic, field or
-//! parameter at fault, so that a user can fix the input without reading the source.
+//! The one error type of the workbench and of the simulator above it: every message names the
+//! file, topic, field or parameter at fault, so that a user can fix the input without reading
+//! the source.
 use std::path::PathBuf;
 
 /// Everything that can go wrong while simulating, logging or reading logs.
@@ -124,6 +125,10 @@ pub enum SimError {
         /// Why it is refused.
         reason: String,
     },
+    /// A state-space model whose matrices do not fit together, or that cannot be evaluated
+    /// (a pole on an evaluated frequency, a bad sample period or delay).
+    #[error("state-space model: {0}")]
+    StateSpace(#[from] rigid_body::Error),
     /// A domain crate (cubli, tilt, ...) reported an error; `context` says what was being done.
     #[error("{context}: {source}")]
     Domain {
@@ -187,5 +192,5 @@ impl SimError {
     }
 }
 
-/// Result type of the simulator crate.
+/// Result type of the workbench and the simulator.
 pub type Result<T, E = SimError> = std::result::Result<T, E>;

@@ -9,9 +9,9 @@ use flying_platform::{
 };
 use nalgebra::DMatrix;
 
-use super::dataset::{Dataset, Experiment, Periodic};
-use super::model::{ModelStructure, Parameter, StateSpace};
-use crate::error::{Result, SimError};
+use workbench::dataset::{Dataset, Experiment, Periodic};
+use workbench::model::{ModelStructure, Parameter, StateSpace};
+use workbench::{Result, SimError};
 
 /// Output channels of the identification (DESIGN.md names).
 pub const OUTPUTS: [&str; 6] = ["vx", "vy", "vz", "wx", "wy", "wz"];

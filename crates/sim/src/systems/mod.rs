@@ -1,12 +1,17 @@
-//! The one registry of systems the workbench knows by name, used by the command line and
-//! Python alike, and the way to bring any other system: a model file.
+//! The shipped systems adapted to the [`workbench`] (which knows no system), the one registry
+//! of systems it knows by name, used by the command line and Python alike, and the way to
+//! bring any other system: a model file.
 use std::path::Path;
 use std::sync::Arc;
 
-use super::flying_platform::FlyingPlatform;
-use super::model::ModelStructure;
-use super::model_file::ModelFile;
-use crate::error::{Result, SimError};
+use workbench::model::ModelStructure;
+use workbench::model_file::ModelFile;
+use workbench::{Result, SimError};
+
+pub mod cubli;
+pub mod flying_platform;
+
+use self::flying_platform::FlyingPlatform;
 
 /// Names of the shipped systems.
 pub const SHIPPED: [&str; 2] = ["flying_platform", "cubli"];
