@@ -990,7 +990,7 @@ fn time_verdict(tests: &ResidualTests) -> Verdict {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::workbench::ModelFile;
+    use crate::ModelFile;
     use std::sync::Arc;
 
     /// On outputs the model itself produced (zero gain, so the one-step predicted states are
