@@ -438,9 +438,17 @@ impl<'a> PredictionError<'a> {
     }
 
     fn innovations(&self, theta: &[f64]) -> Result<Innovations> {
-        let predictor = ExtendedPredictor::new(self.model, theta, self.t, &self.design.gain)?;
+        self.run(&self.predictor(theta)?)
+    }
+
+    /// The predictor of the model at `theta` under this design.
+    fn predictor(&self, theta: &[f64]) -> Result<ExtendedPredictor> {
+        ExtendedPredictor::new(self.model, theta, self.t, &self.design.gain)
+    }
+
+    /// The innovations of `predictor` on every record.
+    fn run(&self, predictor: &ExtendedPredictor) -> Result<Innovations> {
         // Records are independent: run on threads.
-        let predictor = &predictor;
         let jobs: Vec<_> = self
             .records
             .iter()
@@ -834,9 +842,11 @@ impl Workbench {
     /// The record of one fitted model.
     fn time_step(&self, f: Fitted, design: &Design, base_cost: f64) -> Result<Step> {
         let pe = PredictionError::new(self, &f.model, design);
-        let inn = pe.innovations(&f.r.theta)?;
-        let cost = pe.stack(&inn).norm_squared();
-        let n_res = pe.stack(&inn).len().max(1) as f64;
+        let predictor = pe.predictor(&f.r.theta)?;
+        let inn = pe.run(&predictor)?;
+        let whitened = pe.stack(&inn);
+        let cost = whitened.norm_squared();
+        let n_res = whitened.len().max(1) as f64;
         let ss = f.model.state_space(&f.r.theta)?;
         let (mut time_fit, _) = time_fit(&self.data, &ss, DEFAULT_HORIZON, DEFAULT_WINDOW)?;
         if f.model.structure().controller().is_some() {
@@ -872,7 +882,6 @@ impl Workbench {
             .cloned()
             .zip(fit_percent(&stack(&y), &stack(&yhat)))
             .collect();
-        let predictor = ExtendedPredictor::new(&f.model, &f.r.theta, pe.t, &design.gain)?;
         let horizon = DEFAULT_HORIZON;
         let (ky, kyhat): (Vec<_>, Vec<_>) = pe
             .records
