@@ -100,6 +100,21 @@ fn hidden_coulomb_friction_is_found_within_15_percent() {
     within(&d, "wheel_coulomb_friction", 1e-3, 0.15);
 }
 
+/// Model-class mismatch: the plant smooths its Coulomb sign over another speed than the
+/// nominal 0.1 rad/s. The width is fitted with the level, so the friction is found alone (no
+/// viscous friction or torque constant absorbing the difference), with both within 15%.
+#[test]
+fn coulomb_friction_of_another_smoothing_width_is_found_alone() {
+    for width in [0.3, 0.5] {
+        let d = found_alone(&format!("coulomb-{width}"), "wheel_coulomb_friction", |a| {
+            a.coulomb = vec![4e-3; 3];
+            a.coulomb_smoothing = width;
+        });
+        within(&d, "wheel_coulomb_friction", 4e-3, 0.15);
+        within(&d, "wheel_coulomb_smoothing", width, 0.15);
+    }
+}
+
 #[test]
 fn hidden_gyro_bias_is_found_within_15_percent() {
     let b = [0.012, -0.006, 0.002];

@@ -109,9 +109,14 @@ pub struct Args {
     /// Hidden effect: viscous wheel friction, N m s/rad (per wheel).
     #[arg(long, value_delimiter = ',', default_values_t = [0.0, 0.0, 0.0])]
     pub viscous: Vec<f64>,
-    /// Hidden effect: Coulomb wheel friction, N m (per wheel), smoothed by tanh(w / 0.1 rad/s).
+    /// Hidden effect: Coulomb wheel friction, N m (per wheel), smoothed by
+    /// tanh(w / coulomb-smoothing).
     #[arg(long, value_delimiter = ',', default_values_t = [0.0, 0.0, 0.0])]
     pub coulomb: Vec<f64>,
+    /// Speed (rad/s) over which the true Coulomb friction's sign is smoothed; the workbench's
+    /// candidate assumes 0.1, so another width is a model-class mismatch.
+    #[arg(long, default_value_t = 0.1)]
+    pub coulomb_smoothing: f64,
     /// Hidden effect: applied torque = constant x commanded (per wheel).
     #[arg(long, value_delimiter = ',', default_values_t = [1.0, 1.0, 1.0])]
     pub torque_constant: Vec<f64>,
@@ -151,6 +156,7 @@ impl Args {
             gyro_bias: vec![0.0; 3],
             viscous: vec![0.0; 3],
             coulomb: vec![0.0; 3],
+            coulomb_smoothing: 0.1,
             torque_constant: vec![1.0; 3],
             excitation_rms: 0.0,
             excitation_period: 200,
@@ -429,7 +435,7 @@ impl Args {
             torque_constant: vec3("torque-constant", &self.torque_constant)?,
             viscous: vec3("viscous", &self.viscous)?,
             coulomb: vec3("coulomb", &self.coulomb)?,
-            ..WheelEffects::default()
+            coulomb_smoothing: self.coulomb_smoothing,
         };
         effects.validate().map_err(domain("wheel effects"))?;
         for (name, v) in [
@@ -653,6 +659,10 @@ impl Scenario for Args {
                     let text: Vec<String> = v.iter().map(|x| x.to_string()).collect();
                     experiment.extra.insert(key.into(), text.join(","));
                 }
+                experiment.extra.insert(
+                    "plant_coulomb_smoothing".into(),
+                    self.coulomb_smoothing.to_string(),
+                );
                 recorder.experiment(&experiment)?;
                 let mut ctrl = Backstepping::new(model, gains);
                 let mut ext = |k: usize, _t: f64| {
