@@ -36,14 +36,115 @@ pub struct CandidateScore {
     pub delta_aic: f64,
     /// Change of BIC = V/s + p ln n.
     pub delta_bic: f64,
-    /// Passes the F test at the Bonferroni-corrected level, with and without its best line,
-    /// and lowers BIC; on FRF data its cost reduction also exceeds the noise (one standard
-    /// deviation of the noise-only cost).
+    /// Its cost reduction exceeds what noise alone varies the cost by (one standard deviation
+    /// of the noise-only cost).
+    pub exceeds_noise: bool,
+    /// Passes the F test at the Bonferroni-corrected level, and its robustness check, lowers
+    /// BIC and exceeds the noise.
     pub significant: bool,
     /// Its fit stopped once the linear model of its cost showed it could not become
     /// significant (the time-domain criterion): `cost` is then where it stopped, an upper
     /// bound of the fitted one.
     pub abandoned: bool,
+}
+
+/// The costs a nested-model test compares: a model and the model with one candidate more,
+/// in one criterion's units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NestedCosts {
+    /// Cost without the candidate.
+    pub before: f64,
+    /// Cost with it, every parameter refitted.
+    pub after: f64,
+    /// Residuals in the cost.
+    pub residuals: f64,
+    /// Free parameters without the candidate.
+    pub free_before: usize,
+    /// Free parameters with it.
+    pub free_after: usize,
+    /// Noise variance of one residual in cost units (for AIC and BIC).
+    pub scale: f64,
+    /// Standard deviation of the cost under noise alone, in cost units.
+    pub noise_sd: f64,
+}
+
+/// The robustness check of a nested-model test.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Robustness<'a> {
+    /// The same test without the block of residuals that gained most (a frequency line, a
+    /// stretch of data): per-block costs without and with the candidate. The evidence must
+    /// not rest on one block, which can be off for reasons no candidate describes.
+    WithoutBestBlock(&'a [f64], &'a [f64]),
+    /// A p-value the criterion computed itself (the Cubli's test with probe regressors).
+    PValue(f64),
+}
+
+impl CandidateScore {
+    /// Scores a candidate by the nested-model test every criterion shares: the F test, its
+    /// robustness check and BIC at the level Bonferroni-corrected over `n_candidates`, and an
+    /// effect-size rule. The F test is exact only for a model class that contains the truth;
+    /// with thousands of residuals it also finds a mismatch of the class far below the noise,
+    /// so an effect is claimed only when it also changes the cost by more than noise alone
+    /// varies it.
+    pub fn nested(
+        effect: &str,
+        c: &NestedCosts,
+        robustness: Robustness<'_>,
+        n_candidates: usize,
+        abandoned: bool,
+    ) -> Self {
+        let n = c.residuals;
+        let (p1, q) = (c.free_after, c.free_after.saturating_sub(c.free_before));
+        let dv = c.before - c.after;
+        let dof = n - p1 as f64;
+        let (f_statistic, p_value) = if q > 0 && c.after > 0.0 && dof > 0.0 {
+            let f = (dv / q as f64) / (c.after / dof);
+            (f, f_sf(f, q as f64, dof))
+        } else {
+            (0.0, 1.0)
+        };
+        let robust_p_value = match robustness {
+            Robustness::PValue(p) => p,
+            Robustness::WithoutBestBlock(before, after) if q > 0 && before.len() > 1 => {
+                let (k, gain) = before
+                    .iter()
+                    .zip(after)
+                    .map(|(b, a)| b - a)
+                    .enumerate()
+                    .fold(
+                        (0, f64::NEG_INFINITY),
+                        |acc, (k, d)| if d > acc.1 { (k, d) } else { acc },
+                    );
+                let n_block = n / before.len() as f64;
+                let rest = c.after - after[k];
+                let dof = n - n_block - p1 as f64;
+                f_sf(((dv - gain) / q as f64) / (rest / dof), q as f64, dof)
+            }
+            Robustness::WithoutBestBlock(..) => 1.0,
+        };
+        let delta_aic = -dv / c.scale + 2.0 * q as f64;
+        let delta_bic = -dv / c.scale + q as f64 * n.ln();
+        let alpha = LEVEL / n_candidates.max(1) as f64;
+        let exceeds_noise = dv > c.noise_sd;
+        Self {
+            effect: effect.to_string(),
+            cost: c.after,
+            reduction_percent: 100.0 * dv / c.before,
+            added_parameters: q,
+            f_statistic,
+            p_value,
+            robust_p_value,
+            delta_aic,
+            delta_bic,
+            exceeds_noise,
+            significant: q > 0
+                && p_value < alpha
+                && robust_p_value < alpha
+                && delta_bic < 0.0
+                && exceeds_noise,
+            abandoned,
+        }
+    }
 }
 
 /// One step of the discovery: a model, its fit and diagnosis, and the candidates tried on it.
@@ -439,67 +540,29 @@ impl Workbench {
         let a = fit(&with, cost, Some(&start), &self.fit_options())?;
         let b = fit(&with, cost, Some(&scanned), &self.fit_options())?;
         let r = if b.cost < a.cost { b } else { a };
-        let n = cost.n_residuals() as f64;
-        let p0 = current.r.free;
-        let p1 = r.free;
-        let q = p1.saturating_sub(p0);
-        let s = self.noise.per_residual();
-        let dv = current.r.cost - r.cost;
-        let (f_statistic, p_value) = if q > 0 && r.cost > 0.0 {
-            let f = (dv / q as f64) / (r.cost / (n - p1 as f64));
-            (f, f_sf(f, q as f64, n - p1 as f64))
-        } else {
-            (0.0, 1.0)
-        };
-        // The evidence must not rest on one frequency line: a physical effect of a
-        // continuous-time model acts over a band, while a single line can be off for reasons
-        // no candidate describes (leakage of slow disturbances into the lowest line, a
-        // corrupted record). Repeat the test without the line that gained most.
         let per_line = |g: &[super::frf::CMatrix]| -> Vec<f64> {
             (0..g.len()).map(|k| cost.line_cost(k, &g[k])).collect()
         };
         let (before, after) = (per_line(&current.r.model_frf), per_line(&r.model_frf));
-        let (kmax, gain_max) = before
-            .iter()
-            .zip(&after)
-            .map(|(b, a)| b - a)
-            .enumerate()
-            .fold(
-                (0, f64::NEG_INFINITY),
-                |acc, (k, d)| if d > acc.1 { (k, d) } else { acc },
-            );
-        let n_line = n / before.len() as f64;
-        let robust_p = if q > 0 && before.len() > 1 {
-            let v1 = r.cost - after[kmax];
-            let f = ((dv - gain_max) / q as f64) / (v1 / (n - n_line - p1 as f64));
-            f_sf(f, q as f64, n - n_line - p1 as f64)
-        } else {
-            1.0
+        // On clean simulated logs momentum drag's six parameters take 1-2% of a noise-level
+        // cost with F p ~ 1e-6: the effect-size rule (one standard deviation of the
+        // Monte-Carlo noise reference) keeps such a mismatch from being claimed.
+        let costs = NestedCosts {
+            before: current.r.cost,
+            after: r.cost,
+            residuals: cost.n_residuals() as f64,
+            free_before: current.r.free,
+            free_after: r.free,
+            scale: self.noise.per_residual(),
+            noise_sd: self.noise.sd(),
         };
-        let delta_aic = -dv / s + 2.0 * q as f64;
-        let delta_bic = -dv / s + q as f64 * n.ln();
-        let alpha = LEVEL / n_candidates.max(1) as f64;
-        // The F test is exact only for a model class that contains the truth; with thousands of
-        // residuals it also finds model-class mismatch far below the noise (on clean
-        // simulated logs momentum drag's six parameters take 1-2% of a noise-level cost,
-        // F p ~ 1e-6). An effect is claimed only when it also changes the cost by more than
-        // noise alone varies it: one standard deviation of the Monte-Carlo reference.
-        let exceeds_noise = dv > self.noise.sd();
-        let significant =
-            q > 0 && p_value < alpha && robust_p < alpha && delta_bic < 0.0 && exceeds_noise;
-        let score = CandidateScore {
-            effect: effect.to_string(),
-            cost: r.cost,
-            reduction_percent: 100.0 * dv / current.r.cost,
-            added_parameters: q,
-            f_statistic,
-            p_value,
-            robust_p_value: robust_p,
-            delta_aic,
-            delta_bic,
-            significant,
-            abandoned: false,
-        };
+        let score = CandidateScore::nested(
+            effect,
+            &costs,
+            Robustness::WithoutBestBlock(&before, &after),
+            n_candidates,
+            false,
+        );
         Ok((with, r, score))
     }
 

@@ -22,13 +22,14 @@ use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use super::diagnose::{diagnose, LEVEL};
-use super::discover::{in_parallel, CandidateScore, Discovery, Step, Verdict};
+use super::discover::{
+    in_parallel, CandidateScore, Discovery, NestedCosts, Robustness, Step, Verdict,
+};
 use super::dynamics::Dynamics;
 use super::fit::{solve, FitResult, LeastSquares};
 use super::kalman::{gain, Predictor, BURN_IN};
 use super::model::Model;
 use super::residual::{residual_tests, ResidualTests, DEFAULT_LAGS};
-use super::stats::f_sf;
 use super::timedomain::{fit_percent, time_fit, DEFAULT_HORIZON, DEFAULT_WINDOW};
 use super::Workbench;
 use crate::error::{Result, SimError};
@@ -678,58 +679,30 @@ impl Workbench {
         let r1 = pe.residuals(&r.theta)?;
         let (v0, v1) = (r0.norm_squared(), r1.norm_squared());
         let n = r1.len() as f64;
-        let (p0, p1) = (current.r.free, r.free);
-        let q = p1.saturating_sub(p0);
-        let dv = v0 - v1;
-        let s = v1 / (n - p1 as f64);
-        let (f_statistic, p_value) = if q > 0 && v1 > 0.0 {
-            let f = (dv / q as f64) / s;
-            (f, f_sf(f, q as f64, n - p1 as f64))
-        } else {
-            (0.0, 1.0)
+        // The cost is in units of the residual variance, estimated from the candidate's fit; a
+        // chi-square cost of n residuals varies by sqrt(2 n) of them under noise alone. The
+        // robustness check drops the stretch of data that gained most.
+        let s = v1 / (n - r.free as f64);
+        let costs = NestedCosts {
+            before: v0,
+            after: v1,
+            residuals: n,
+            free_before: current.r.free,
+            free_after: r.free,
+            scale: s,
+            noise_sd: s * (2.0 * n).sqrt(),
         };
-        // The evidence must not rest on one stretch of the data: repeat the test without the
-        // stretch that gained most.
         let (b0, b1) = (
             PredictionError::block_costs(r0, p),
             PredictionError::block_costs(&r1, p),
         );
-        let (kmax, gain_max) = b0.iter().zip(&b1).map(|(a, b)| a - b).enumerate().fold(
-            (0, f64::NEG_INFINITY),
-            |acc, (k, d)| if d > acc.1 { (k, d) } else { acc },
+        let score = CandidateScore::nested(
+            effect,
+            &costs,
+            Robustness::WithoutBestBlock(&b0, &b1),
+            n_candidates,
+            r.gave_up,
         );
-        let n_block = n / b0.len() as f64;
-        let robust_p = if q > 0 && b0.len() > 1 {
-            let rest = v1 - b1[kmax];
-            let f = ((dv - gain_max) / q as f64) / (rest / (n - n_block - p1 as f64));
-            f_sf(f, q as f64, n - n_block - p1 as f64)
-        } else {
-            1.0
-        };
-        let delta_aic = -dv / s + 2.0 * q as f64;
-        let delta_bic = -dv / s + q as f64 * n.ln();
-        let alpha = LEVEL / n_candidates.max(1) as f64;
-        // As on the FRF: the F test is exact only for a model class that contains the truth,
-        // and with tens of thousands of residuals it also finds model-class mismatch far
-        // below the noise; an effect is claimed only when it also changes the cost by more
-        // than noise alone varies it (the standard deviation of a chi-square cost of n
-        // residuals, sqrt(2 n) in units of the residual variance).
-        let exceeds_noise = dv / s > (2.0 * n).sqrt();
-        let significant =
-            q > 0 && p_value < alpha && robust_p < alpha && delta_bic < 0.0 && exceeds_noise;
-        let score = CandidateScore {
-            effect: effect.to_string(),
-            cost: v1,
-            reduction_percent: 100.0 * dv / v0,
-            added_parameters: q,
-            f_statistic,
-            p_value,
-            robust_p_value: robust_p,
-            delta_aic,
-            delta_bic,
-            significant,
-            abandoned: r.gave_up,
-        };
         r.cost = v1;
         Ok((with, r, score))
     }

@@ -43,7 +43,7 @@ use serde_json::{json, Value};
 
 use workbench::dataset::Dataset;
 use workbench::diagnose::LEVEL;
-use workbench::discover::CandidateScore;
+use workbench::discover::{CandidateScore, NestedCosts, Robustness};
 use workbench::load;
 use workbench::report::{chart, cost_bars, escape, page, per_step, publish, XAxis};
 use workbench::stats::f_sf;
@@ -1089,21 +1089,20 @@ impl CubliBench {
         let next = self.step(&with, Some(name.to_string()))?;
         let (fit0, fit1) = (&current.fit, &next.fit);
         let n = self.rows.r.len() as f64;
-        let (p0, p1) = (fit0.free(), fit1.free());
-        let q = p1.saturating_sub(p0) as f64;
-        let dv = current.cost - next.cost;
-        let nested_p = |c0: f64, c1: f64, dof: f64| {
-            if c1 > 0.0 && dof > 0.0 {
-                let f = ((c0 - c1) / q) / (c1 / dof);
-                (f, f_sf(f, q, dof))
-            } else {
-                (0.0, 1.0)
-            }
+        // Costs are in units of each channel's noise variance: a cost of n rows varies by
+        // sqrt(2 n) under noise alone.
+        let costs = |before: f64, after: f64| NestedCosts {
+            before,
+            after,
+            residuals: n,
+            free_before: fit0.free(),
+            free_after: fit1.free(),
+            scale: 1.0,
+            noise_sd: (2.0 * n).sqrt(),
         };
-        let (f_statistic, p_value) = nested_p(current.cost, next.cost, n - p1 as f64);
-        // The same test with the probes as nuisance columns in both models (each at its own
-        // fitted smoothing speed). Rank-deficient (the probes reproduce the candidate's
-        // regressor) counts as not significant.
+        // The robustness check: the same F test with the probes as nuisance columns in both
+        // models (each at its own fitted smoothing speed). Rank-deficient (the probes
+        // reproduce the candidate's regressor) counts as not significant.
         let (x0, r0, rank) = without_probes(&fit0.x, &self.rows.r, &self.bases);
         let (x1, r1, _) = without_probes(&fit1.x, &self.rows.r, &self.bases);
         let ch = &self.rows.channel;
@@ -1111,30 +1110,28 @@ impl CubliBench {
             wls(&x0, &r0, ch, &self.weight, &fit0.cols),
             wls(&x1, &r1, ch, &self.weight, &fit1.cols),
         ) {
-            (Ok((_, c0, _)), Ok((_, c1, _))) => nested_p(c0, c1, n - (p1 + rank) as f64).1,
+            (Ok((_, c0, _)), Ok((_, c1, _))) => {
+                let with_probes = NestedCosts {
+                    before: c0,
+                    after: c1,
+                    residuals: n - rank as f64,
+                    ..costs(current.cost, next.cost)
+                };
+                CandidateScore::nested(name, &with_probes, Robustness::PValue(1.0), 1, false)
+                    .p_value
+            }
             _ => 1.0,
         };
-        let delta_bic = -dv + q * n.ln();
-        let alpha = LEVEL / n_candidates.max(1) as f64;
-        let score = CandidateScore {
-            effect: name.to_string(),
-            cost: next.cost,
-            reduction_percent: 100.0 * dv / current.cost,
-            added_parameters: p1.saturating_sub(p0),
-            f_statistic,
-            p_value,
-            robust_p_value,
-            delta_aic: -dv + 2.0 * q,
-            delta_bic,
-            significant: false,
-            abandoned: false,
-        };
-        // The F test is exact only for a model class that contains the truth; with thousands
-        // of rows it also finds a small mismatch of the class (a regressor built from noisy
-        // wheel speeds, a friction law of another shape), which the other candidates absorb
-        // in part. So a candidate must also lower the cost by more than noise alone varies
-        // it (sqrt(2 n) in these noise-variance units, as for the other criteria), and keep
-        // a friction coefficient non-negative (a negative one only fits that mismatch).
+        let score = CandidateScore::nested(
+            name,
+            &costs(current.cost, next.cost),
+            Robustness::PValue(robust_p_value),
+            n_candidates,
+            false,
+        );
+        // A friction coefficient must come out non-negative: a negative one only fits a
+        // mismatch of the model class (a regressor built from noisy wheel speeds, a friction
+        // law of another shape), which the other candidates absorb in part.
         let negative = next
             .params
             .iter()
@@ -1144,19 +1141,17 @@ impl CubliBench {
                 "{} = {:.2e} is negative (a friction coefficient cannot be)",
                 p.name, p.value
             ))
-        } else if dv <= (2.0 * n).sqrt() {
+        } else if !score.exceeds_noise {
             Some(format!(
-                "lowers the cost by {dv:.1}, within what noise alone varies it ({:.1})",
+                "lowers the cost by {:.1}, within what noise alone varies it ({:.1})",
+                current.cost - next.cost,
                 (2.0 * n).sqrt()
             ))
         } else {
             None
         };
         let score = CandidateScore {
-            significant: p_value < alpha
-                && robust_p_value < alpha
-                && delta_bic < 0.0
-                && refusal.is_none(),
+            significant: score.significant && refusal.is_none(),
             ..score
         };
         Ok((next, score, refusal))
