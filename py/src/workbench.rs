@@ -1124,7 +1124,8 @@ impl Workbench {
                     "channels": checked(serde_json::to_value(&channels))?,
                     "misfit_channels": d.misfit_channels,
                     "unexplained": d.unexplained,
-                    "verdict": d.verdict(),
+                    "verdict": checked(serde_json::to_value(&d.verdict))?,
+                    "verdict_text": d.verdict_sentence(),
                 })
             }
         };

@@ -64,14 +64,14 @@ fn param(d: &CubliDiscovery, name: &str) -> f64 {
 fn clean_logs_find_nothing() {
     let d = discover_on("clean", |_| {});
     assert!(d.found.is_empty(), "{:?}", d.found);
-    assert!(!d.unexplained, "{}", d.verdict());
+    assert!(!d.unexplained, "{}", d.verdict_sentence());
 }
 
 /// Hides one effect, asserts it is found alone and returns the discovery.
 fn found_alone(tag: &str, effect: &str, hide: impl Fn(&mut Args)) -> CubliDiscovery {
     let d = discover_on(tag, hide);
     assert_eq!(d.found, [effect]);
-    assert!(!d.unexplained, "{}", d.verdict());
+    assert!(!d.unexplained, "{}", d.verdict_sentence());
     d
 }
 
@@ -162,7 +162,7 @@ fn a_one_sample_input_delay_is_reported_as_unexplained_misfit_and_short_data_is_
     }
     let d = discover(&data, &CubliOptions::default()).unwrap();
     println!("delay:\n{}", d.table());
-    assert!(d.unexplained, "{}", d.verdict());
+    assert!(d.unexplained, "{}", d.verdict_sentence());
     // Candidates that only soak up part of the delay's misfit are not reported as found.
     assert!(d.found.is_empty(), "{:?}", d.found);
     assert!(

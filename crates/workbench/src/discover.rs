@@ -224,17 +224,25 @@ impl Verdict {
                 band_hz,
                 worst_entries,
             } => {
-                let band = band_hz.map_or("spread over the band".to_string(), |(a, b)| {
-                    format!("{a:.2}-{b:.2} Hz")
-                });
+                // Frequency-domain criteria name the band and the worst FRF entries; the
+                // time-domain ones give neither.
                 let entries: Vec<String> = worst_entries
                     .iter()
                     .map(|(o, i, r)| format!("{i}->{o} ({r:.1}x)"))
                     .collect();
+                let place = match (band_hz, entries.is_empty()) {
+                    (Some((a, b)), true) => format!(", {a:.2}-{b:.2} Hz"),
+                    (Some((a, b)), false) => {
+                        format!(", {a:.2}-{b:.2} Hz; largest in {}", entries.join(", "))
+                    }
+                    (None, false) => {
+                        format!(", spread over the band; largest in {}", entries.join(", "))
+                    }
+                    (None, true) => String::new(),
+                };
                 format!(
-                    "unexplained structured misfit (p = {p_value:.2e}) in outputs [{}], {band}; largest in {}; no candidate effect explains it",
+                    "unexplained structured misfit (p = {p_value:.2e}) in outputs [{}]{place}; no candidate effect explains it",
                     outputs.join(", "),
-                    entries.join(", ")
                 )
             }
         }

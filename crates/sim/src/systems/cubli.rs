@@ -43,7 +43,7 @@ use serde_json::{json, Value};
 
 use workbench::dataset::Dataset;
 use workbench::diagnose::LEVEL;
-use workbench::discover::{CandidateScore, NestedCosts, Robustness};
+use workbench::discover::{CandidateScore, NestedCosts, Robustness, Verdict};
 use workbench::load;
 use workbench::report::{chart, cost_bars, escape, page, per_step, publish, XAxis};
 use workbench::stats::f_sf;
@@ -592,14 +592,22 @@ fn flagged(channel_p_values: &[f64]) -> Vec<String> {
         .collect()
 }
 
-fn verdict_text(misfit_channels: &[String]) -> String {
-    if misfit_channels.is_empty() {
-        "explained to the noise level".to_string()
+/// The verdict on a final residual: the channels its probes explain, at the smallest channel
+/// p-value Bonferroni-corrected over the channels.
+fn verdict_of(channel_p_values: &[f64]) -> Verdict {
+    let p_value = channel_p_values
+        .iter()
+        .fold(1.0f64, |m, p| m.min(p * CHANNELS.len() as f64));
+    let outputs = flagged(channel_p_values);
+    if outputs.is_empty() {
+        Verdict::ExplainedToNoiseLevel { p_value }
     } else {
-        format!(
-            "unexplained structured misfit in channels [{}]; no candidate effect explains it",
-            misfit_channels.join(", ")
-        )
+        Verdict::UnexplainedStructuredMisfit {
+            p_value,
+            outputs,
+            band_hz: None,
+            worst_entries: Vec::new(),
+        }
     }
 }
 
@@ -676,9 +684,13 @@ pub struct CubliDiscovery {
     /// the tests that accepted them assume the rest is noise, which the verdict refutes (they
     /// may be absorbing the unexplained misfit).
     pub tentative: Vec<String>,
+    /// Why the added effects are tentative (empty when they are found).
+    pub caveats: Vec<String>,
     /// True when a structured misfit remains.
     pub unexplained: bool,
-    /// Channels carrying it.
+    /// The verdict, of the type every criterion gives (its outputs are the residual channels).
+    pub verdict: Verdict,
+    /// Channels carrying the misfit.
     pub misfit_channels: Vec<String>,
     /// Per-channel p-value of the final residual against the generic probes.
     pub channel_p_values: Vec<f64>,
@@ -698,14 +710,15 @@ pub struct CubliDiscovery {
 }
 
 impl CubliDiscovery {
-    /// A sentence for the verdict.
-    pub fn verdict(&self) -> String {
-        let mut text = verdict_text(&self.misfit_channels);
+    /// The verdict's sentence, with the tentative effects and why.
+    pub fn verdict_sentence(&self) -> String {
+        let mut text = self.verdict.sentence();
         if let (false, Some(last)) = (self.tentative.is_empty(), self.steps.last()) {
             text.push_str(&format!(
-                " ({} lower the cost by {:.2}% but leave it structured: tentative, not found)",
+                " ([{}] lower the cost by {:.2}% but are tentative, not found: {})",
                 self.tentative.join(", "),
-                last.reduction_percent
+                last.reduction_percent,
+                self.caveats.join("; ")
             ));
         }
         text
@@ -751,8 +764,10 @@ impl CubliDiscovery {
             "steps": steps,
             "found": self.found,
             "tentative": self.tentative,
+            "tentative_why": self.caveats,
             "unexplained": self.unexplained,
-            "verdict": self.verdict(),
+            "verdict": self.verdict,
+            "verdict_text": self.verdict_sentence(),
             "misfit_channels": self.misfit_channels,
             "channels": CHANNELS,
             "channel_p_values": self.channel_p_values,
@@ -813,7 +828,7 @@ impl CubliDiscovery {
         if !self.tentative.is_empty() {
             let _ = writeln!(s, "tentative: [{}]", self.tentative.join(", "));
         }
-        let _ = writeln!(s, "verdict: {}", self.verdict());
+        let _ = writeln!(s, "verdict: {}", self.verdict_sentence());
         s
     }
 }
@@ -1026,16 +1041,22 @@ impl CubliBench {
             .map_or_else(Vec::new, |s| s.channel_p_values.clone());
         let misfit_channels = flagged(&channel_p_values);
         let unexplained = !misfit_channels.is_empty();
-        let (found, tentative) = if unexplained {
-            (Vec::new(), found)
+        let (found, tentative, caveats) = if unexplained && !found.is_empty() {
+            (
+                Vec::new(),
+                found,
+                vec!["the final model leaves a structured misfit, which the tests that added them took for noise".to_string()],
+            )
         } else {
-            (found, Vec::new())
+            (found, Vec::new(), Vec::new())
         };
         CubliDiscovery {
             steps,
             found,
             tentative,
+            caveats,
             unexplained,
+            verdict: verdict_of(&channel_p_values),
             misfit_channels,
             channel_p_values,
             noise_std: self.var.iter().map(|v| v.sqrt()).collect(),
@@ -1239,7 +1260,7 @@ fn cubli_html(d: &CubliDiscovery) -> String {
         d.window_samples,
         d.experiments,
         CHANNELS.join(", "),
-        escape(&d.verdict()),
+        escape(&d.verdict_sentence()),
         escape(&d.found.join(", ")),
         escape(&d.tentative.join(", "))
     );
