@@ -8,6 +8,7 @@ use super::fit::{fit, FitResult, ParamEstimate};
 use super::frf::Estimator;
 use super::model::Model;
 use super::residual::{residual_tests, ResidualTests, DEFAULT_LAGS};
+use super::search::{forward_selection, Search};
 use super::stats::f_sf;
 use super::timedomain::{time_fit, TimeFit, DEFAULT_HORIZON, DEFAULT_WINDOW};
 use super::Workbench;
@@ -679,59 +680,12 @@ impl Workbench {
         if self.criterion == super::Criterion::Time {
             return self.discover_time(progress);
         }
-        let mut model = self.model.clone();
         progress("fitting the starting model");
-        let mut current = self.fitted(&model, None, None)?;
-        let mut done = Vec::new();
-        let mut found = Vec::new();
-        loop {
-            let candidates = model.frf_candidates();
-            let mut best: Option<(Model, FitResult, usize)> = None;
-            let mut scores = Vec::with_capacity(candidates.len());
-            // Candidates are fitted independently, in parallel.
-            let n = candidates.len();
-            let jobs: Vec<_> = candidates
-                .iter()
-                .map(|name| {
-                    let (model, current) = (&model, &current);
-                    move || self.score(model, current, name, n)
-                })
-                .collect();
-            for (with, r, score) in in_parallel(self.model.parallel(), jobs, "candidate fit")? {
-                progress(&format!("tried {}", score.effect));
-                let better = best.as_ref().is_none_or(|(_, b, _)| r.cost < b.cost);
-                scores.push(score);
-                if better {
-                    best = Some((with, r, scores.len() - 1));
-                }
-            }
-            current.candidates = scores;
-            // Candidates are tested whether or not the total cost is at the noise level: an
-            // effect confined to a few lines and entries (gyroscopic coupling) can stand far
-            // above the noise there and still hide in the total over all residuals.
-            let chosen = best.filter(|(_, _, i)| current.candidates[*i].significant);
-            match chosen {
-                Some((with, r, i)) => {
-                    let name = current.candidates[i].effect.clone();
-                    found.push(name.clone());
-                    let next = if self.reweights() {
-                        self.fitted(&with, Some(name), Some(&r.theta))?
-                    } else {
-                        Fitted {
-                            model: with.clone(),
-                            added: Some(name),
-                            r,
-                            weighting: None,
-                            candidates: Vec::new(),
-                        }
-                    };
-                    done.push(std::mem::replace(&mut current, next));
-                    model = with;
-                }
-                None => break,
-            }
-        }
-        done.push(current);
+        let start = self.fitted(&self.model, None, None)?;
+        // Candidates are tested whether or not the total cost is at the noise level: an
+        // effect confined to a few lines and entries (gyroscopic coupling) can stand far above
+        // the noise there and still hide in the total over all residuals.
+        let (mut done, found) = forward_selection(&FrfSearch(self), start, progress)?;
         self.common_weighting(&mut done)?;
         let steps = self.records(done)?;
         let last = steps
@@ -756,6 +710,61 @@ impl Workbench {
             verdict,
             level: LEVEL,
         })
+    }
+}
+
+/// The FRF criterion's moves in the forward selection.
+struct FrfSearch<'a>(&'a Workbench);
+
+impl Search for FrfSearch<'_> {
+    type Fit = Fitted;
+    type Context = ();
+
+    fn candidates(&self, at: &Fitted) -> Vec<String> {
+        at.model.frf_candidates()
+    }
+
+    fn context(&self, _: &Fitted) -> Result<()> {
+        Ok(())
+    }
+
+    fn try_effect(
+        &self,
+        at: &Fitted,
+        _: &(),
+        effect: &str,
+        n: usize,
+    ) -> Result<(Fitted, CandidateScore)> {
+        let (model, r, score) = self.0.score(&at.model, at, effect, n)?;
+        let fit = Fitted {
+            model,
+            added: Some(effect.to_string()),
+            r,
+            weighting: None,
+            candidates: Vec::new(),
+        };
+        Ok((fit, score))
+    }
+
+    fn record_scores(&self, at: &mut Fitted, scores: Vec<CandidateScore>) {
+        at.candidates = scores;
+    }
+
+    /// With re-weighting, the added model is refitted under the noise of its own residual.
+    fn added(&self, chosen: Fitted, effect: &str) -> Result<Fitted> {
+        if self.0.reweights() {
+            self.0.fitted(
+                &chosen.model,
+                Some(effect.to_string()),
+                Some(&chosen.r.theta),
+            )
+        } else {
+            Ok(chosen)
+        }
+    }
+
+    fn parallel(&self) -> bool {
+        self.0.model.parallel()
     }
 }
 

@@ -40,6 +40,7 @@ pub mod power;
 pub mod prediction;
 pub mod report;
 pub mod residual;
+pub mod search;
 pub mod spectra;
 pub mod stats;
 pub mod timedomain;

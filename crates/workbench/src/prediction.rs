@@ -30,6 +30,7 @@ use super::fit::{solve, FitResult, LeastSquares};
 use super::kalman::{gain, Predictor, BURN_IN};
 use super::model::Model;
 use super::residual::{residual_tests, ResidualTests, DEFAULT_LAGS};
+use super::search::{forward_selection, Search};
 use super::timedomain::{fit_percent, time_fit, DEFAULT_HORIZON, DEFAULT_WINDOW};
 use super::Workbench;
 use crate::error::{Result, SimError};
@@ -724,52 +725,18 @@ impl Workbench {
     pub(crate) fn discover_time(&self, progress: &mut dyn FnMut(&str)) -> Result<Discovery> {
         progress("fitting the starting model (prediction error)");
         let (r, design) = self.fit_time(&self.model, None, None)?;
-        let mut current = Fitted {
+        let start = Fitted {
             model: self.model.clone(),
             added: None,
             r,
             candidates: Vec::new(),
         };
-        let mut done = Vec::new();
-        let mut found = Vec::new();
-        loop {
-            let candidates = current.model.dynamics_candidates();
-            let n = candidates.len();
-            let r0 =
-                PredictionError::new(self, &current.model, &design).residuals(&current.r.theta)?;
-            let jobs: Vec<_> = candidates
-                .iter()
-                .map(|name| {
-                    let (current, design, r0) = (&current, &design, &r0);
-                    move || self.score_time(current, (design, r0), name, n)
-                })
-                .collect();
-            // The best candidate's fit is the added model's fit under the same design.
-            let mut best: Option<(Model, FitResult, usize)> = None;
-            let mut best_cost = f64::INFINITY;
-            for outcome in in_parallel(self.model.parallel(), jobs, "candidate fit")? {
-                let (with, r, score) = outcome;
-                progress(&format!("tried {}", score.effect));
-                current.candidates.push(score);
-                if r.cost < best_cost {
-                    best_cost = r.cost;
-                    best = Some((with, r, current.candidates.len() - 1));
-                }
-            }
-            let chosen = best.filter(|(_, _, i)| current.candidates[*i].significant);
-            let Some((with, r, i)) = chosen else { break };
-            let name = current.candidates[i].effect.clone();
-            progress(&format!("adding {name}"));
-            found.push(name.clone());
-            let next = Fitted {
-                model: with,
-                added: Some(name),
-                r,
-                candidates: Vec::new(),
-            };
-            done.push(std::mem::replace(&mut current, next));
-        }
-        done.push(current);
+        // The best candidate's fit is the added model's fit under the same design.
+        let search = TimeSearch {
+            wb: self,
+            design: &design,
+        };
+        let (done, found) = forward_selection(&search, start, progress)?;
         self.conclude(done, &design, found)
     }
 
@@ -939,6 +906,52 @@ impl Workbench {
             theta: f.r.theta,
             model_frf: f.r.model_frf,
         })
+    }
+}
+
+/// The prediction-error criterion's moves in the forward selection: every model under the
+/// starting model's design (gain and innovation weighting).
+struct TimeSearch<'a> {
+    wb: &'a Workbench,
+    design: &'a Design,
+}
+
+impl Search for TimeSearch<'_> {
+    type Fit = Fitted;
+    /// The whitened residuals of the step's model.
+    type Context = DVector<f64>;
+
+    fn candidates(&self, at: &Fitted) -> Vec<String> {
+        at.model.dynamics_candidates()
+    }
+
+    fn context(&self, at: &Fitted) -> Result<DVector<f64>> {
+        PredictionError::new(self.wb, &at.model, self.design).residuals(&at.r.theta)
+    }
+
+    fn try_effect(
+        &self,
+        at: &Fitted,
+        r0: &DVector<f64>,
+        effect: &str,
+        n: usize,
+    ) -> Result<(Fitted, CandidateScore)> {
+        let (model, r, score) = self.wb.score_time(at, (self.design, r0), effect, n)?;
+        let fit = Fitted {
+            model,
+            added: Some(effect.to_string()),
+            r,
+            candidates: Vec::new(),
+        };
+        Ok((fit, score))
+    }
+
+    fn record_scores(&self, at: &mut Fitted, scores: Vec<CandidateScore>) {
+        at.candidates = scores;
+    }
+
+    fn parallel(&self) -> bool {
+        self.wb.model.parallel()
     }
 }
 

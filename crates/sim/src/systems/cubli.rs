@@ -46,6 +46,7 @@ use workbench::diagnose::LEVEL;
 use workbench::discover::{CandidateScore, NestedCosts, Robustness, Verdict};
 use workbench::load;
 use workbench::report::{chart, cost_bars, escape, page, per_step, publish, XAxis};
+use workbench::search::{forward_selection, Search};
 use workbench::stats::f_sf;
 use workbench::{Result, SimError};
 
@@ -649,6 +650,9 @@ pub struct CubliStep {
     /// The fit behind it.
     #[serde(skip)]
     fit: Fitted,
+    /// Why, as a candidate, it is refused whatever its tests say.
+    #[serde(skip)]
+    refusal: Option<String>,
 }
 
 impl CubliStep {
@@ -1032,6 +1036,7 @@ impl CubliBench {
                 .map(|(e, c)| e / self.var[*c].sqrt())
                 .collect(),
             fit,
+            refusal: None,
         })
     }
 
@@ -1096,15 +1101,15 @@ impl CubliBench {
             .collect())
     }
 
-    /// Scores adding `name` to the model of `current`: the step it would give, the score, and
-    /// why it is refused whatever its tests say (a negative friction coefficient, or a cost
-    /// reduction within the noise).
+    /// Scores adding `name` to the model of `current`: the step it would give (with why it is
+    /// refused whatever its tests say: a negative friction coefficient, or a cost reduction
+    /// within the noise) and the score.
     fn score(
         &self,
         current: &CubliStep,
         name: &str,
         n_candidates: usize,
-    ) -> Result<(CubliStep, CandidateScore, Option<String>)> {
+    ) -> Result<(CubliStep, CandidateScore)> {
         let mut with = current.effects.clone();
         with.push(name.to_string());
         let next = self.step(&with, Some(name.to_string()))?;
@@ -1175,7 +1180,7 @@ impl CubliBench {
             significant: score.significant && refusal.is_none(),
             ..score
         };
-        Ok((next, score, refusal))
+        Ok((CubliStep { refusal, ..next }, score))
     }
 
     /// Runs the discovery loop from the current model.
@@ -1190,52 +1195,79 @@ impl CubliBench {
     /// the final model still carries a structured misfit the effects added are reported as
     /// `tentative`, not `found`.
     pub fn discover(&self) -> Result<CubliDiscovery> {
-        let mut current = self.step(&self.effects, None)?;
-        let mut steps = Vec::new();
-        let mut found = Vec::new();
-        loop {
-            let remaining: Vec<&str> = CANDIDATES
-                .iter()
-                .copied()
-                .filter(|c| !current.effects.iter().any(|e| e == c))
-                .collect();
-            let mut best: Option<(CubliStep, usize)> = None;
-            for name in &remaining {
-                let (next, score, refusal) = self.score(&current, name, remaining.len())?;
-                let alpha = LEVEL / remaining.len() as f64;
-                let plain_f = score.p_value < alpha && score.delta_bic < 0.0;
-                let passes_f = plain_f && refusal.is_none();
-                let explains = passes_f && next.misfit_channels().is_empty();
-                if score.significant || explains {
-                    if best.as_ref().is_none_or(|(b, _)| next.cost < b.cost) {
-                        best = Some((next, current.candidates.len()));
-                    }
-                } else if let (true, Some(why)) = (plain_f, &refusal) {
-                    current.not_added.push(format!(
-                        "{name}: passes the F test (p = {:.1e}) but {why}",
-                        score.p_value
-                    ));
-                } else if passes_f {
-                    current.not_added.push(format!(
-                        "{name}: reduces the cost by {:.2}% (F test p = {:.1e}) but leaves structured misfit in [{}] and is not significant beyond the generic probes (p = {:.2})",
-                        score.reduction_percent,
-                        score.p_value,
-                        next.misfit_channels().join(", "),
-                        score.robust_p_value
-                    ));
+        let start = self.step(&self.effects, None)?;
+        let (steps, found) = forward_selection(self, start, &mut |_: &str| {})?;
+        Ok(self.record(steps, found))
+    }
+}
+
+/// The window regression's moves in the workbench's forward selection.
+impl Search for CubliBench {
+    type Fit = CubliStep;
+    type Context = ();
+
+    fn candidates(&self, at: &CubliStep) -> Vec<String> {
+        CANDIDATES
+            .iter()
+            .filter(|c| !at.effects.iter().any(|e| e == *c))
+            .map(|c| c.to_string())
+            .collect()
+    }
+
+    fn context(&self, _: &CubliStep) -> Result<()> {
+        Ok(())
+    }
+
+    fn try_effect(
+        &self,
+        at: &CubliStep,
+        _: &(),
+        effect: &str,
+        n: usize,
+    ) -> Result<(CubliStep, CandidateScore)> {
+        self.score(at, effect, n)
+    }
+
+    /// The lowest-cost candidate among those that are significant, or pass the plain F test
+    /// and leave no structured misfit; why others that pass the plain F test are not added
+    /// goes to `not_added`.
+    fn choose(&self, at: &mut CubliStep, tried: &[(CubliStep, CandidateScore)]) -> Option<usize> {
+        let alpha = LEVEL / tried.len().max(1) as f64;
+        let mut best: Option<usize> = None;
+        for (i, (next, score)) in tried.iter().enumerate() {
+            let plain_f = score.p_value < alpha && score.delta_bic < 0.0;
+            let passes_f = plain_f && next.refusal.is_none();
+            let explains = passes_f && next.misfit_channels().is_empty();
+            let name = &score.effect;
+            if score.significant || explains {
+                if best.is_none_or(|b| next.cost < tried[b].0.cost) {
+                    best = Some(i);
                 }
-                current.candidates.push(score);
-            }
-            match best {
-                Some((next, i)) => {
-                    found.push(current.candidates[i].effect.clone());
-                    steps.push(std::mem::replace(&mut current, next));
-                }
-                None => break,
+            } else if let (true, Some(why)) = (plain_f, &next.refusal) {
+                at.not_added.push(format!(
+                    "{name}: passes the F test (p = {:.1e}) but {why}",
+                    score.p_value
+                ));
+            } else if passes_f {
+                at.not_added.push(format!(
+                    "{name}: reduces the cost by {:.2}% (F test p = {:.1e}) but leaves structured misfit in [{}] and is not significant beyond the generic probes (p = {:.2})",
+                    score.reduction_percent,
+                    score.p_value,
+                    next.misfit_channels().join(", "),
+                    score.robust_p_value
+                ));
             }
         }
-        steps.push(current);
-        Ok(self.record(steps, found))
+        best
+    }
+
+    fn record_scores(&self, at: &mut CubliStep, scores: Vec<CandidateScore>) {
+        at.candidates = scores;
+    }
+
+    /// Each fit is a small least-squares problem.
+    fn parallel(&self) -> bool {
+        false
     }
 }
 
