@@ -484,6 +484,22 @@ impl Workbench {
         })
     }
 
+    /// Probability under noise alone of the cost of a model with no response at all. Where
+    /// it is not small, the excited band carries no measurable response (a sensor that moves
+    /// with the plant above a mount resonance, an input drowned in feedback of noise): any
+    /// model whose response is small there fits to the noise level, a wrong one included,
+    /// so no effect can be confirmed.
+    pub fn zero_response_p_value(&self) -> f64 {
+        let zero: Vec<super::frf::CMatrix> = self
+            .frf
+            .lines
+            .iter()
+            .map(|l| super::frf::CMatrix::zeros(l.g.nrows(), l.g.ncols()))
+            .collect();
+        let (mean, _) = self.noise.fitted_level(0);
+        matched_sf(self.cost.cost(&zero), mean, self.noise.sd())
+    }
+
     /// Probability of the step's cost under noise alone.
     pub fn noise_p_value(&self, step: &Step) -> f64 {
         let free = step.params.iter().filter(|p| !p.held).count();
@@ -612,6 +628,13 @@ impl Workbench {
             why.push(format!(
                 "the FRF estimator is {} and the data are not known to be open loop; {fix}",
                 self.frf.estimator.describe()
+            ));
+        }
+        if self.zero_response_p_value() >= LEVEL {
+            why.push(format!(
+                "the measured FRF is indistinguishable from zero over the band ({:.2}-{:.2} Hz): the data cannot test a model there",
+                self.frf.lines.first().map_or(0.0, |l| l.freq_hz),
+                self.frf.lines.last().map_or(0.0, |l| l.freq_hz),
             ));
         }
         if matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. }) {

@@ -20,14 +20,22 @@ pub struct ActuatorLag {
 }
 
 impl Default for ActuatorLag {
-    /// The lower bound is far below any sample period, so the lagged model nests the one
-    /// without lag and an FRF fit can never be worse than without it.
+    /// For a model without data (listing its candidates): `tau` from 0.1 ms. The workbench
+    /// sizes the bound to the data's sample period ([`ActuatorLag::nesting`]).
     fn default() -> Self {
         Self { min_tau: 1e-4 }
     }
 }
 
 impl ActuatorLag {
+    /// For the FRF criterion at sample period `t`: `tau` from 1e-4 `t`, where the lag shifts
+    /// the response by less than 2.5e-4 rad up to 0.4 times the sample rate, so the lagged
+    /// model nests the one without and its fit can never be worse. (A bound fixed in seconds
+    /// is not: 0.1 ms turns a 400 Hz line of 1 kHz data by 14 degrees.)
+    pub fn nesting(t: f64) -> Self {
+        Self { min_tau: 1e-4 * t }
+    }
+
     /// For the time-domain criterion at sample period `t`: `tau` from a quarter sample (a
     /// shorter lag, beyond what the samples resolve, would only make the integration stiff).
     pub fn for_sample_period(t: f64) -> Self {
@@ -36,8 +44,35 @@ impl ActuatorLag {
 }
 
 /// `u(t - td)` for every input, exact for fractional delays.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct InputDelay;
+#[derive(Debug, Clone, Copy)]
+pub struct InputDelay {
+    /// Longest `td` searched, s.
+    max_td: f64,
+}
+
+impl Default for InputDelay {
+    /// For a model without data: `td` up to 0.5 s. The workbench bounds it by what the
+    /// frequency lines resolve ([`InputDelay::for_line_spacing`]).
+    fn default() -> Self {
+        Self { max_td: 0.5 }
+    }
+}
+
+impl InputDelay {
+    /// For FRF lines `spacing` Hz apart at the closest: `td` up to a quarter of `1 / spacing`
+    /// (and 0.5 s). A delay turns neighbouring lines' phases apart by `2 pi spacing td`, so
+    /// delays `1 / spacing` apart fit the same lines, and a Welch segment's spectrum holds
+    /// the delayed relation only for a delay well inside the segment: a longer one fits any
+    /// misfit and makes the residual look like segment-to-segment noise.
+    pub fn for_line_spacing(spacing: f64) -> Self {
+        let max_td = if spacing > 0.0 {
+            (0.25 / spacing).min(0.5)
+        } else {
+            0.5
+        };
+        Self { max_td }
+    }
+}
 
 /// `y = h(x, u) + bias` with one constant per output: an encoder's zero, a gyro's offset.
 /// Invisible to the FRF (it has no DC line); the time-domain criterion, which compares
@@ -187,7 +222,13 @@ impl Effect for InputDelay {
     }
 
     fn parameters(&self) -> Vec<Parameter> {
-        vec![Parameter::new("td", 0.01, 0.0, 0.5, "s")]
+        vec![Parameter::new(
+            "td",
+            0.01f64.min(0.5 * self.max_td),
+            0.0,
+            self.max_td,
+            "s",
+        )]
     }
 
     fn qualified_names(&self) -> bool {
@@ -212,8 +253,10 @@ impl Effect for InputDelay {
 /// nonlinear structure: the linear path compares deviations, where an offset cannot show).
 pub fn for_structure(structure: &dyn ModelStructure) -> Vec<Arc<dyn Effect>> {
     let own = structure.effects();
-    let mut all: Vec<Arc<dyn Effect>> =
-        vec![Arc::new(ActuatorLag::default()), Arc::new(InputDelay)];
+    let mut all: Vec<Arc<dyn Effect>> = vec![
+        Arc::new(ActuatorLag::default()),
+        Arc::new(InputDelay::default()),
+    ];
     if structure.is_nonlinear() {
         all.push(Arc::new(SensorBias::new(&structure.outputs())));
     }
@@ -246,7 +289,7 @@ mod tests {
         ActuatorLag::default().apply(&[tau], &mut lagged).unwrap();
         lagged.check().unwrap();
         let mut delayed = plant();
-        InputDelay.apply(&[td], &mut delayed).unwrap();
+        InputDelay::default().apply(&[td], &mut delayed).unwrap();
         let freqs = [0.1, 0.7, 3.0, 11.0];
         let g0 = plant().frf_lines(&freqs, None).unwrap();
         let gl = lagged.frf_lines(&freqs, None).unwrap();

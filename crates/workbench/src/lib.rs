@@ -173,15 +173,36 @@ impl Workbench {
         let criterion = options
             .criterion
             .unwrap_or_else(|| Criterion::default_for(&model));
-        if criterion == Criterion::Time
+        if !model
+            .structure()
+            .effects()
+            .iter()
+            .any(|e| e == "actuator_lag")
+        {
+            // The generic lag's shortest time constant follows the sample period.
+            let h = 1.0 / data.sample_rate_hz;
+            let lag = match criterion {
+                Criterion::Time => generic::ActuatorLag::for_sample_period(h),
+                Criterion::Frf => generic::ActuatorLag::nesting(h),
+            };
+            model = model.with_candidate(Arc::new(lag))?;
+        }
+        if criterion == Criterion::Frf
             && !model
                 .structure()
                 .effects()
                 .iter()
-                .any(|e| e == "actuator_lag")
+                .any(|e| e == "input_delay")
         {
-            model = model.with_candidate(Arc::new(generic::ActuatorLag::for_sample_period(
-                1.0 / data.sample_rate_hz,
+            // The generic delay no longer than the lines resolve.
+            let f = frf.freqs_hz();
+            let spacing = f
+                .windows(2)
+                .map(|w| w[1] - w[0])
+                .filter(|d| *d > 0.0)
+                .fold(f64::INFINITY, f64::min);
+            model = model.with_candidate(Arc::new(generic::InputDelay::for_line_spacing(
+                if spacing.is_finite() { spacing } else { 0.0 },
             )))?;
         }
         if criterion == Criterion::Time && !model.structure().is_nonlinear() {

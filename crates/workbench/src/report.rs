@@ -258,6 +258,7 @@ pub fn json(wb: &Workbench, d: &Discovery) -> Value {
         "estimator": wb.frf().estimator,
         "frequencies_hz": wb.frf().freqs_hz(),
         "noise_expected_cost": wb.noise().mean(),
+        "zero_response_p_value": wb.zero_response_p_value(),
         "residuals": wb.noise().n_residuals,
         "steps": steps,
         "found": d.found,

@@ -312,6 +312,35 @@ fn adds_nothing_when_data_are_explained_to_the_noise_level() {
     }
 }
 
+/// A plant whose response the data cannot see (gains 1e-5 of the documented ones under the
+/// same noise) is named as such: a model with no response fits it to the noise level, so no
+/// effect could be confirmed; the documented plant's response is far out of the noise.
+#[test]
+fn a_response_lost_in_the_noise_is_named() {
+    for seed in 20..23 {
+        let silent = Truth {
+            theta: vec![1.5, 4.0, 2e-5, 1.2e-5],
+            ..base_truth()
+        };
+        let wb = Workbench::new(
+            Arc::new(Toy),
+            simulate(&silent, 0.02, seed),
+            EstimatorChoice::Auto,
+        )
+        .unwrap();
+        let p = wb.zero_response_p_value();
+        assert!(p > 0.01, "seed {seed}: p = {p}");
+        let wb = Workbench::new(
+            Arc::new(Toy),
+            simulate(&base_truth(), 0.02, seed),
+            EstimatorChoice::Auto,
+        )
+        .unwrap();
+        let p = wb.zero_response_p_value();
+        assert!(p < 1e-12, "seed {seed}: p = {p}");
+    }
+}
+
 #[test]
 fn reports_structured_misfit_that_no_candidate_explains() {
     let truth = Truth {
