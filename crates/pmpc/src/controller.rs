@@ -213,7 +213,7 @@ impl Pmpc {
         })
     }
 
-    /// Enable or disable warm starting from the shifted working set.
+    /// Enable or disable warm starting from the previous working set (see `predict_instants`).
     pub fn with_warm_start(mut self, warm: bool) -> Self {
         self.warm_start = warm;
         self
