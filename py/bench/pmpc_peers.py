@@ -3,7 +3,7 @@ stabilis.pmpc against DAQP, OSQP and ProxQP on the condensed discrete-time probl
 DARE terminal cost, |u| <= 0.5, x_1 >= 0 at k = 1..N), all in one process and one run.
 
 How each contender is called (the fastest way its Python API allows):
-  * stabilis.pmpc: `Controller.step(x)`, warm-started from the shifted working set, without
+  * stabilis.pmpc: `Controller.step(x)`, warm-started from the previous working set, without
     and with the per-step iteration budgets given by --budget (default 4, 5, 6 and 8; the shifted
     previous plan is applied when a budget runs out).
   * DAQP: one `daqp.Model`, `setup` once, then per step `update(f=, bupper=, blower=)` and

@@ -1,6 +1,7 @@
 //! The online controller: solve the semi-infinite QP at every sample, warm-started from the
-//! previous working set shifted by T_d, with the shifted previous plan as fallback (which keeps
-//! recursive feasibility and the Lyapunov decrease when the solver stops early).
+//! previous working set with its instants predicted for the new sample, with the shifted
+//! previous plan as fallback (which keeps recursive feasibility and the Lyapunov decrease when
+//! the solver stops early).
 
 use crate::constraints::Constraints;
 use crate::error::{Error, Result};
@@ -43,6 +44,51 @@ pub struct StepInfo {
     pub active: usize,
 }
 
+/// The warm start of the next step from this step's final working set `last`, the final set
+/// `before` of the step before, and the set `seeded` this step started from, into `out`. An
+/// instant the solver placed this step (added or moved: not in `seeded` at the same instant)
+/// with a partner in `before` (same row and side, both after 0, the nearest, within `reach`
+/// seconds) continues its drift, t + (t − t_before); any other one is shifted by the sampling
+/// time, t − h; both are clamped at 0. The parametrized plan is not shift invariant: on the
+/// quadruple integrator the touch points of |u| ≤ 0.5 near 0.2 s and 1.1 s drift by −0.0014
+/// and −0.007 s per 0.02 s step and those of x_1 ≥ 0 near 6 s and 13 s by −0.027 and
+/// −0.08 s, nearly constant over many steps, and a shifted instant off the new extremum
+/// costs exchange iterations. An instant that was only seeded and not moved satisfied the
+/// check where it was, so it is shifted as the clock says (extrapolating a drift it did not
+/// make would walk it away). An instant that falls before 0 moves to 0 rather than being
+/// dropped: a row held at the start of the plan (a saturated input) is held at the start of
+/// the next one, and without it the rest of the set is not dual feasible, so the seed would
+/// drop it all and the step start cold. The prediction only seeds the solve, which still
+/// ends on a check of every row.
+fn predict_instants(
+    last: &[Active],
+    before: &[Active],
+    seeded: &[Active],
+    h: f64,
+    reach: f64,
+    out: &mut Vec<Active>,
+) {
+    out.clear();
+    for a in last {
+        let same = |b: &&Active| b.row == a.row && b.side == a.side;
+        let placed = !seeded.iter().filter(same).any(|b| b.t == a.t);
+        let partner = before
+            .iter()
+            .filter(same)
+            .filter(|b| b.t > 0.0)
+            .map(|b| b.t)
+            .min_by(|x, y| (x - a.t).abs().total_cmp(&(y - a.t).abs()));
+        let t = match partner {
+            Some(tb) if placed && a.t > 0.0 && (a.t - tb).abs() < reach => a.t + (a.t - tb),
+            _ => a.t - h,
+        };
+        out.push(Active {
+            t: if t.is_finite() { t.max(0.0) } else { 0.0 },
+            ..*a
+        });
+    }
+}
+
 /// Parametrized infinite-horizon MPC (spec/pmpc.md §5).
 ///
 /// ```
@@ -67,6 +113,9 @@ pub struct Pmpc {
     budget: Option<usize>,
     storage: WorkspaceStorage,
     warm: Vec<Active>,
+    before: Vec<Active>,
+    seeded: Vec<Active>,
+    next: Vec<Active>,
     has_plan: bool,
     z: Vec<f64>,
     z_shifted: Vec<f64>,
@@ -108,6 +157,9 @@ impl Pmpc {
             budget: None,
             storage,
             warm: Vec::with_capacity(cap),
+            before: Vec::with_capacity(cap),
+            seeded: Vec::with_capacity(cap),
+            next: Vec::with_capacity(cap),
             has_plan: false,
             z: vec![0.0; nvar],
             z_shifted: vec![0.0; nvar],
@@ -161,7 +213,7 @@ impl Pmpc {
         })
     }
 
-    /// Enable or disable warm starting from the shifted working set.
+    /// Enable or disable warm starting from the previous working set (see `predict_instants`).
     pub fn with_warm_start(mut self, warm: bool) -> Self {
         self.warm_start = warm;
         self
@@ -186,6 +238,9 @@ impl Pmpc {
     pub fn reset(&mut self) {
         self.has_plan = false;
         self.warm.clear();
+        self.before.clear();
+        self.seeded.clear();
+        self.next.clear();
     }
 
     /// Solve for the measured state `x` and return the input ũ(0) to apply now. The whole
@@ -197,7 +252,18 @@ impl Pmpc {
         let mut ws = self.storage.workspace(&sp)?;
         let warm = self.warm_start && self.has_plan;
         if warm {
-            ws.set_active(&self.warm);
+            let reach = 0.25 / sp.basis().nu();
+            predict_instants(
+                &self.warm,
+                &self.before,
+                &self.seeded,
+                self.td,
+                reach,
+                &mut self.next,
+            );
+            ws.set_active(&self.next);
+        } else {
+            self.next.clear();
         }
         let mut settings = self.settings;
         if let (Some(b), true) = (self.budget, self.has_plan) {
@@ -206,17 +272,12 @@ impl Pmpc {
         let out = siqp::solve(&sp, &settings, &self.w0, warm, &mut ws)?;
         let stats = out.stats;
         let status = out.status;
-        // The working set reached seeds the next step, shifted by T_d, also when this step
-        // stopped early: its work is not lost.
+        // The working set reached seeds the next step (its instants predicted from this set and
+        // the one before), also when this step stopped early: its work is not lost.
+        std::mem::swap(&mut self.warm, &mut self.before);
         self.warm.clear();
-        for a in out.active {
-            if a.t >= self.td {
-                self.warm.push(Active {
-                    t: a.t - self.td,
-                    ..*a
-                });
-            }
-        }
+        self.warm.extend_from_slice(out.active);
+        std::mem::swap(&mut self.seeded, &mut self.next);
         let source = if status == Status::Optimal {
             out.multiplier_coefficients(&sp, &mut self.tau, &mut self.mu);
             let active = out.active.len();
@@ -293,5 +354,86 @@ impl Pmpc {
             });
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::predict_instants;
+    use proptest::prelude::*;
+    use rigid_body::siqp::{Active, Side};
+
+    fn instant(t: f64, row: usize, upper: bool) -> Active {
+        Active {
+            t,
+            row,
+            side: if upper { Side::Upper } else { Side::Lower },
+        }
+    }
+
+    fn set() -> impl Strategy<Value = Vec<Active>> {
+        proptest::collection::vec(
+            (
+                prop_oneof![Just(0.0), 0.0f64..40.0],
+                0usize..3,
+                any::<bool>(),
+            )
+                .prop_map(|(t, r, u)| instant(t, r, u)),
+            0..8,
+        )
+    }
+
+    proptest! {
+        /// Every predicted instant keeps its row and side, lies at t >= 0, and is either the
+        /// clamped shift or the clamped drift continuation of a partner within reach.
+        #[test]
+        fn prediction_is_a_shift_or_a_drift_within_reach(
+            last in set(), before in set(), seeded in set(), h in 1e-3f64..0.1, reach in 0.0f64..1.0,
+        ) {
+            let mut out = Vec::new();
+            predict_instants(&last, &before, &seeded, h, reach, &mut out);
+            prop_assert_eq!(out.len(), last.len());
+            for (a, p) in last.iter().zip(&out) {
+                prop_assert_eq!((a.row, a.side), (p.row, p.side));
+                prop_assert!(p.t.is_finite() && p.t >= 0.0);
+                let shifted = (a.t - h).max(0.0);
+                let drift = before.iter().any(|b| {
+                    b.row == a.row && b.side == a.side && b.t > 0.0 && (a.t - b.t).abs() < reach
+                        && (p.t - (a.t + (a.t - b.t)).max(0.0)).abs() <= 1e-12
+                });
+                prop_assert!(p.t == shifted || drift, "{a:?} -> {p:?}");
+            }
+        }
+
+        /// Without a step before, or for instants the solver did not move (seeded where they
+        /// ended), the prediction is the shift by the sampling time, clamped at 0.
+        #[test]
+        fn unmoved_or_unpartnered_instants_are_shifted(
+            last in set(), before in set(), h in 1e-3f64..0.1,
+        ) {
+            let mut out = Vec::new();
+            predict_instants(&last, &[], &[], h, 1.0, &mut out);
+            for (a, p) in last.iter().zip(&out) {
+                prop_assert_eq!(p.t, (a.t - h).max(0.0));
+            }
+            predict_instants(&last, &before, &last, h, 1.0, &mut out);
+            for (a, p) in last.iter().zip(&out) {
+                prop_assert_eq!(p.t, (a.t - h).max(0.0));
+            }
+        }
+
+        /// An instant the solver moved continues a constant drift exactly (its partner the
+        /// nearest one of its row and side in the set before).
+        #[test]
+        fn moved_instant_continues_its_drift(
+            t in 1.0f64..30.0, d in -0.2f64..0.2, h in 1e-3f64..0.1, row in 0usize..3,
+        ) {
+            let before = [instant(t - d, row, false), instant(t + 5.0, row, false)];
+            let last = [instant(t, row, false)];
+            let seeded = [instant(t + 1e-3, row, false)];
+            let mut out = Vec::new();
+            predict_instants(&last, &before, &seeded, h, 0.25, &mut out);
+            prop_assert!((out[0].t - (t + d)).abs() <= 1e-12);
+        }
     }
 }

@@ -420,19 +420,16 @@ impl<'a> Workspace<'a> {
         self.n_active = n;
     }
 
-    /// Shift the working set by `h` seconds (t ← t − h), dropping instants that fall before 0:
-    /// the warm start of the next MPC step (spec §7.6).
+    /// Shift the working set by `h` seconds (t ← max(t − h, 0)): the warm start of the next MPC
+    /// step (spec §7.6). An instant that falls before 0 moves to 0 instead of being dropped: a
+    /// row held at the start of the plan (a saturated input) is held at the start of the next
+    /// one too, and without it the rest of the set is not dual feasible, so the seed would drop
+    /// it all and the step would start cold. A duplicate this makes at 0 is dropped by the seed
+    /// (dependent instant).
     pub fn shift_active(&mut self, h: f64) {
-        let mut k = 0;
-        for i in 0..self.n_active {
-            let mut a = self.active[i];
-            a.t -= h;
-            if a.t >= 0.0 {
-                self.active[k] = a;
-                k += 1;
-            }
+        for a in &mut self.active[..self.n_active] {
+            a.t = (a.t - h).max(0.0);
         }
-        self.n_active = k;
     }
 
     /// Save the working set, iterate, multipliers and factor (see [`Workspace::restore`]).

@@ -328,6 +328,31 @@ fn polynomial_tail_certifies_a_positive_function_and_refuses_a_dip() {
 }
 
 proptest! {
+    /// The shifted working set keeps every instant, row and side; an instant that falls
+    /// before 0 is clamped to 0 (not dropped).
+    #[test]
+    fn shift_keeps_every_instant_clamped_at_zero(
+        ts in proptest::collection::vec(0.0f64..2.0, 1..6),
+        h in 0.0f64..1.0,
+    ) {
+        let (b, rows, phi, _, rank) = random_problem(&mut rng(3));
+        let p = Problem::new(b, &rows, &phi, rank.max(ts.len())).unwrap();
+        let mut st = WorkspaceStorage::new(&p);
+        let mut ws = st.workspace(&p).unwrap();
+        let list: Vec<Active> = ts
+            .iter()
+            .enumerate()
+            .map(|(i, &t)| Active { t, row: i % rows.len(), side: Side::Lower })
+            .collect();
+        ws.set_active(&list);
+        ws.shift_active(h);
+        prop_assert_eq!(ws.active().len(), list.len());
+        for (a, s) in list.iter().zip(ws.active()) {
+            prop_assert_eq!((a.row, a.side), (s.row, s.side));
+            prop_assert_eq!(s.t, (a.t - h).max(0.0));
+        }
+    }
+
     /// Whenever the polynomial certificate holds, the function stays within the widened
     /// limits on [0, ∞) (exact extrema oracle).
     #[test]
