@@ -276,16 +276,22 @@ pub struct Discovery {
 }
 
 impl Discovery {
-    /// A sentence for the summary naming the tentative effects and why; `None` when the
-    /// loop added nothing or everything it added is confirmed.
+    /// A sentence naming the tentative effects and why; `None` when the loop added nothing
+    /// or everything it added is confirmed.
     pub fn tentative_sentence(&self) -> Option<String> {
-        (!self.tentative.is_empty()).then(|| {
-            format!(
-                "[{}] lower the cost but are tentative, not found: {}",
-                self.tentative.join(", "),
-                self.caveats.join("; ")
-            )
-        })
+        self.conclusion().tentative_sentence()
+    }
+
+    /// What it concluded, for the reports every criterion writes alike.
+    pub fn conclusion(&self) -> super::report::Conclusion<'_> {
+        super::report::Conclusion {
+            found: &self.found,
+            tentative: &self.tentative,
+            caveats: &self.caveats,
+            unexplained: self.unexplained,
+            verdict: &self.verdict,
+            level: self.level,
+        }
     }
 }
 

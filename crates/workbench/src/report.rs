@@ -5,7 +5,7 @@ use std::path::Path;
 
 use serde_json::{json, Value};
 
-use super::discover::{Discovery, Step};
+use super::discover::{CandidateScore, Discovery, Step, Verdict};
 use super::fit::ParamEstimate;
 use super::frf::CMatrix;
 use super::model::Parameter;
@@ -101,11 +101,7 @@ pub fn table(wb: &Workbench, d: &Discovery) -> String {
     for (name, value, why) in wb.model().structure().fixed() {
         let _ = writeln!(s, "fixed {name} = {value} ({why})");
     }
-    let _ = writeln!(s, "found: [{}]", d.found.join(", "));
-    if let Some(t) = d.tentative_sentence() {
-        let _ = writeln!(s, "tentative: {t}");
-    }
-    let _ = writeln!(s, "verdict: {}", d.verdict.sentence());
+    s.push_str(&d.conclusion().lines());
     s
 }
 
@@ -226,24 +222,32 @@ pub fn json(wb: &Workbench, d: &Discovery) -> Value {
         .steps
         .iter()
         .map(|s| {
-            let params: serde_json::Map<String, Value> = s.params.iter().map(|p| (p.name.clone(), json!(p.value))).collect();
-            let std: serde_json::Map<String, Value> = s.params.iter().map(|p| (p.name.clone(), json!(p.std))).collect();
-            json!({
-                "added": s.added,
-                "effects": s.effects,
-                "cost": s.cost,
-                "reduction_percent": s.reduction_percent,
-                "normalized_cost": s.normalized_cost,
-                "params": params,
-                "std": std,
-                "held": s.params.iter().filter(|p| p.held).map(|p| p.name.clone()).collect::<Vec<_>>(),
-                "poorly_determined": s.params.iter().filter(|p| p.poorly_determined).map(|p| p.name.clone()).collect::<Vec<_>>(),
-                "fit_percent": s.diagnosis.fit_percent.iter().map(|(n, f)| (n.clone(), json!(f))).collect::<serde_json::Map<_, _>>(),
-                "time_fit": s.time_fit,
-                "residual_tests": s.residual_tests,
-                "candidates": s.candidates,
-                "diagnosis": s.diagnosis,
-            })
+            let mut step = step_fields(
+                &s.added,
+                &s.effects,
+                s.cost,
+                s.reduction_percent,
+                &s.params,
+                &s.candidates,
+            );
+            for (k, v) in [
+                ("normalized_cost", json!(s.normalized_cost)),
+                (
+                    "fit_percent",
+                    s.diagnosis
+                        .fit_percent
+                        .iter()
+                        .map(|(n, f)| (n.clone(), json!(f)))
+                        .collect::<serde_json::Map<_, _>>()
+                        .into(),
+                ),
+                ("time_fit", json!(s.time_fit)),
+                ("residual_tests", json!(s.residual_tests)),
+                ("diagnosis", json!(s.diagnosis)),
+            ] {
+                step.insert(k.to_string(), v);
+            }
+            Value::Object(step)
         })
         .collect();
     let fixed: Vec<Value> = wb
@@ -253,24 +257,121 @@ pub fn json(wb: &Workbench, d: &Discovery) -> Value {
         .into_iter()
         .map(|(n, v, why)| json!({"name": n, "value": v, "why": why}))
         .collect();
-    json!({
-        "system": wb.model().structure().system(),
-        "estimator": wb.frf().estimator,
-        "frequencies_hz": wb.frf().freqs_hz(),
-        "noise_expected_cost": wb.noise().mean(),
-        "zero_response_p_value": wb.zero_response_p_value(),
-        "residuals": wb.noise().n_residuals,
-        "steps": steps,
-        "found": d.found,
-        "tentative": d.tentative,
-        "tentative_why": d.caveats,
-        "unexplained": d.unexplained,
-        "weighting": d.weighting,
-        "verdict": d.verdict,
-        "verdict_text": d.verdict.sentence(),
-        "level": d.level,
-        "fixed": fixed,
-    })
+    let mut doc = conclusion_fields(wb.model().structure().system(), steps, &d.conclusion());
+    for (k, v) in [
+        ("estimator", json!(wb.frf().estimator)),
+        ("frequencies_hz", json!(wb.frf().freqs_hz())),
+        ("noise_expected_cost", json!(wb.noise().mean())),
+        ("zero_response_p_value", json!(wb.zero_response_p_value())),
+        ("residuals", json!(wb.noise().n_residuals)),
+        ("weighting", json!(d.weighting)),
+        ("fixed", json!(fixed)),
+    ] {
+        doc.insert(k.to_string(), v);
+    }
+    Value::Object(doc)
+}
+
+/// What a discovery concluded, whatever its criterion: the part of every report written once.
+#[derive(Debug, Clone, Copy)]
+pub struct Conclusion<'a> {
+    /// Effects found, in the order added.
+    pub found: &'a [String],
+    /// Effects added but not confirmed.
+    pub tentative: &'a [String],
+    /// Why they are not confirmed.
+    pub caveats: &'a [String],
+    /// A structured misfit remains.
+    pub unexplained: bool,
+    /// The verdict.
+    pub verdict: &'a Verdict,
+    /// Level of the tests.
+    pub level: f64,
+}
+
+impl Conclusion<'_> {
+    /// A sentence naming the tentative effects and why; `None` when there are none.
+    pub fn tentative_sentence(&self) -> Option<String> {
+        (!self.tentative.is_empty()).then(|| {
+            format!(
+                "[{}] lower the cost but are tentative, not found: {}",
+                self.tentative.join(", "),
+                self.caveats.join("; ")
+            )
+        })
+    }
+
+    /// The closing lines of a terminal summary: found, tentative and why, verdict.
+    pub fn lines(&self) -> String {
+        let mut s = format!("found: [{}]\n", self.found.join(", "));
+        if let Some(t) = self.tentative_sentence() {
+            let _ = writeln!(s, "tentative: {t}");
+        }
+        let _ = writeln!(s, "verdict: {}", self.verdict.sentence());
+        s
+    }
+}
+
+/// The JSON fields of a step every criterion writes: what the model holds, its cost, its
+/// parameters (`params`, `std`, `held`, `poorly_determined`) and the candidates tried on it.
+pub fn step_fields(
+    added: &Option<String>,
+    effects: &[String],
+    cost: f64,
+    reduction_percent: f64,
+    params: &[ParamEstimate],
+    candidates: &[CandidateScore],
+) -> serde_json::Map<String, Value> {
+    let by_name = |f: &dyn Fn(&ParamEstimate) -> Value| -> serde_json::Map<String, Value> {
+        params.iter().map(|p| (p.name.clone(), f(p))).collect()
+    };
+    let names = |pick: Pick| -> Vec<String> {
+        params
+            .iter()
+            .filter(|p| pick(p))
+            .map(|p| p.name.clone())
+            .collect()
+    };
+    let mut m = serde_json::Map::new();
+    for (k, v) in [
+        ("added", json!(added)),
+        ("effects", json!(effects)),
+        ("cost", json!(cost)),
+        ("reduction_percent", json!(reduction_percent)),
+        ("params", by_name(&|p| json!(p.value)).into()),
+        ("std", by_name(&|p| json!(p.std)).into()),
+        ("held", json!(names(|p| p.held))),
+        ("poorly_determined", json!(names(|p| p.poorly_determined))),
+        ("candidates", json!(candidates)),
+    ] {
+        m.insert(k.to_string(), v);
+    }
+    m
+}
+
+/// The JSON document's fields every criterion writes: the system, the steps and the
+/// conclusion (`found`, `tentative`, `tentative_why`, `unexplained`, `verdict`,
+/// `verdict_text`, `level`).
+pub fn conclusion_fields(
+    system: &str,
+    steps: Vec<Value>,
+    c: &Conclusion<'_>,
+) -> serde_json::Map<String, Value> {
+    let mut m = serde_json::Map::new();
+    for (k, v) in [
+        ("system", json!(system)),
+        ("steps", Value::Array(steps)),
+        ("found", json!(c.found)),
+        ("tentative", json!(c.tentative)),
+        ("tentative_why", json!(c.caveats)),
+        ("unexplained", json!(c.unexplained)),
+        ("verdict", json!(c.verdict)),
+        ("verdict_text", json!(c.verdict.sentence())),
+        ("level", json!(c.level)),
+    ] {
+        m.insert(k.to_string(), v);
+    }
+    m
 }
 
 /// Writes `value` to `path` through a temporary file renamed at the end (see
@@ -722,9 +823,34 @@ fn parameter_table(wb: &Workbench, d: &Discovery) -> String {
         })
         .and_then(|m| m.parameters().ok())
         .unwrap_or_default();
+    let steps: Vec<(Option<&str>, &[ParamEstimate])> = d
+        .steps
+        .iter()
+        .map(|st| (st.added.as_deref(), st.params.as_slice()))
+        .collect();
+    let mut out = parameters_html(&documented, &steps);
+    for (name, value, why) in wb.model().structure().fixed() {
+        let _ = write!(
+            out,
+            "<p>{} = {} held: {}</p>",
+            escape(&name),
+            fmt_num(value),
+            escape(&why)
+        );
+    }
+    out
+}
+
+/// The parameter table of any criterion's steps: documented value, then value ± standard
+/// error per step (`(effect added, parameters)`; held ones marked), so that `fit` reports show
+/// nominal against fitted.
+pub fn parameters_html(
+    documented: &[Parameter],
+    steps: &[(Option<&str>, &[ParamEstimate])],
+) -> String {
     let mut names: Vec<String> = Vec::new();
-    for st in &d.steps {
-        for p in &st.params {
+    for (_, params) in steps {
+        for p in params.iter() {
             if !names.contains(&p.name) {
                 names.push(p.name.clone());
             }
@@ -733,11 +859,11 @@ fn parameter_table(wb: &Workbench, d: &Discovery) -> String {
     let mut out = String::from(
         "<h2>Parameters</h2><table><tr><th>parameter</th><th>unit</th><th>documented</th>",
     );
-    for st in &d.steps {
+    for (added, _) in steps {
         let _ = write!(
             out,
             "<th>{}</th>",
-            escape(st.added.as_deref().unwrap_or("fitted, no effect added"))
+            escape(added.unwrap_or("fitted, no effect added"))
         );
     }
     out.push_str("</tr>");
@@ -750,8 +876,8 @@ fn parameter_table(wb: &Workbench, d: &Discovery) -> String {
             escape(doc.map_or("", |p| p.unit.as_str())),
             doc.map_or_else(|| "-".to_string(), |p| fmt_num(p.value))
         );
-        for st in &d.steps {
-            let cell = match st.params.iter().find(|p| &p.name == name) {
+        for (_, params) in steps {
+            let cell = match params.iter().find(|p| &p.name == name) {
                 None => "-".to_string(),
                 Some(p) if p.held => format!("{} (held)", fmt_num(p.value)),
                 Some(p) => match p.std {
@@ -764,15 +890,6 @@ fn parameter_table(wb: &Workbench, d: &Discovery) -> String {
         out.push_str("</tr>");
     }
     out.push_str("</table>");
-    for (name, value, why) in wb.model().structure().fixed() {
-        let _ = write!(
-            out,
-            "<p>{} = {} held: {}</p>",
-            escape(&name),
-            fmt_num(value),
-            escape(&why)
-        );
-    }
     out
 }
 

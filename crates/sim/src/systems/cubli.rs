@@ -44,8 +44,13 @@ use serde_json::{json, Value};
 use workbench::dataset::Dataset;
 use workbench::diagnose::LEVEL;
 use workbench::discover::{CandidateScore, NestedCosts, Robustness, Verdict};
+use workbench::fit::ParamEstimate;
 use workbench::load;
-use workbench::report::{chart, cost_bars, escape, page, per_step, publish, XAxis};
+use workbench::model::Parameter;
+use workbench::report::{
+    chart, conclusion_fields, cost_bars, escape, page, parameters_html, per_step, publish,
+    step_fields, Conclusion, XAxis,
+};
 use workbench::search::{forward_selection, Search};
 use workbench::stats::f_sf;
 use workbench::{Result, SimError};
@@ -612,15 +617,44 @@ fn verdict_of(channel_p_values: &[f64]) -> Verdict {
     }
 }
 
-/// One estimated parameter.
-#[derive(Debug, Clone, Serialize)]
-pub struct CubliParam {
-    /// Name (`wheel_viscous_friction`, `gyro_bias_x`, ...).
-    pub name: String,
-    /// Estimate.
-    pub value: f64,
-    /// Standard error.
-    pub std: f64,
+/// The documented (nominal) value, range and unit of every parameter the candidates estimate:
+/// the nominal model has none of the effects.
+fn documented() -> Vec<Parameter> {
+    let (lo, hi) = COULOMB_SMOOTHING_RANGE;
+    let inf = f64::INFINITY;
+    let mut p = vec![
+        Parameter::new("wheel_viscous_friction", 0.0, 0.0, inf, "N m s/rad"),
+        Parameter::new("wheel_coulomb_friction", 0.0, 0.0, inf, "N m"),
+        Parameter::new(COULOMB_SMOOTHING, 0.1, lo, hi, "rad/s"),
+        Parameter::new("torque_constant", 1.0, -inf, inf, ""),
+    ];
+    for axis in ["x", "y", "z"] {
+        p.push(Parameter::new(
+            format!("gyro_bias_{axis}"),
+            0.0,
+            -inf,
+            inf,
+            "rad/s",
+        ));
+    }
+    p
+}
+
+/// An estimate with its documented unit (`std` absent when it is not determined).
+fn estimate(name: &str, value: f64, std: f64) -> ParamEstimate {
+    let unit = documented()
+        .into_iter()
+        .find(|p| p.name == name)
+        .map_or_else(String::new, |p| p.unit);
+    ParamEstimate {
+        name: name.to_string(),
+        value,
+        std: std.is_finite().then_some(std),
+        unit,
+        held: false,
+        at_bound: false,
+        poorly_determined: !std.is_finite() || std >= value.abs(),
+    }
 }
 
 /// One step of the Cubli discovery (or the one fitted model of `compare` / `fit`).
@@ -639,7 +673,7 @@ pub struct CubliStep {
     /// Per channel, p-value of the residual against the generic probes.
     pub channel_p_values: Vec<f64>,
     /// Parameters with standard errors.
-    pub params: Vec<CubliParam>,
+    pub params: Vec<ParamEstimate>,
     /// Candidates tried on this step.
     pub candidates: Vec<CandidateScore>,
     /// Why candidates that pass the plain F test were not added.
@@ -728,59 +762,67 @@ impl CubliDiscovery {
         text
     }
 
-    /// The workbench JSON (`steps`, `found`, `unexplained`, plus details).
+    /// What it concluded, for the reports every criterion writes alike.
+    pub fn conclusion(&self) -> Conclusion<'_> {
+        Conclusion {
+            found: &self.found,
+            tentative: &self.tentative,
+            caveats: &self.caveats,
+            unexplained: self.unexplained,
+            verdict: &self.verdict,
+            level: self.level,
+        }
+    }
+
+    /// The workbench JSON: the fields every criterion writes ([`step_fields`],
+    /// [`conclusion_fields`]) and the window regression's own.
     pub fn json(&self) -> Value {
         let steps: Vec<Value> = self
             .steps
             .iter()
             .map(|s| {
-                let params: serde_json::Map<String, Value> = s
-                    .params
-                    .iter()
-                    .map(|p| (p.name.clone(), json!(p.value)))
-                    .collect();
-                let std: serde_json::Map<String, Value> = s
-                    .params
-                    .iter()
-                    .map(|p| (p.name.clone(), json!(p.std)))
-                    .collect();
-                json!({
-                    "added": s.added,
-                    "effects": s.effects,
-                    "cost": s.cost,
-                    "reduction_percent": s.reduction_percent,
-                    "params": params,
-                    "std": std,
-                    "channel_rms_over_noise": s.channel_rms_over_noise,
-                    "channel_p_values": s.channel_p_values,
-                    "candidates": s.candidates,
-                    "not_added": s.not_added,
-                })
+                let mut step = step_fields(
+                    &s.added,
+                    &s.effects,
+                    s.cost,
+                    s.reduction_percent,
+                    &s.params,
+                    &s.candidates,
+                );
+                for (k, v) in [
+                    ("channel_rms_over_noise", json!(s.channel_rms_over_noise)),
+                    ("channel_p_values", json!(s.channel_p_values)),
+                    ("not_added", json!(s.not_added)),
+                ] {
+                    step.insert(k.to_string(), v);
+                }
+                Value::Object(step)
             })
             .collect();
         let held: serde_json::Map<String, Value> = HELD
             .iter()
             .map(|(k, v)| (k.to_string(), json!(v)))
             .collect();
-        json!({
-            "system": "cubli",
-            "method": format!("time-domain prediction error over {}-sample windows", self.window_samples),
-            "steps": steps,
-            "found": self.found,
-            "tentative": self.tentative,
-            "tentative_why": self.caveats,
-            "unexplained": self.unexplained,
-            "verdict": self.verdict,
-            "verdict_text": self.verdict_sentence(),
-            "misfit_channels": self.misfit_channels,
-            "channels": CHANNELS,
-            "channel_p_values": self.channel_p_values,
-            "noise_std": self.noise_std,
-            "windows": self.windows,
-            "experiments": self.experiments,
-            "held": held,
-            "level": self.level,
-        })
+        let mut doc = conclusion_fields("cubli", steps, &self.conclusion());
+        for (k, v) in [
+            (
+                "method",
+                json!(format!(
+                    "time-domain prediction error over {}-sample windows",
+                    self.window_samples
+                )),
+            ),
+            ("misfit_channels", json!(self.misfit_channels)),
+            ("channels", json!(CHANNELS)),
+            ("channel_p_values", json!(self.channel_p_values)),
+            ("noise_std", json!(self.noise_std)),
+            ("windows", json!(self.windows)),
+            ("experiments", json!(self.experiments)),
+            ("held", json!(held)),
+        ] {
+            doc.insert(k.to_string(), v);
+        }
+        Value::Object(doc)
     }
 
     /// The terminal summary table.
@@ -817,7 +859,10 @@ impl CubliDiscovery {
         }
         if let Some(last) = self.steps.last() {
             for p in &last.params {
-                let _ = writeln!(s, "  {} = {:.4e} ± {:.1e}", p.name, p.value, p.std);
+                let std = p
+                    .std
+                    .map_or_else(|| "undetermined".to_string(), |v| format!("{v:.1e}"));
+                let _ = writeln!(s, "  {} = {:.4e} ± {std}", p.name, p.value);
             }
         }
         for st in &self.steps {
@@ -828,16 +873,12 @@ impl CubliDiscovery {
         for (k, v) in HELD {
             let _ = writeln!(s, "  held: {k} ({v})");
         }
-        let _ = writeln!(s, "found: [{}]", self.found.join(", "));
-        if !self.tentative.is_empty() {
-            let _ = writeln!(s, "tentative: [{}]", self.tentative.join(", "));
-        }
-        let _ = writeln!(s, "verdict: {}", self.verdict_sentence());
+        s.push_str(&self.conclusion().lines());
         s
     }
 }
 
-fn params_of(rows: &Rows, effects: &[String], fit: &Fitted) -> Vec<CubliParam> {
+fn params_of(rows: &Rows, effects: &[String], fit: &Fitted) -> Vec<ParamEstimate> {
     let (cols, theta, cov) = (&fit.cols, &fit.theta, &fit.cov);
     let at = |c: usize| cols.iter().position(|&x| x == c);
     let mut out = Vec::new();
@@ -851,29 +892,25 @@ fn params_of(rows: &Rows, effects: &[String], fit: &Fitted) -> Vec<CubliParam> {
                         let var = b1[a] * b1[a] * cov[(i, i)]
                             + b2[a] * b2[a] * cov[(j, j)]
                             + 2.0 * b1[a] * b2[a] * cov[(i, j)];
-                        out.push(CubliParam {
-                            name: format!("gyro_bias_{name}"),
-                            value: v[a],
-                            std: var.max(0.0).sqrt(),
-                        });
+                        out.push(estimate(
+                            &format!("gyro_bias_{name}"),
+                            v[a],
+                            var.max(0.0).sqrt(),
+                        ));
                     }
                 }
             }
             name => {
                 if let Some(i) = columns_of(name).first().and_then(|&c| at(c)) {
                     let offset = if name == "torque_constant" { 1.0 } else { 0.0 };
-                    out.push(CubliParam {
-                        name: name.to_string(),
-                        value: theta[i] + offset,
-                        std: cov[(i, i)].max(0.0).sqrt(),
-                    });
+                    out.push(estimate(
+                        name,
+                        theta[i] + offset,
+                        cov[(i, i)].max(0.0).sqrt(),
+                    ));
                 }
                 if let (true, Some((eps, std))) = (c_is_coulomb(name), fit.smoothing) {
-                    out.push(CubliParam {
-                        name: COULOMB_SMOOTHING.to_string(),
-                        value: eps,
-                        std,
-                    });
+                    out.push(estimate(COULOMB_SMOOTHING, eps, std));
                 }
             }
         }
@@ -1304,20 +1341,12 @@ fn cubli_html(d: &CubliDiscovery) -> String {
         .collect();
     // The weighted cost of noise alone is about the number of residual rows.
     body.push_str(&cost_bars(&bars, (d.windows * CHANNELS.len()) as f64));
-    body.push_str("<h2>Parameters</h2><table><tr><th>step</th><th>effect added</th><th>parameter</th><th>value</th><th>standard error</th></tr>");
-    for (i, st) in d.steps.iter().enumerate() {
-        for p in &st.params {
-            let _ = write!(
-                body,
-                "<tr><td>{i}</td><td>{}</td><td>{}</td><td>{:.5e}</td><td>{:.2e}</td></tr>",
-                escape(st.added.as_deref().unwrap_or("start")),
-                escape(&p.name),
-                p.value,
-                p.std
-            );
-        }
-    }
-    body.push_str("</table>");
+    let steps: Vec<(Option<&str>, &[ParamEstimate])> = d
+        .steps
+        .iter()
+        .map(|st| (st.added.as_deref(), st.params.as_slice()))
+        .collect();
+    body.push_str(&parameters_html(&documented(), &steps));
     let label =
         |k: usize, st: &CubliStep| format!("{k}: {}", st.added.as_deref().unwrap_or("start"));
     let rms = per_step(&d.steps, label, true, |st| {
