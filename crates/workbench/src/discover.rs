@@ -250,6 +250,20 @@ impl Verdict {
     }
 }
 
+/// Why added effects are tentative when the final model leaves a structured misfit.
+pub const MISFIT_CAVEAT: &str =
+    "the final model leaves a structured misfit, which the tests that added them took for noise";
+
+/// Splits the effects a discovery added into `(found, tentative, caveats)`: all found when
+/// nothing speaks against them, all tentative with the reasons otherwise.
+pub fn settle(added: Vec<String>, caveats: Vec<String>) -> (Vec<String>, Vec<String>, Vec<String>) {
+    if caveats.is_empty() || added.is_empty() {
+        (added, Vec::new(), Vec::new())
+    } else {
+        (Vec::new(), added, caveats)
+    }
+}
+
 /// Result of [`Workbench::discover`].
 #[derive(Debug, Clone, Serialize)]
 pub struct Discovery {
@@ -644,10 +658,7 @@ impl Workbench {
             ));
         }
         if matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. }) {
-            why.push(
-                "the final model leaves a structured misfit, which the tests that added them took for noise"
-                    .to_string(),
-            );
+            why.push(MISFIT_CAVEAT.to_string());
         }
         why
     }
@@ -721,12 +732,7 @@ impl Workbench {
             .last()
             .ok_or_else(|| SimError::invalid("discovery", "no step", "nothing was fitted"))?;
         let verdict = self.verdict(last);
-        let caveats = self.caveats(&verdict);
-        let (found, tentative, caveats) = if caveats.is_empty() || found.is_empty() {
-            (found, Vec::new(), Vec::new())
-        } else {
-            (Vec::new(), found, caveats)
-        };
+        let (found, tentative, caveats) = settle(found, self.caveats(&verdict));
         let weighting =
             self.weighting_sentence(&steps.last().map(|s| s.effects.clone()).unwrap_or_default());
         Ok(Discovery {

@@ -23,7 +23,7 @@ use serde::Serialize;
 
 use super::diagnose::{diagnose, LEVEL};
 use super::discover::{
-    in_parallel, CandidateScore, Discovery, NestedCosts, Robustness, Step, Verdict,
+    in_parallel, settle, CandidateScore, Discovery, NestedCosts, Robustness, Step, Verdict,
 };
 use super::dynamics::Dynamics;
 use super::fit::{solve, FitResult, LeastSquares};
@@ -758,15 +758,10 @@ impl Workbench {
             .ok_or_else(|| SimError::invalid("discovery", "no step", "nothing was fitted"))?;
         let verdict = time_verdict(&last.residual_tests);
         let unexplained = matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. });
-        let (found, tentative, caveats) = if unexplained && !found.is_empty() {
-            (
-                Vec::new(),
-                found,
-                vec!["the final model's innovations still correlate with the excitation, which the tests that added them took for noise".to_string()],
-            )
-        } else {
-            (found, Vec::new(), Vec::new())
-        };
+        let why = unexplained.then(|| {
+            "the final model's innovations still correlate with the excitation, which the tests that added them took for noise".to_string()
+        });
+        let (found, tentative, caveats) = settle(found, why.into_iter().collect());
         Ok(Discovery {
             weighting: "time-domain prediction error of the extended Kalman predictor in absolute units; every model under the gain and the inverse innovation covariance of the starting model's fit".to_string(),
             steps,

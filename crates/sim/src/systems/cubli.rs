@@ -43,7 +43,9 @@ use serde_json::{json, Value};
 
 use workbench::dataset::Dataset;
 use workbench::diagnose::LEVEL;
-use workbench::discover::{CandidateScore, NestedCosts, Robustness, Verdict};
+use workbench::discover::{
+    settle, CandidateScore, NestedCosts, Robustness, Verdict, MISFIT_CAVEAT,
+};
 use workbench::fit::ParamEstimate;
 use workbench::load;
 use workbench::model::Parameter;
@@ -1083,15 +1085,8 @@ impl CubliBench {
             .map_or_else(Vec::new, |s| s.channel_p_values.clone());
         let misfit_channels = flagged(&channel_p_values);
         let unexplained = !misfit_channels.is_empty();
-        let (found, tentative, caveats) = if unexplained && !found.is_empty() {
-            (
-                Vec::new(),
-                found,
-                vec!["the final model leaves a structured misfit, which the tests that added them took for noise".to_string()],
-            )
-        } else {
-            (found, Vec::new(), Vec::new())
-        };
+        let why = unexplained.then(|| MISFIT_CAVEAT.to_string());
+        let (found, tentative, caveats) = settle(found, why.into_iter().collect());
         CubliDiscovery {
             steps,
             found,
