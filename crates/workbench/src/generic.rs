@@ -10,6 +10,7 @@ use nalgebra::DMatrix;
 use super::dataset::Dataset;
 use super::dynamics::{DelayedInputs, Dynamics, LaggedInputs, OutputBias};
 use super::model::{Effect, ModelStructure, Parameter, StateSpace};
+use super::prediction::Criterion;
 use crate::error::Result;
 
 /// `x_a' = (u - x_a) / tau` for every input, the plant driven by `x_a`.
@@ -252,7 +253,6 @@ impl Effect for InputDelay {
 /// The generic effects `structure` does not declare itself (the sensor bias only for a
 /// nonlinear structure: the linear path compares deviations, where an offset cannot show).
 pub fn for_structure(structure: &dyn ModelStructure) -> Vec<Arc<dyn Effect>> {
-    let own = structure.effects();
     let mut all: Vec<Arc<dyn Effect>> = vec![
         Arc::new(ActuatorLag::default()),
         Arc::new(InputDelay::default()),
@@ -260,6 +260,38 @@ pub fn for_structure(structure: &dyn ModelStructure) -> Vec<Arc<dyn Effect>> {
     if structure.is_nonlinear() {
         all.push(Arc::new(SensorBias::new(&structure.outputs())));
     }
+    undeclared(structure, all)
+}
+
+/// The generic effects sized to the data, for those `structure` does not declare: the
+/// offsets within each output's logged range (nonlinear structure), the lag's shortest time
+/// constant from the sample period, and under the FRF criterion the delay's longest from the
+/// closest spacing of the lines, `line_spacing` Hz (the time criterion has no lines: the
+/// default bound of [`for_structure`] stands).
+pub fn for_data(
+    structure: &dyn ModelStructure,
+    data: &Dataset,
+    criterion: Criterion,
+    line_spacing: f64,
+) -> Vec<Arc<dyn Effect>> {
+    let h = 1.0 / data.sample_rate_hz;
+    let mut all: Vec<Arc<dyn Effect>> = Vec::new();
+    if structure.is_nonlinear() {
+        all.push(Arc::new(SensorBias::for_data(data)));
+    }
+    match criterion {
+        Criterion::Time => all.push(Arc::new(ActuatorLag::for_sample_period(h))),
+        Criterion::Frf => {
+            all.push(Arc::new(ActuatorLag::nesting(h)));
+            all.push(Arc::new(InputDelay::for_line_spacing(line_spacing)));
+        }
+    }
+    undeclared(structure, all)
+}
+
+/// The effects of `all` that `structure` does not declare under the same name.
+fn undeclared(structure: &dyn ModelStructure, all: Vec<Arc<dyn Effect>>) -> Vec<Arc<dyn Effect>> {
+    let own = structure.effects();
     all.into_iter()
         .filter(|e| !own.iter().any(|o| o == e.name()))
         .collect()

@@ -160,50 +160,18 @@ impl Workbench {
         };
         let cost = WeightedCost::new(&frf)?;
         let mut model = Model::new(structure);
-        if model.structure().is_nonlinear()
-            && !model
-                .structure()
-                .effects()
-                .iter()
-                .any(|e| e == "sensor_bias")
-        {
-            // The offsets are searched within each output's logged range.
-            model = model.with_candidate(Arc::new(generic::SensorBias::for_data(&data)))?;
-        }
         let criterion = options
             .criterion
             .unwrap_or_else(|| Criterion::default_for(&model));
-        if !model
-            .structure()
-            .effects()
-            .iter()
-            .any(|e| e == "actuator_lag")
-        {
-            // The generic lag's shortest time constant follows the sample period.
-            let h = 1.0 / data.sample_rate_hz;
-            let lag = match criterion {
-                Criterion::Time => generic::ActuatorLag::for_sample_period(h),
-                Criterion::Frf => generic::ActuatorLag::nesting(h),
-            };
-            model = model.with_candidate(Arc::new(lag))?;
-        }
-        if criterion == Criterion::Frf
-            && !model
-                .structure()
-                .effects()
-                .iter()
-                .any(|e| e == "input_delay")
-        {
-            // The generic delay no longer than the lines resolve.
-            let f = frf.freqs_hz();
-            let spacing = f
-                .windows(2)
-                .map(|w| w[1] - w[0])
-                .filter(|d| *d > 0.0)
-                .fold(f64::INFINITY, f64::min);
-            model = model.with_candidate(Arc::new(generic::InputDelay::for_line_spacing(
-                if spacing.is_finite() { spacing } else { 0.0 },
-            )))?;
+        let spacing = frf
+            .freqs_hz()
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .filter(|d| *d > 0.0)
+            .fold(f64::INFINITY, f64::min);
+        let spacing = if spacing.is_finite() { spacing } else { 0.0 };
+        for effect in generic::for_data(model.structure().as_ref(), &data, criterion, spacing) {
+            model = model.with_candidate(effect)?;
         }
         if criterion == Criterion::Time && !model.structure().is_nonlinear() {
             return Err(SimError::invalid(
