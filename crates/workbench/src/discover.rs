@@ -69,6 +69,21 @@ pub struct NestedCosts {
     pub noise_sd: f64,
 }
 
+impl NestedCosts {
+    /// The F statistic of the nested models and its p-value (`(0, 1)` when nothing is added
+    /// or nothing is left).
+    pub fn f_test(&self) -> (f64, f64) {
+        let q = self.free_after.saturating_sub(self.free_before);
+        let dof = self.residuals - self.free_after as f64;
+        if q > 0 && self.after > 0.0 && dof > 0.0 {
+            let f = ((self.before - self.after) / q as f64) / (self.after / dof);
+            (f, f_sf(f, q as f64, dof))
+        } else {
+            (0.0, 1.0)
+        }
+    }
+}
+
 /// The robustness check of a nested-model test.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Robustness<'a> {
@@ -97,13 +112,7 @@ impl CandidateScore {
         let n = c.residuals;
         let (p1, q) = (c.free_after, c.free_after.saturating_sub(c.free_before));
         let dv = c.before - c.after;
-        let dof = n - p1 as f64;
-        let (f_statistic, p_value) = if q > 0 && c.after > 0.0 && dof > 0.0 {
-            let f = (dv / q as f64) / (c.after / dof);
-            (f, f_sf(f, q as f64, dof))
-        } else {
-            (0.0, 1.0)
-        };
+        let (f_statistic, p_value) = c.f_test();
         let robust_p_value = match robustness {
             Robustness::PValue(p) => p,
             Robustness::WithoutBestBlock(before, after) if q > 0 && before.len() > 1 => {

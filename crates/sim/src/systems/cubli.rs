@@ -1175,8 +1175,7 @@ impl CubliBench {
                     residuals: n - rank as f64,
                     ..costs(current.cost, next.cost)
                 };
-                CandidateScore::nested(name, &with_probes, Robustness::PValue(1.0), 1, false)
-                    .p_value
+                with_probes.f_test().1
             }
             _ => 1.0,
         };
