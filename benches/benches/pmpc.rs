@@ -14,17 +14,20 @@ use std::time::Instant;
 
 /// Per-step iteration budget of the real-time configuration for each s (shifted previous plan
 /// as fallback), as in `crates/pmpc/tests/budget.rs` and `py/bench/pmpc_peers.py`.
-fn budget(s: usize) -> usize {
+fn budget(s: usize, nu: f64) -> usize {
+    let paper = nu == scenario::NU;
     match s {
         ..=8 => 15,
-        9..=10 => 6,
-        _ => 4,
+        9..=10 if paper => 6,
+        9..=10 => 4,
+        _ if paper => 4,
+        _ => 6,
     }
 }
 
-fn pmpc_controller(s: usize, budget: Option<usize>) -> Pmpc {
+fn pmpc_controller(s: usize, nu: f64, budget: Option<usize>) -> Pmpc {
     let sc = scenario::quad_integrator();
-    let basis = Laguerre::new(s, scenario::NU).unwrap();
+    let basis = Laguerre::new(s, nu).unwrap();
     let c = sc.pmpc(basis).unwrap().with_settings(Settings {
         max_check_steps: 100,
         ..Settings::default()
@@ -70,15 +73,27 @@ fn discrete_controller(backend: Backend) -> DiscreteMpc {
 fn quad_integrator_step(c: &mut Criterion) {
     let sc = scenario::quad_integrator();
     let mut group = c.benchmark_group("quad_integrator_step");
-    for s in [8, 10, 12] {
-        for budget in [None, Some(budget(s))] {
-            let mut ctrl = pmpc_controller(s, budget);
+    let bases = [
+        (8, scenario::NU),
+        (10, scenario::NU),
+        (12, scenario::NU),
+        (10, scenario::REAL_TIME_NU),
+        (12, scenario::REAL_TIME_NU),
+    ];
+    for (s, nu) in bases {
+        for budget in [None, Some(budget(s, nu))] {
+            let mut ctrl = pmpc_controller(s, nu, budget);
             let states = simulate::run_pmpc(&mut ctrl, &sc.x0, scenario::STEPS, 1)
                 .unwrap()
                 .x;
+            let basis = if nu == scenario::NU {
+                format!("pmpc_s{s}")
+            } else {
+                format!("pmpc_s{s}_nu{nu}")
+            };
             let name = match budget {
-                None => format!("pmpc_s{s}"),
-                Some(b) => format!("pmpc_s{s}_budget{b}"),
+                None => basis,
+                Some(b) => format!("{basis}_budget{b}"),
             };
             step_tail(&name, &mut ctrl, &states, 5);
             let mut k = 0;

@@ -5,7 +5,7 @@ DARE terminal cost, |u| <= 0.5, x_1 >= 0 at k = 1..N), all in one process and on
 How each contender is called (the fastest way its Python API allows):
   * stabilis.pmpc: `Controller.step(x)`, warm-started from the previous working set, without
     and with the per-step iteration budgets given by --budget (default 4, 5, 6 and 8; the shifted
-    previous plan is applied when a budget runs out).
+    previous plan is applied when a budget runs out), for each basis size --s and decay rate --nu.
   * DAQP: one `daqp.Model`, `setup` once, then per step `update(f=, bupper=, blower=)` and
     `solve()`: H is factorised once and the working set carries over (hot start).
   * OSQP: one `osqp.OSQP`, `setup` once, per step `update(q=, u=)` and `solve()`; warm start
@@ -16,14 +16,19 @@ On a failed solve a discrete controller applies its shifted previous sequence (c
 
 Timing is CPU time of the calling thread (time.thread_time_ns) around the step call only,
 Python call overhead included for every contender; the first step of every loop is excluded
-(set-up / cold start). Trajectory sets: x0 = 0.3*1 for 1000 steps, and 10 starts drawn
-uniformly from [0, 0.2]^4 (seed 14) for 250 steps each. The plant is exact: the discrete
-inputs are held (ZOH), the pmpc input is its continuous plan u(t) = eta_u' tau(t) over each
-interval (integrated exactly with the Laguerre generator). J_cl (mean over the starts) = sum_{k>=1} (x'x + u^2)/2 Td
-at the samples; the violation is the largest excess over |u| <= 0.5, x_1 >= 0 on a 0.5 ms grid.
+(set-up / cold start). "Own solve time" is what each solver reports of itself: DAQP's, OSQP's
+and ProxQP's `solve_time`, and pmpc's `last_step()["solve_time"]` (the whole Rust step).
+Trajectory sets: x0 = 0.3*1 for 1000 steps, and 10 starts drawn uniformly from [0, 0.2]^4
+(seed 14) for 250 steps each. The plant is exact: the discrete inputs are held (ZOH), the pmpc
+input is its continuous plan u(t) = eta_u' tau(t) over each interval (integrated exactly with
+the Laguerre generator). J_cl (mean over the starts) = sum_{k>=1} (x'x + u^2)/2 Td at the
+samples (spec §8.4); J_int is the same cost integrated over the closed loop (Simpson's rule on
+the 0.5 ms grid); the violation is the largest excess over |u| <= 0.5, x_1 >= 0 on that grid.
 
     .venv/bin/python -m pip install daqp osqp proxsuite   # measured with 0.11.0, 1.1.3, 0.8.0
-    .venv/bin/python py/bench/pmpc_peers.py [--budget B ...] [--quick]
+    .venv/bin/python py/bench/pmpc_peers.py [--s S ...] [--nu NU ...] [--budget B ...]
+                                            [--peers daqp osqp proxqp] [--quick]
+    .venv/bin/python py/bench/pmpc_peers.py --scan-nu 0.5 0.7 1.0 1.3 [--s 10 12]
     .venv/bin/python py/bench/pmpc_peers.py --scan-horizons 80 82 83 90 92 93
     .venv/bin/python py/bench/pmpc_peers.py --chain 7
 """
@@ -163,37 +168,41 @@ def proxqp_controller(h, f, g, e, x0):
     return Discrete(solve, n, stop_on_failure=True)
 
 
-def laguerre_generator(s):
-    return np.tril(np.full((s, s), -2.0 * NU), -1) + np.diag(np.full(s, -NU))
+def laguerre_generator(s, nu):
+    return np.tril(np.full((s, s), -2.0 * nu), -1) + np.diag(np.full(s, -nu))
 
 
 def run_discrete(ctrl, ad, bd, x0, steps, sub):
     """Closed loop on the ZOH plant; `sub` = (A_sub, B_sub) propagates one 0.5 ms sub-step."""
-    x, times, cost, viol = x0.copy(), [], 0.0, -INF
+    x, times, cost, viol, integral = x0.copy(), [], 0.0, -INF, 0.0
     for k in range(steps + 1):
         t0 = time.thread_time_ns()
         try:
             u = ctrl.step(x)
         except Stopped:
-            return np.array(times[1:]) * 1e-9, float("nan"), viol
+            return np.array(times[1:]) * 1e-9, (float("nan"), float("nan")), viol
         times.append(time.thread_time_ns() - t0)
         if k >= 1:
             cost += 0.5 * (x @ x + u * u) * TD
         viol = max(viol, abs(u) - 0.5)
-        xs = x.copy()
+        xs, stage = x.copy(), [0.5 * (x @ x + u * u)]
         for _ in range(GRID):
             xs = sub[0] @ xs + sub[1][:, 0] * u
             viol = max(viol, -xs[0])
+            stage.append(0.5 * (xs @ xs + u * u))
+        if k >= 1:
+            integral += simpson(stage)
         x = ad @ x + bd[:, 0] * u
-    return np.array(times[1:]) * 1e-9, cost, viol
+    return np.array(times[1:]) * 1e-9, (cost, integral), viol
 
 
-def run_pmpc(ctrl, s, x0, steps, a=A, b=B):
+def run_pmpc(ctrl, s, x0, steps, a=A, b=B, nu=NU):
     """Closed loop with the continuous plan: (x, tau) evolves by expm([[A, B U], [0, M]] h)."""
     n = a.shape[0]
-    m = laguerre_generator(s)
-    tau0 = np.full(s, np.sqrt(2 * NU))
-    x, times, cost, viol, fallbacks, iters = x0.copy(), [], 0.0, -INF, 0, []
+    m = laguerre_generator(s, nu)
+    tau0 = np.full(s, np.sqrt(2 * nu))
+    x, times, cost, viol, fallbacks, iters, own = x0.copy(), [], 0.0, -INF, 0, [], []
+    integral = 0.0
     ctrl.reset()
     for k in range(steps + 1):
         t0 = time.thread_time_ns()
@@ -202,6 +211,7 @@ def run_pmpc(ctrl, s, x0, steps, a=A, b=B):
         info = ctrl.last_step()
         fallbacks += info["fallback"]
         iters.append(info["iterations"])
+        own.append(info["solve_time"])
         if k >= 1:
             cost += 0.5 * (x @ x + u * u) * TD
         eta_u = np.asarray(ctrl.plan)[n * s:]
@@ -211,11 +221,23 @@ def run_pmpc(ctrl, s, x0, steps, a=A, b=B):
         aug[n:, n:] = m
         e = scipy.linalg.expm(aug * (TD / GRID))
         xi = np.concatenate([x, tau0])
+        stage = [0.5 * (x @ x + (eta_u @ tau0) ** 2)]
         for _ in range(GRID):
             xi = e @ xi
-            viol = max(viol, -xi[0], abs(eta_u @ xi[n:]) - 0.5)
+            ut = eta_u @ xi[n:]
+            viol = max(viol, -xi[0], abs(ut) - 0.5)
+            stage.append(0.5 * (xi[:n] @ xi[:n] + ut * ut))
+        if k >= 1:
+            integral += simpson(stage)
         x = xi[:n]
-    return np.array(times[1:]) * 1e-9, cost, viol, fallbacks, np.array(iters[1:])
+    return (np.array(times[1:]) * 1e-9, (cost, integral), viol, fallbacks, np.array(iters[1:]),
+            np.array(own[1:]))
+
+
+def simpson(values):
+    """Composite Simpson's rule over one sample interval on the GRID sub-steps (GRID even)."""
+    v = np.asarray(values)
+    return (v[0] + v[-1] + 4.0 * v[1:-1:2].sum() + 2.0 * v[2:-1:2].sum()) * TD / GRID / 3.0
 
 
 def stats(t):
@@ -234,7 +256,7 @@ def scan_horizons(horizons):
         x = x0.copy()
         for _ in range(STEPS_SCAN + 1):
             x = ad @ x + bd[:, 0] * ctrl.step(x)
-        cost = run_discrete(daqp_controller(h, f, g, e, x0), ad, bd, x0, STEPS_SCAN, sub)[1]
+        cost = run_discrete(daqp_controller(h, f, g, e, x0), ad, bd, x0, STEPS_SCAN, sub)[1][0]
         print(f"| {hz} | {cost:.4g} | {ctrl.failures} | {np.linalg.norm(x):.2e} |", flush=True)
 
 
@@ -251,77 +273,115 @@ def chain(n, s, horizon):
     sub = zoh(a, b, TD / GRID)
     ctrl = pmpc.Controller(a, b, np.eye(n), np.eye(1), x_bounds=[(0.0, INF)] + [(-INF, INF)] * (n - 1),
                            u_bounds=[(-0.5, 0.5)], nu=NU, s=s, td=TD)
-    t, cost, viol, fb, it = run_pmpc(ctrl, s, x0, STEPS_SCAN, a, b)
-    print(f"| controller | variables | median | mean | p99 | max (us) | J_cl | violation |\n|---|---|---|---|---|---|---|---|")
+    t, (cost, integral), viol, _, _, _ = run_pmpc(ctrl, s, x0, STEPS_SCAN, a, b)
+    print("| controller | variables | median | mean | p99 | max (us) | J_cl | J_int | violation |\n"
+          "|---|---|---|---|---|---|---|---|---|")
     print(f"| pmpc s={s} | {(n + 1) * s} | " + " | ".join(f"{1e6 * v:.1f}" for v in stats(t))
-          + f" | {cost:.4g} | {viol:.1e} |", flush=True)
+          + f" | {cost:.4g} | {integral:.4g} | {viol:.1e} |", flush=True)
     h, f, g, e = condensed(ad, bd, horizon)
     d = daqp_controller(h, f, g, e, x0)
-    t, cost, viol = run_discrete(d, ad, bd, x0, STEPS_SCAN, sub)
+    t, (cost, integral), viol = run_discrete(d, ad, bd, x0, STEPS_SCAN, sub)
     print(f"| daqp N={horizon} | {horizon} (condensed; {(horizon + 1) * n + horizon} sparse) | "
           + " | ".join(f"{1e6 * v:.1f}" for v in stats(t))
-          + f" | {cost:.4g} | {viol:.1e} | failures {d.failures}", flush=True)
+          + f" | {cost:.4g} | {integral:.4g} | {viol:.1e} | failures {d.failures}", flush=True)
+
+
+def trajectory_sets(quick=False):
+    """(title, starts, steps): x0 = 0.3*1 for 1000 steps, and 10 starts in [0, 0.2]^4."""
+    sets = [("x0 = 0.3, 1000 steps", [np.full(4, 0.3)], 1000)]
+    if not quick:
+        rng = np.random.default_rng(14)
+        sets.append(("10 starts in [0, 0.2]^4, 250 steps", list(rng.uniform(0, 0.2, (10, 4))), 250))
+    return sets
+
+
+def quad_pmpc(s, nu, budget=None):
+    return pmpc.Controller(A, B, np.eye(4), np.eye(1), x_bounds=[(0.0, INF)] + [(-INF, INF)] * 3,
+                           u_bounds=[(-0.5, 0.5)], nu=nu, s=s, td=TD, budget=budget)
+
+
+def scan_nu(ss, nus):
+    """Closed-loop cost of pmpc (unbudgeted) over the basis decay rate nu, on both sets."""
+    sets = trajectory_sets()
+    print("| s | nu | J_cl x0 = 0.3 | J_int | iterations max | J_cl random | J_int | iterations max |")
+    print("|---|---|---|---|---|---|---|---|")
+    for s in ss:
+        for nu in nus:
+            cells = []
+            for _, starts, steps in sets:
+                out = [run_pmpc(quad_pmpc(s, nu), s, x0, steps, nu=nu) for x0 in starts]
+                cost, integral = np.mean([o[1] for o in out], axis=0)
+                cells.append(f"{cost:.4f} | {integral:.4f} | {max(o[4].max() for o in out)}")
+            print(f"| {s} | {nu:g} | " + " | ".join(cells) + " |", flush=True)
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--scan-horizons", type=int, nargs="*", default=None,
                     help="only scan the discrete MPC's stabilizing horizons (e.g. 80 81 82 83 92 93)")
+    ap.add_argument("--scan-nu", type=float, nargs="*", default=None,
+                    help="only the closed-loop cost of pmpc over these basis decay rates (1/s)")
     ap.add_argument("--chain", type=int, default=None,
                     help="only the chain of n integrators: pmpc s = 12 against DAQP N = 450")
+    ap.add_argument("--s", type=int, nargs="*", default=[8, 10, 12], help="pmpc basis sizes")
+    ap.add_argument("--nu", type=float, nargs="*", default=[NU],
+                    help="pmpc basis decay rates (1/s); the thesis's 0.7 by default")
     ap.add_argument("--budget", type=int, nargs="*", default=[4, 5, 6, 8],
                     help="pmpc per-step iteration budgets to run besides the unbudgeted one")
+    ap.add_argument("--peers", nargs="*", default=["daqp", "osqp", "proxqp"],
+                    choices=["daqp", "osqp", "proxqp"], help="discrete-time contenders to run")
     ap.add_argument("--quick", action="store_true", help="x0 = 0.3 set only")
     args = ap.parse_args()
     if args.scan_horizons:
         scan_horizons(args.scan_horizons)
+        return
+    if args.scan_nu:
+        scan_nu(args.s, args.scan_nu)
         return
     if args.chain:
         chain(args.chain, 12, 450)
         return
     ad, bd = zoh(A, B, TD)
     sub = zoh(A, B, TD / GRID)
-    rng = np.random.default_rng(14)
-    sets = [("x0 = 0.3, 1000 steps", [np.full(4, 0.3)], 1000)]
-    if not args.quick:
-        sets.append(("10 starts in [0, 0.2]^4, 250 steps", list(rng.uniform(0, 0.2, (10, 4))), 250))
     problems = {hz: condensed(ad, bd, hz) for hz in (93, 100)}
-    for title, starts, steps in sets:
+    makers = {"daqp": daqp_controller, "osqp": osqp_controller, "proxqp": proxqp_controller}
+    for title, starts, steps in trajectory_sets(args.quick):
         rows = {}
-        for s in (8, 10, 12):
-            for budget in [None] + args.budget:
-                ctrl = pmpc.Controller(A, B, np.eye(4), np.eye(1),
-                                       x_bounds=[(0.0, INF)] + [(-INF, INF)] * 3,
-                                       u_bounds=[(-0.5, 0.5)], nu=NU, s=s, td=TD, budget=budget)
-                out = [run_pmpc(ctrl, s, x0, steps) for x0 in starts]
-                t = np.concatenate([o[0] for o in out])
-                it = np.concatenate([o[4] for o in out])
-                name = f"stabilis.pmpc s={s}" + (f" budget {budget}" if budget else "")
-                rows[name] = (t, np.mean([o[1] for o in out]), max(o[2] for o in out),
-                              f"fallbacks {sum(o[3] for o in out)}, iterations "
-                              f"median {np.median(it):.0f} max {it.max()}")
-        for name, make in (("daqp", daqp_controller), ("osqp", osqp_controller),
-                           ("proxqp", proxqp_controller)):
+        for s in args.s:
+            for nu in args.nu:
+                for budget in [None] + args.budget:
+                    ctrl = quad_pmpc(s, nu, budget)
+                    out = [run_pmpc(ctrl, s, x0, steps, nu=nu) for x0 in starts]
+                    t = np.concatenate([o[0] for o in out])
+                    it = np.concatenate([o[4] for o in out])
+                    own = np.concatenate([o[5] for o in out])
+                    name = f"stabilis.pmpc s={s}" + (f" nu={nu:g}" if nu != NU else "") + (
+                        f" budget {budget}" if budget else "")
+                    rows[name] = (t, np.mean([o[1] for o in out], axis=0), max(o[2] for o in out),
+                                  f"own solve time median {1e6 * np.median(own):.1f} us; "
+                                  f"fallbacks {sum(o[3] for o in out)}, iterations "
+                                  f"median {np.median(it):.0f} max {it.max()}")
+        for name in args.peers:
             for hz, (h, f, g, e) in problems.items():
                 out, inner, fails = [], [], 0
                 for x0 in starts:
-                    ctrl = make(h, f, g, e, x0)
+                    ctrl = makers[name](h, f, g, e, x0)
                     out.append(run_discrete(ctrl, ad, bd, x0, steps, sub))
                     inner += ctrl.inner[1:]
                     fails += ctrl.failures
                 t = np.concatenate([o[0] for o in out])
                 note = f"own solve time median {1e6 * np.median(inner):.1f} us; failures {fails}"
                 if ctrl.stop and fails:
-                    note += f" (loops stopped there; {len(np.concatenate([o[0] for o in out]))} steps timed)"
-                rows[f"{name} N={hz}"] = (t, np.mean([o[1] for o in out]),
+                    note += f" (loops stopped there; {len(t)} steps timed)"
+                rows[f"{name} N={hz}"] = (t, np.mean([o[1] for o in out], axis=0),
                                           max(o[2] for o in out), note)
         print(f"\n{title} (CPU time per step, us)", flush=True)
-        print(f"| controller | median | mean | p99 | max | J_cl | max violation | note |")
-        print("|---|---|---|---|---|---|---|---|")
-        for name, (t, cost, viol, note) in rows.items():
+        print("| controller | median | mean | p99 | max | J_cl | J_int | max violation | note |")
+        print("|---|---|---|---|---|---|---|---|---|")
+        for name, (t, (cost, integral), viol, note) in rows.items():
             med, mean, p99, mx = (1e6 * v for v in stats(t))
             print(f"| {name} | {med:.1f} | {mean:.1f} | {p99:.1f} | {mx:.1f} | {cost:.3f} | "
-                  f"{viol:.1e} | {note} |")
+                  f"{integral:.3f} | {viol:.1e} | {note} |")
 
 
 if __name__ == "__main__":

@@ -56,6 +56,8 @@ fn bounds_list(name: &str, v: Option<Vec<(f64, f64)>>, len: usize) -> PyResult<V
 #[derive(Debug)]
 pub struct PyController {
     inner: Pmpc,
+    /// Wall time of the last Rust step (s): the solver's own time, as DAQP reports its own.
+    solve_time: f64,
 }
 
 #[pymethods]
@@ -122,13 +124,18 @@ impl PyController {
             }
             inner = inner.with_budget(budget);
         }
-        Ok(Self { inner })
+        Ok(Self {
+            inner,
+            solve_time: 0.0,
+        })
     }
 
     /// Solve for the measured state and return the input to apply now (shape (m,)).
     fn step<'py>(&mut self, py: Python<'py>, x: Vec<f64>) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let u = self.inner.step(&x).map_err(to_py_err)?;
-        Ok(PyArray1::from_slice(py, u))
+        let start = std::time::Instant::now();
+        let u = self.inner.step(&x);
+        self.solve_time = start.elapsed().as_secs_f64();
+        Ok(PyArray1::from_slice(py, u.map_err(to_py_err)?))
     }
 
     /// Planned input t >= 0 seconds after the last step (shape (m,)).
@@ -144,7 +151,9 @@ impl PyController {
         PyArray1::from_slice(py, self.inner.plan())
     }
 
-    /// Diagnostics of the last step: cost, iterations, active instants, fallback flag.
+    /// Diagnostics of the last step: cost, iterations, active instants, fallback flag, and
+    /// `solve_time`, the seconds the Rust step took (argument conversion and the returned
+    /// array excluded).
     fn last_step<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let info = self.inner.last_step();
         let d = PyDict::new(py);
@@ -153,6 +162,7 @@ impl PyController {
         d.set_item("active", info.active)?;
         d.set_item("fallback", matches!(info.source, Source::Fallback(_)))?;
         d.set_item("taylor_steps", info.stats.taylor_steps)?;
+        d.set_item("solve_time", self.solve_time)?;
         Ok(d)
     }
 

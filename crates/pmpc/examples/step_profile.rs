@@ -1,7 +1,8 @@
 //! Where the time of a pmpc step goes on the quadruple integrator: per-step wall time (best of
 //! 5 replays) and the solver's work counters along the x0 = 0.3·𝟙 closed loop, with the 15
 //! slowest steps listed (`cargo run --release -p pmpc --example step_profile -- [s] [budget]`).
-//! `POLISH=k` sets the Newton moves per addition (`Settings::polish_steps`); `HOT=1` instead
+//! `POLISH=k` sets the Newton moves per addition (`Settings::polish_steps`), `NU=ν` the basis
+//! decay rate (default the paper's 0.7 1/s); `HOT=1` instead
 //! replays the 20 slowest steps from saved controller states many times, for a profiler.
 #![allow(clippy::unwrap_used)]
 
@@ -20,9 +21,15 @@ fn main() {
     let s = args.next().map_or(10, |a| number("s", a));
     let budget = args.next().map(|a| number("budget", a));
     let polish = std::env::var("POLISH").map_or(3, |v| number("POLISH", v));
+    let nu = std::env::var("NU").map_or(scenario::NU, |v| {
+        v.parse().unwrap_or_else(|_| {
+            eprintln!("step_profile: NU must be a number (1/s), got {v:?}");
+            std::process::exit(2)
+        })
+    });
     let sc = scenario::quad_integrator();
     let make = || -> Pmpc {
-        let c = Laguerre::new(s, scenario::NU)
+        let c = Laguerre::new(s, nu)
             .map_err(pmpc::Error::from)
             .and_then(|basis| sc.pmpc(basis))
             .unwrap_or_else(|e| {

@@ -10,6 +10,10 @@ use rigid_body::laguerre::Laguerre;
 
 /// Laguerre decay rate used in all experiments of the paper (1/s).
 pub const NU: f64 = 0.7;
+/// Laguerre decay rate of the real-time configuration (1/s): with s = 10 its closed-loop cost is
+/// within 1 % of the discrete MPC at N = 93 on both trajectory sets of the peer benchmark, where
+/// the paper's 0.7 is 4 % above on the random starts (README, "choice of ν").
+pub const REAL_TIME_NU: f64 = 1.3;
 /// Sampling time of the closed-loop experiments (s).
 pub const TD: f64 = 0.02;
 /// Closed-loop length: 20 s.
