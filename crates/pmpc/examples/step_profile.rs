@@ -2,13 +2,24 @@
 //! 5 replays) and the solver's work counters along the x0 = 0.3·𝟙 closed loop, with the 15
 //! slowest steps listed (`cargo run --release -p pmpc --example step_profile -- [s] [budget]`).
 //! `POLISH=k` sets the Newton moves per addition (`Settings::polish_steps`), `NU=ν` the basis
-//! decay rate (default the paper's 0.7 1/s); `HOT=1` instead
-//! replays the 20 slowest steps from saved controller states many times, for a profiler.
+//! decay rate (default the paper's 0.7 1/s), `STARTS=random` runs the 10 starts from [0, 0.2]⁴
+//! of 250 steps each of `tests/budget.rs` instead; `HOT=1` replays the 20 slowest steps from
+//! saved controller states many times, for a profiler.
 #![allow(clippy::unwrap_used)]
 
-use pmpc::{scenario, simulate, Pmpc};
+use pmpc::{scenario, simulate, Pmpc, StepInfo};
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
 use rigid_body::laguerre::Laguerre;
 use std::time::Instant;
+
+/// One timed step: start index, step index, best time (µs), diagnostics.
+struct Timed {
+    start: usize,
+    k: usize,
+    us: f64,
+    info: StepInfo,
+}
 
 fn main() {
     let number = |name: &str, text: String| -> usize {
@@ -28,6 +39,19 @@ fn main() {
         })
     });
     let sc = scenario::quad_integrator();
+    let starts: Vec<(Vec<f64>, usize)> = match std::env::var("STARTS").as_deref() {
+        Ok("random") => {
+            let mut rng = StdRng::seed_from_u64(14);
+            (0..10)
+                .map(|_| ((0..4).map(|_| rng.random_range(0.0..0.2)).collect(), 250))
+                .collect()
+        }
+        Ok(other) if !other.is_empty() => {
+            eprintln!("step_profile: STARTS must be \"random\", got {other:?}");
+            std::process::exit(2)
+        }
+        _ => vec![(sc.x0.clone(), scenario::STEPS)],
+    };
     let make = || -> Pmpc {
         let c = Laguerre::new(s, nu)
             .map_err(pmpc::Error::from)
@@ -46,23 +70,35 @@ fn main() {
         }
     };
     let mut ctrl = make();
-    let cl = simulate::run_pmpc(&mut ctrl, &sc.x0, scenario::STEPS, 40).unwrap();
-    let mut best = vec![f64::INFINITY; cl.x.len()];
-    for _ in 0..5 {
-        ctrl.reset();
-        for (k, x) in cl.x.iter().enumerate() {
-            let t0 = Instant::now();
-            std::hint::black_box(ctrl.step(x).unwrap());
-            best[k] = best[k].min(t0.elapsed().as_secs_f64() * 1e6);
+    let (mut timed, mut loops) = (Vec::new(), Vec::new());
+    let (mut cost, mut violation, mut fallbacks) = (0.0, f64::NEG_INFINITY, 0);
+    for (start, (x0, steps)) in starts.iter().enumerate() {
+        let cl = simulate::run_pmpc(&mut ctrl, x0, *steps, 40).unwrap();
+        let mut best = vec![f64::INFINITY; cl.x.len()];
+        for _ in 0..5 {
+            ctrl.reset();
+            for (k, x) in cl.x.iter().enumerate() {
+                let t0 = Instant::now();
+                std::hint::black_box(ctrl.step(x).unwrap());
+                best[k] = best[k].min(t0.elapsed().as_secs_f64() * 1e6);
+            }
         }
+        cost += cl.cost / starts.len() as f64;
+        violation = violation.max(cl.max_violation);
+        fallbacks += cl.fallbacks;
+        timed.extend((1..best.len()).map(|k| Timed {
+            start,
+            k,
+            us: best[k],
+            info: cl.steps[k],
+        }));
+        loops.push(cl.x);
     }
-    let mut order: Vec<usize> = (1..best.len()).collect();
-    order.sort_by(|&a, &b| best[b].total_cmp(&best[a]));
-    let tot = |f: &dyn Fn(&pmpc::StepInfo) -> usize| -> usize { cl.steps[1..].iter().map(f).sum() };
-    let n = (cl.steps.len() - 1) as f64;
-    let mut sorted = best[1..].to_vec();
+    let n = timed.len() as f64;
+    let mut sorted: Vec<f64> = timed.iter().map(|t| t.us).collect();
     sorted.sort_by(f64::total_cmp);
     let at = |q: f64| sorted[((sorted.len() - 1) as f64 * q).round() as usize];
+    let mean = |f: &dyn Fn(&Timed) -> f64| timed.iter().map(f).sum::<f64>() / n;
     println!(
         "s={s} budget={budget:?}: step time best of 5 replays, median {:.1} us, p99 {:.1} us, max {:.1} us",
         at(0.5),
@@ -70,28 +106,28 @@ fn main() {
         at(1.0)
     );
     println!(
-        "s={s} budget={budget:?}: J_cl {:.4}, violation {:.1e}, fallbacks {}; mean per step: {:.1} us, iterations {:.2}, taylor {:.1}, adds {:.2}, drops {:.2}, moves {:.2}",
-        cl.cost,
-        cl.max_violation,
-        cl.fallbacks,
-        best[1..].iter().sum::<f64>() / n,
-        tot(&|i| i.stats.iterations) as f64 / n,
-        tot(&|i| i.stats.taylor_steps) as f64 / n,
-        tot(&|i| i.stats.adds) as f64 / n,
-        tot(&|i| i.stats.drops) as f64 / n,
-        tot(&|i| i.stats.moves) as f64 / n,
+        "s={s} budget={budget:?}: J_cl {cost:.4} (mean over {} starts), violation {violation:.1e}, fallbacks {fallbacks}; mean per step: {:.1} us, iterations {:.2}, taylor {:.1}, adds {:.2}, drops {:.2}, moves {:.2}",
+        starts.len(),
+        mean(&|t| t.us),
+        mean(&|t| t.info.stats.iterations as f64),
+        mean(&|t| t.info.stats.taylor_steps as f64),
+        mean(&|t| t.info.stats.adds as f64),
+        mean(&|t| t.info.stats.drops as f64),
+        mean(&|t| t.info.stats.moves as f64),
     );
-    println!("slowest steps: k, us, iterations, taylor, adds, drops, moves, active, source");
+    timed.sort_by(|a, b| b.us.total_cmp(&a.us));
     if std::env::var("HOT").is_ok() {
-        let slow: Vec<usize> = order.iter().take(20).copied().collect();
-        hot(&mut ctrl, &cl.x, &slow);
+        hot(&mut ctrl, &loops, &timed[..timed.len().min(20)]);
         return;
     }
-    for &k in order.iter().take(15) {
-        let i = cl.steps[k];
+    println!("slowest steps: start, k, us, iterations, taylor, adds, drops, moves, active, source");
+    for t in timed.iter().take(15) {
+        let i = t.info;
         println!(
-            "{k:5} {:7.1} {:4} {:5} {:4} {:4} {:4} {:3} {:?}",
-            best[k],
+            "{:2} {:5} {:7.1} {:4} {:5} {:4} {:4} {:4} {:3} {:?}",
+            t.start,
+            t.k,
+            t.us,
             i.stats.iterations,
             i.stats.taylor_steps,
             i.stats.adds,
@@ -103,15 +139,17 @@ fn main() {
     }
 }
 
-fn hot(ctrl_fresh: &mut Pmpc, xs: &[Vec<f64>], slow: &[usize]) {
-    // Replay the slow steps from saved controller states (for a profiler).
+/// Replay the slow steps from saved controller states (for a profiler).
+fn hot(ctrl_fresh: &mut Pmpc, loops: &[Vec<Vec<f64>>], slow: &[Timed]) {
     let mut saved = Vec::new();
-    ctrl_fresh.reset();
-    for (k, x) in xs.iter().enumerate() {
-        if slow.contains(&k) {
-            saved.push((ctrl_fresh.clone(), x.clone()));
+    for (start, xs) in loops.iter().enumerate() {
+        ctrl_fresh.reset();
+        for (k, x) in xs.iter().enumerate() {
+            if slow.iter().any(|t| t.start == start && t.k == k) {
+                saved.push((ctrl_fresh.clone(), x.clone()));
+            }
+            ctrl_fresh.step(x).unwrap();
         }
-        ctrl_fresh.step(x).unwrap();
     }
     let t0 = Instant::now();
     let mut n = 0;
