@@ -19,7 +19,7 @@ fn budget(s: usize, nu: f64) -> usize {
     match s {
         ..=8 => 15,
         9..=10 if paper => 6,
-        9..=10 => 3,
+        9..=10 => scenario::REAL_TIME_BUDGET,
         _ if paper => 4,
         _ => 6,
     }

@@ -30,7 +30,7 @@ const BUDGETS: [(usize, f64, usize); 13] = [
     (12, scenario::NU, 6),
     (12, scenario::NU, 8),
     (12, scenario::NU, 15),
-    (10, scenario::REAL_TIME_NU, 3),
+    (10, scenario::REAL_TIME_NU, scenario::REAL_TIME_BUDGET),
     (10, scenario::REAL_TIME_NU, 4),
     (10, scenario::REAL_TIME_NU, 6),
     (12, scenario::REAL_TIME_NU, 6),
@@ -136,7 +136,7 @@ fn real_time_basis_is_within_one_percent_of_the_discrete_mpc() {
                 simulate::run_pmpc(&mut c, x0, n, 40).unwrap().cost
             })
         };
-        for budget in [None, Some(3), Some(4), Some(6)] {
+        for budget in [None, Some(scenario::REAL_TIME_BUDGET), Some(4), Some(6)] {
             let cost = pmpc_cost(scenario::REAL_TIME_NU, budget);
             eprintln!(
                 "{} starts, budget {budget:?}: J_cl {cost:.4} vs discrete N = 93 {reference:.4} ({:+.2} %)",
