@@ -44,6 +44,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import scipy.linalg  # noqa: E402
 
+import stabilis  # noqa: E402
 from stabilis import pmpc  # noqa: E402
 
 TD = 0.02
@@ -309,7 +310,12 @@ def scan_nu(ss, nus):
         for nu in nus:
             cells = []
             for _, starts, steps in sets:
-                out = [run_pmpc(quad_pmpc(s, nu), s, x0, steps, nu=nu) for x0 in starts]
+                try:
+                    out = [run_pmpc(quad_pmpc(s, nu), s, x0, steps, nu=nu) for x0 in starts]
+                except stabilis.Error as e:
+                    # A basis too fast for its size has no feasible plan from the start.
+                    cells.append(f"{e} | | ")
+                    continue
                 cost, integral = np.mean([o[1] for o in out], axis=0)
                 cells.append(f"{cost:.4f} | {integral:.4f} | {max(o[4].max() for o in out)}")
             print(f"| {s} | {nu:g} | " + " | ".join(cells) + " |", flush=True)

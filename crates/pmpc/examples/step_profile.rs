@@ -2,8 +2,10 @@
 //! 5 replays) and the solver's work counters along the x0 = 0.3·𝟙 closed loop, with the 15
 //! slowest steps listed (`cargo run --release -p pmpc --example step_profile -- [s] [budget]`).
 //! `POLISH=k` sets the Newton moves per addition (`Settings::polish_steps`), `NU=ν` the basis
-//! decay rate (default the paper's 0.7 1/s), `STARTS=random` runs the 10 starts from [0, 0.2]⁴
-//! of 250 steps each of `tests/budget.rs` instead; `HOT=1` replays the 20 slowest steps from
+//! decay rate (default the paper's 0.7 1/s), `SCAN=k` the iterations before the check scans
+//! whole rows in the cold first step (`Settings::scan_after_cold`), `SCAN_WARM=k` in the warm
+//! steps (`Settings::scan_after_warm`), `STARTS=random` runs the
+//! 10 starts from [0, 0.2]⁴ of 250 steps each of `tests/budget.rs` instead; `HOT=1` replays the 20 slowest steps from
 //! saved controller states many times, for a profiler.
 #![allow(clippy::unwrap_used)]
 
@@ -32,6 +34,14 @@ fn main() {
     let s = args.next().map_or(10, |a| number("s", a));
     let budget = args.next().map(|a| number("budget", a));
     let polish = std::env::var("POLISH").map_or(3, |v| number("POLISH", v));
+    let scan_after = std::env::var("SCAN")
+        .map_or(rigid_body::siqp::Settings::default().scan_after_cold, |v| {
+            number("SCAN", v)
+        });
+    let scan_after_warm = std::env::var("SCAN_WARM")
+        .map_or(rigid_body::siqp::Settings::default().scan_after_warm, |v| {
+            number("SCAN_WARM", v)
+        });
     let nu = std::env::var("NU").map_or(scenario::NU, |v| {
         v.parse().unwrap_or_else(|_| {
             eprintln!("step_profile: NU must be a number (1/s), got {v:?}");
@@ -62,6 +72,8 @@ fn main() {
             })
             .with_settings(rigid_body::siqp::Settings {
                 polish_steps: polish,
+                scan_after_cold: scan_after,
+                scan_after_warm,
                 ..Default::default()
             });
         match budget {
@@ -72,6 +84,7 @@ fn main() {
     let mut ctrl = make();
     let (mut timed, mut loops) = (Vec::new(), Vec::new());
     let (mut cost, mut violation, mut fallbacks) = (0.0, f64::NEG_INFINITY, 0);
+    let (mut first_iterations, mut first_us) = (0, 0.0f64);
     for (start, (x0, steps)) in starts.iter().enumerate() {
         let cl = simulate::run_pmpc(&mut ctrl, x0, *steps, 40).unwrap();
         let mut best = vec![f64::INFINITY; cl.x.len()];
@@ -83,6 +96,8 @@ fn main() {
                 best[k] = best[k].min(t0.elapsed().as_secs_f64() * 1e6);
             }
         }
+        first_iterations = first_iterations.max(cl.steps[0].stats.iterations);
+        first_us = first_us.max(best[0]);
         cost += cl.cost / starts.len() as f64;
         violation = violation.max(cl.max_violation);
         fallbacks += cl.fallbacks;
@@ -114,6 +129,9 @@ fn main() {
         mean(&|t| t.info.stats.adds as f64),
         mean(&|t| t.info.stats.drops as f64),
         mean(&|t| t.info.stats.moves as f64),
+    );
+    println!(
+        "s={s} budget={budget:?}: first (cold) step, worst over the starts: {first_iterations} iterations, {first_us:.1} us"
     );
     timed.sort_by(|a, b| b.us.total_cmp(&a.us));
     if std::env::var("HOT").is_ok() {

@@ -164,12 +164,28 @@ pub(super) fn polynomial_tail(
     true
 }
 
+/// Keep the larger of two violations (the first one on ties).
+fn worse(best: Option<Violation>, v: Violation) -> Option<Violation> {
+    match best {
+        Some(b) if b.excess >= v.excess => Some(b),
+        _ => Some(v),
+    }
+}
+
 /// Check `row.lower − ε ≤ τ(t)ᵀ w ≤ row.upper + ε` on [0, horizon) (∞ if `None`).
+///
+/// Without `scan` the check stops at the first violation, which is cheapest when one addition
+/// ends the solve. With `scan` it walks on through each violated stretch (stepping while the
+/// Taylor bound proves the excess, down to the limit itself, so the steps cannot shrink to
+/// nothing at the way out) and reports the most violated instant of the whole row: the
+/// exchange then jumps to the worst lobe instead of walking one lobe per check along a
+/// nearly saturated arc.
 pub(super) fn check_row(
     basis: &Laguerre,
     row: Row,
     w: &[f64],
     settings: &Settings,
+    scan: bool,
     sc: &mut Scratch<'_>,
     steps: &mut usize,
 ) -> RowCheck {
@@ -186,6 +202,8 @@ pub(super) fn check_row(
     sc.y[..s].copy_from_slice(&w[..s]);
     let mut t_off = 0.0;
     let mut local = 0;
+    let mut worst: Option<Violation> = None;
+    let done = |worst: Option<Violation>| worst.map_or(RowCheck::Satisfied, RowCheck::Violated);
     loop {
         if local >= max_steps {
             return RowCheck::StepLimit;
@@ -194,22 +212,28 @@ pub(super) fn check_row(
         *steps += 1;
         let y = &*sc.y;
         let f0 = c0 * sum(y);
-        if f0 > up + 0.5 * eps {
-            return RowCheck::Violated(Violation {
+        let here = if f0 > up + 0.5 * eps {
+            Some(Violation {
                 t: t_off,
                 side: Side::Upper,
                 excess: f0 - up,
-            });
-        }
-        if f0 < lo - 0.5 * eps {
-            return RowCheck::Violated(Violation {
+            })
+        } else if f0 < lo - 0.5 * eps {
+            Some(Violation {
                 t: t_off,
                 side: Side::Lower,
                 excess: lo - f0,
-            });
-        }
-        if ctau * norm(y) <= tail || polynomial_tail(basis, row, eps, y, sc.d3) {
-            return RowCheck::Satisfied;
+            })
+        } else {
+            None
+        };
+        if let Some(v) = here {
+            if !scan {
+                return RowCheck::Violated(v);
+            }
+            worst = worse(worst, v);
+        } else if ctau * norm(y) <= tail || polynomial_tail(basis, row, eps, y, sc.d3) {
+            return done(worst);
         }
         basis.mt_apply(y, sc.d1);
         basis.mt_apply(sc.d1, sc.d2);
@@ -218,45 +242,65 @@ pub(super) fn check_row(
         let f2 = c0 * sum(sc.d2);
         let r = ctau * norm(sc.d3);
         if r <= 0.0 {
-            return RowCheck::Satisfied;
+            // g is a quadratic in τ with zero third derivative bound: only for y = 0.
+            return done(worst);
         }
         let bl = |t: f64| f0 + f1 * t + 0.5 * f2 * t * t - r * t * t * t / 6.0;
         let bu = |t: f64| f0 + f1 * t + 0.5 * f2 * t * t + r * t * t * t / 6.0;
-        if up.is_finite() && f1 >= 0.0 {
-            let tu = (f2 + sqrt(f2 * f2 + 2.0 * r * f1)) / r;
-            let v = bl(tu);
-            if v > up + 0.5 * eps {
-                return RowCheck::Violated(Violation {
-                    t: t_off + tu,
-                    side: Side::Upper,
-                    excess: v - up,
-                });
+        let ts = match here {
+            // Inside a violated stretch: step to where the bound no longer proves g beyond
+            // the limit itself (0.5 ε inside the threshold that flagged it).
+            Some(v) if v.side == Side::Upper => {
+                first_positive_root(r / 6.0, -0.5 * f2, -f1, up - f0)
             }
-        }
-        if lo.is_finite() && f1 < 0.0 {
-            let tl = (-f2 + sqrt(f2 * f2 - 2.0 * r * f1)) / r;
-            let v = bu(tl);
-            if v < lo - 0.5 * eps {
-                return RowCheck::Violated(Violation {
-                    t: t_off + tl,
-                    side: Side::Lower,
-                    excess: lo - v,
-                });
+            Some(_) => first_positive_root(r / 6.0, 0.5 * f2, f1, f0 - lo),
+            None => {
+                if up.is_finite() && f1 >= 0.0 {
+                    let tu = (f2 + sqrt(f2 * f2 + 2.0 * r * f1)) / r;
+                    let v = bl(tu);
+                    if v > up + 0.5 * eps {
+                        let v = Violation {
+                            t: t_off + tu,
+                            side: Side::Upper,
+                            excess: v - up,
+                        };
+                        if !scan {
+                            return RowCheck::Violated(v);
+                        }
+                        worst = worse(worst, v);
+                    }
+                }
+                if lo.is_finite() && f1 < 0.0 {
+                    let tl = (-f2 + sqrt(f2 * f2 - 2.0 * r * f1)) / r;
+                    let v = bu(tl);
+                    if v < lo - 0.5 * eps {
+                        let v = Violation {
+                            t: t_off + tl,
+                            side: Side::Lower,
+                            excess: lo - v,
+                        };
+                        if !scan {
+                            return RowCheck::Violated(v);
+                        }
+                        worst = worse(worst, v);
+                    }
+                }
+                let mut ts = f64::INFINITY;
+                if up.is_finite() {
+                    ts = ts.min(first_positive_root(r / 6.0, 0.5 * f2, f1, f0 - up - eps));
+                }
+                if lo.is_finite() {
+                    ts = ts.min(first_positive_root(r / 6.0, -0.5 * f2, -f1, lo - eps - f0));
+                }
+                ts
             }
-        }
-        let mut ts = f64::INFINITY;
-        if up.is_finite() {
-            ts = ts.min(first_positive_root(r / 6.0, 0.5 * f2, f1, f0 - up - eps));
-        }
-        if lo.is_finite() {
-            ts = ts.min(first_positive_root(r / 6.0, -0.5 * f2, -f1, lo - eps - f0));
-        }
+        };
         if !ts.is_finite() {
-            return RowCheck::Satisfied;
+            return done(worst);
         }
         if let Some(tc) = horizon {
             if t_off + ts >= tc {
-                return RowCheck::Satisfied;
+                return done(worst);
             }
         }
         basis.shift(ts, sc.y, sc.y2);

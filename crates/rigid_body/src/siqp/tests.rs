@@ -1,7 +1,7 @@
 //! Solver tests (spec/pmpc.md §10 items 13–16) against independent references: a dense-scan
 //! extremum oracle, direct Cholesky factorisations and the KKT conditions.
 extern crate std;
-use super::check::{check_row, first_positive_root, polynomial_tail, RowCheck, Scratch};
+use super::check::{check_row, first_positive_root, polynomial_tail, RowCheck, Scratch, Violation};
 use super::*;
 use nalgebra::DMatrix;
 use proptest::prelude::*;
@@ -35,6 +35,27 @@ fn g_at(b: &Laguerre, w: &[f64], t: f64) -> f64 {
     tau.iter().zip(w).map(|(p, q)| p * q).sum()
 }
 
+/// One row check with scratch from `buf` (length ≥ 5 s): result and Taylor steps.
+fn check(
+    b: &Laguerre,
+    row: Row,
+    w: &[f64],
+    settings: &Settings,
+    scan: bool,
+    buf: &mut [f64],
+) -> (RowCheck, usize) {
+    let s = b.dim();
+    let (y, rest) = buf.split_at_mut(s);
+    let (y2, rest) = rest.split_at_mut(s);
+    let (d1, rest) = rest.split_at_mut(s);
+    let (d2, rest) = rest.split_at_mut(s);
+    let d3 = &mut rest[..s];
+    let mut sc = Scratch { y, y2, d1, d2, d3 };
+    let mut steps = 0;
+    let res = check_row(b, row, w, settings, scan, &mut sc, &mut steps);
+    (res, steps)
+}
+
 /// Exact oracle: (max g − upper, lower − min g) over [0, ∞) from `laguerre::extrema`.
 fn oracle(b: &Laguerre, w: &[f64], row: Row) -> (f64, f64) {
     let ext = crate::laguerre::extrema(b, w);
@@ -47,6 +68,7 @@ fn oracle(b: &Laguerre, w: &[f64], row: Row) -> (f64, f64) {
 fn taylor_check_agrees_with_exact_oracle_on_10k_vectors() {
     let mut r = rng(7);
     let mut max_steps = 0;
+    let (mut scanned, mut near_top, mut first_near_top) = (0, 0, 0);
     for case in 0..10_000 {
         let s = 4 + (r.next_u64() % 13) as usize;
         let b = Laguerre::new(s, uniform(&mut r, 0.3, 2.0)).unwrap();
@@ -68,37 +90,66 @@ fn taylor_check_agrees_with_exact_oracle_on_10k_vectors() {
             },
         };
         let eps = [1e-3, 1e-6, 1e-8][case % 5 % 3];
-        let mut buf = vec![0.0; 5 * s];
-        let (y, rest) = buf.split_at_mut(s);
-        let (y2, rest) = rest.split_at_mut(s);
-        let (d1, rest) = rest.split_at_mut(s);
-        let (d2, d3) = rest.split_at_mut(s);
-        let mut sc = Scratch { y, y2, d1, d2, d3 };
-        let mut steps = 0;
         let settings = Settings {
             tolerance: eps,
             ..Settings::default()
         };
-        let res = check_row(&b, row, &w, &settings, &mut sc, &mut steps);
-        max_steps = max_steps.max(steps);
+        let mut buf = vec![0.0; 5 * s];
+        let (first, f_steps) = check(&b, row, &w, &settings, false, &mut buf);
+        let (worst, w_steps) = check(&b, row, &w, &settings, true, &mut buf);
+        max_steps = max_steps.max(f_steps).max(w_steps);
         let (vu, vl) = oracle(&b, &w, row);
-        match res {
-            RowCheck::StepLimit => panic!("case {case}: step cap hit"),
-            RowCheck::Satisfied => assert!(
+        let excess = |v: &Violation| {
+            let g = g_at(&b, &w, v.t);
+            match v.side {
+                Side::Upper => g - row.upper,
+                Side::Lower => row.lower - g,
+            }
+        };
+        match (first, worst) {
+            (RowCheck::Satisfied, RowCheck::Satisfied) => assert!(
                 vu <= eps + 1e-12 && vl <= eps + 1e-12,
                 "case {case}: SATISFIED but violation {vu} / {vl} > eps {eps}"
             ),
-            RowCheck::Violated(v) => {
-                let g = g_at(&b, &w, v.t);
-                let excess = match v.side {
-                    Side::Upper => g - row.upper,
-                    Side::Lower => row.lower - g,
-                };
-                assert!(v.t >= 0.0);
-                assert!(excess > eps / 2.0 - 1e-12, "case {case}: excess {excess}");
+            (RowCheck::Violated(f), RowCheck::Violated(v)) => {
+                for x in [&f, &v] {
+                    assert!(x.t >= 0.0);
+                    assert!(
+                        excess(x) > eps / 2.0 - 1e-12,
+                        "case {case}: excess {}",
+                        excess(x)
+                    );
+                    // The reported excess is proven: the value there or a Taylor lower bound.
+                    assert!(
+                        x.excess <= excess(x) + 1e-12,
+                        "case {case}: reported excess {} > {}",
+                        x.excess,
+                        excess(x)
+                    );
+                }
+                // The scan reports the worst instant it met, and it meets the first one.
+                assert!(
+                    v.excess >= f.excess,
+                    "case {case}: scan {} < first {}",
+                    v.excess,
+                    f.excess
+                );
+                let top = vu.max(vl);
+                scanned += 1;
+                near_top += usize::from(v.excess >= 0.5 * top);
+                first_near_top += usize::from(f.excess >= 0.5 * top);
             }
+            _ => panic!("case {case}: the two checks disagree on whether the row is violated"),
         }
     }
+    // The scan's instant is a sample on the violated stretch, not its extremum (the solver
+    // refines it). Measured on these cases: 5763 of 5764 scans within half of the worst
+    // excess, against 3713 for the first violation.
+    assert!(
+        near_top as f64 >= 0.99 * scanned as f64,
+        "scan within half of the worst excess in {near_top} of {scanned}"
+    );
+    assert!(near_top > first_near_top, "{near_top} vs {first_near_top}");
     assert!(max_steps < 10_000);
 }
 
@@ -140,53 +191,71 @@ fn random_problem(r: &mut TestRng) -> (Laguerre, Vec<Row>, Vec<f64>, Vec<f64>, u
 #[test]
 fn kkt_holds_at_termination_on_random_problems() {
     let mut r = rng(11);
+    let mut worst_gap: f64 = 0.0;
     for case in 0..200 {
         let (b, rows, phi, w0, rank) = random_problem(&mut r);
         let p = Problem::new(b, &rows, &phi, rank).unwrap();
         let mut st = WorkspaceStorage::new(&p);
         let mut ws = st.workspace(&p).unwrap();
-        let settings = Settings {
-            tolerance: 1e-8,
-            max_iter: 100_000,
-            ..Settings::default()
-        };
-        let out = solve(&p, &settings, &w0, false, &mut ws).unwrap();
-        assert_eq!(out.status, Status::Optimal, "case {case}");
         let d = p.dim();
         let s = b.dim();
-        // Stationarity in coefficient space: w = w0 − Φ μ.
         let mut tau = vec![0.0; s];
         let mut mu = vec![0.0; d];
-        out.multiplier_coefficients(&p, &mut tau, &mut mu);
-        for i in 0..d {
-            let phimu: f64 = (0..d).map(|j| phi[i * d + j] * mu[j]).sum();
-            assert!((out.w[i] - (w0[i] - phimu)).abs() < 1e-9, "case {case}");
-        }
-        for (a, &lam) in out.active.iter().zip(out.lambda) {
-            assert!(lam >= 0.0);
-            let g = g_at(&b, &out.w[a.row * s..(a.row + 1) * s], a.t);
-            let beta = match a.side {
-                Side::Upper => rows[a.row].upper,
-                Side::Lower => rows[a.row].lower,
+        let mut costs = vec![];
+        // Always scanning, the default, and never scanning.
+        for scan_after in [0, Settings::default().scan_after_cold, usize::MAX] {
+            let settings = Settings {
+                tolerance: 1e-8,
+                max_iter: 100_000,
+                scan_after_cold: scan_after,
+                ..Settings::default()
             };
-            assert!(
-                (g - beta).abs() < 1e-9,
-                "case {case}: active residual {}",
-                g - beta
-            );
+            let out = solve(&p, &settings, &w0, false, &mut ws).unwrap();
+            let at = std::format!("case {case}, scan after {scan_after}");
+            assert_eq!(out.status, Status::Optimal, "{at}");
+            // Stationarity in coefficient space: w = w0 − Φ μ.
+            out.multiplier_coefficients(&p, &mut tau, &mut mu);
+            for i in 0..d {
+                let phimu: f64 = (0..d).map(|j| phi[i * d + j] * mu[j]).sum();
+                assert!((out.w[i] - (w0[i] - phimu)).abs() < 1e-9, "{at}");
+            }
+            for (a, &lam) in out.active.iter().zip(out.lambda) {
+                assert!(lam >= 0.0);
+                let g = g_at(&b, &out.w[a.row * s..(a.row + 1) * s], a.t);
+                let beta = match a.side {
+                    Side::Upper => rows[a.row].upper,
+                    Side::Lower => rows[a.row].lower,
+                };
+                assert!(
+                    (g - beta).abs() < 1e-9,
+                    "{at}: active residual {}",
+                    g - beta
+                );
+            }
+            for (k, row) in rows.iter().enumerate() {
+                let (vu, vl) = oracle(&b, &out.w[k * s..(k + 1) * s], *row);
+                assert!(vu <= 1e-8 + 1e-12 && vl <= 1e-8 + 1e-12, "{at}");
+            }
+            let inc = out.cost_increase(&p, &mut tau);
+            let direct: f64 = 0.5
+                * mu.iter()
+                    .zip(w0.iter().zip(out.w))
+                    .map(|(m, (a, c))| m * (a - c))
+                    .sum::<f64>();
+            assert!((inc - direct).abs() <= 1e-12 * (1.0 + inc.abs()), "{at}");
+            costs.push(inc);
         }
-        for (k, row) in rows.iter().enumerate() {
-            let (vu, vl) = oracle(&b, &out.w[k * s..(k + 1) * s], *row);
-            assert!(vu <= 1e-8 + 1e-12 && vl <= 1e-8 + 1e-12, "case {case}");
-        }
-        let inc = out.cost_increase(&p, &mut tau);
-        let direct: f64 = 0.5
-            * mu.iter()
-                .zip(w0.iter().zip(out.w))
-                .map(|(m, (a, c))| m * (a - c))
-                .sum::<f64>();
-        assert!((inc - direct).abs() <= 1e-12 * (1.0 + inc.abs()));
+        // Each cost lies between the ε-relaxed and the exact optimum, which differ most where
+        // a zero bound (the row x ≥ 0) lends its ε of slack far out in time.
+        let (lo, hi) = costs
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &c| {
+                (l.min(c), h.max(c))
+            });
+        worst_gap = worst_gap.max((hi - lo) / (1.0 + hi.abs()));
     }
+    // Measured: 5.1e-4 over these 200 problems.
+    assert!(worst_gap <= 1e-3, "relative cost gap {worst_gap:e}");
 }
 
 #[test]
@@ -379,6 +448,46 @@ proptest! {
             let (vu, vl) = oracle(&b, &y, row);
             prop_assert!(vu <= eps + 1e-12 && vl <= eps + 1e-12,
                 "certified but excess {vu} / {vl} > eps {eps}");
+        }
+    }
+
+    /// The scanning check agrees with the first-violation check on whether a row is violated and
+    /// reports a proven excess at least as large (how close it comes to the exact worst one is
+    /// a rate, measured in `taylor_check_agrees_with_exact_oracle_on_10k_vectors`).
+    #[test]
+    fn scanning_check_reports_the_worst_violation(
+        s in 2usize..16,
+        nu in 0.3f64..2.0,
+        coeffs in proptest::collection::vec(-1.0f64..1.0, 16),
+        kind in 0usize..3,
+        limit in 0.02f64..0.8,
+        eps_exp in 3i32..9,
+    ) {
+        let b = Laguerre::new(s, nu).unwrap();
+        let scale = b.sup_norm() * coeffs[..s].iter().map(|x| x * x).sum::<f64>().sqrt();
+        let w: Vec<f64> = coeffs[..s].iter().map(|x| x / scale.max(1e-12)).collect();
+        let row = match kind {
+            0 => Row { lower: 0.0, upper: f64::INFINITY },
+            1 => Row { lower: f64::NEG_INFINITY, upper: limit },
+            _ => Row { lower: -limit, upper: limit },
+        };
+        let settings = Settings { tolerance: 10f64.powi(-eps_exp), ..Settings::default() };
+        let mut buf = vec![0.0; 5 * s];
+        let (first, _) = check(&b, row, &w, &settings, false, &mut buf);
+        let (worst, _) = check(&b, row, &w, &settings, true, &mut buf);
+        let (vu, vl) = oracle(&b, &w, row);
+        match (first, worst) {
+            (RowCheck::Satisfied, RowCheck::Satisfied) => {
+                prop_assert!(vu.max(vl) <= settings.tolerance + 1e-12);
+            }
+            (RowCheck::Violated(f), RowCheck::Violated(v)) => {
+                let g = g_at(&b, &w, v.t);
+                let real = match v.side { Side::Upper => g - row.upper, Side::Lower => row.lower - g };
+                prop_assert!(v.excess >= f.excess);
+                prop_assert!(v.excess <= real + 1e-12);
+            }
+            (RowCheck::StepLimit, _) | (_, RowCheck::StepLimit) => prop_assert!(false, "step limit"),
+            _ => prop_assert!(false, "the checks disagree on whether the row is violated"),
         }
     }
 
