@@ -158,8 +158,10 @@ def test_model_file_controller_is_the_simulators_and_stabilises_every_truth():
     section = load_model()["controller"]
     assert section["type"] == "discrete" and section["sample_rate_hz"] == 100
     ctrl = ic.design_controller(ic.Config())
+    # The file holds the simulator's design; recomputed with another LAPACK build (scipy's
+    # bundled OpenBLAS picks kernels by CPU) it agrees to 2.7e-12 relative, not to the last bit.
     for name in "ABCD":
-        assert np.allclose(np.array(section[name]), getattr(ctrl, name), rtol=1e-14, atol=0)
+        assert np.allclose(np.array(section[name]), getattr(ctrl, name), rtol=1e-10, atol=0)
     file_ctrl = ic.Controller(*(np.array(section[n], float) for n in "ABCD"))
     for case in CASES.values():
         cfg = ic.Config(plant=replace(ic.Plant(), **case))
