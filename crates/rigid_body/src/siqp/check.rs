@@ -165,11 +165,16 @@ pub(super) fn polynomial_tail(
 }
 
 /// Keep the larger of two violations (the first one on ties).
-fn worse(best: Option<Violation>, v: Violation) -> Option<Violation> {
-    match best {
-        Some(b) if b.excess >= v.excess => Some(b),
-        _ => Some(v),
+/// Records a violation found by the check: without `scan` it ends the row's check at once
+/// (`Some`), with `scan` it replaces `worst` if larger and the walk goes on (`None`).
+fn record(scan: bool, worst: &mut Option<Violation>, v: Violation) -> Option<RowCheck> {
+    if !scan {
+        return Some(RowCheck::Violated(v));
     }
+    if worst.is_none_or(|b| v.excess > b.excess) {
+        *worst = Some(v);
+    }
+    None
 }
 
 /// Check `row.lower − ε ≤ τ(t)ᵀ w ≤ row.upper + ε` on [0, horizon) (∞ if `None`).
@@ -228,10 +233,9 @@ pub(super) fn check_row(
             None
         };
         if let Some(v) = here {
-            if !scan {
-                return RowCheck::Violated(v);
+            if let Some(found) = record(scan, &mut worst, v) {
+                return found;
             }
-            worst = worse(worst, v);
         } else if ctau * norm(y) <= tail || polynomial_tail(basis, row, eps, y, sc.d3) {
             return done(worst);
         }
@@ -264,10 +268,9 @@ pub(super) fn check_row(
                             side: Side::Upper,
                             excess: v - up,
                         };
-                        if !scan {
-                            return RowCheck::Violated(v);
+                        if let Some(found) = record(scan, &mut worst, v) {
+                            return found;
                         }
-                        worst = worse(worst, v);
                     }
                 }
                 if lo.is_finite() && f1 < 0.0 {
@@ -279,10 +282,9 @@ pub(super) fn check_row(
                             side: Side::Lower,
                             excess: lo - v,
                         };
-                        if !scan {
-                            return RowCheck::Violated(v);
+                        if let Some(found) = record(scan, &mut worst, v) {
+                            return found;
                         }
-                        worst = worse(worst, v);
                     }
                 }
                 let mut ts = f64::INFINITY;
