@@ -4,7 +4,7 @@
 use ::pmpc::bounds::bounds;
 use ::pmpc::{Constraints, Error as PmpcError, Pmpc, Source};
 use nalgebra::DMatrix;
-use numpy::PyArray1;
+use numpy::{PyArray1, PyArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -131,9 +131,29 @@ impl PyController {
     }
 
     /// Solve for the measured state and return the input to apply now (shape (m,)).
-    fn step<'py>(&mut self, py: Python<'py>, x: Vec<f64>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    fn step<'py>(
+        &mut self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        // A contiguous float64 array is read in place: converting it element by element as a
+        // sequence cost 1.7 us more per step. Anything else is read as a sequence.
+        let array = x
+            .cast::<PyArray1<f64>>()
+            .ok()
+            .and_then(|a| a.try_readonly().ok());
+        let copied: Vec<f64>;
+        let x = match array.as_ref().and_then(|a| a.as_slice().ok()) {
+            Some(x) => x,
+            None => {
+                copied = x.extract().map_err(|_| {
+                    PyValueError::new_err("x must be a 1-D sequence of numbers (the state)")
+                })?;
+                &copied
+            }
+        };
         let start = std::time::Instant::now();
-        let u = self.inner.step(&x);
+        let u = self.inner.step(x);
         self.solve_time = start.elapsed().as_secs_f64();
         Ok(PyArray1::from_slice(py, u.map_err(to_py_err)?))
     }

@@ -107,6 +107,24 @@ def test_bad_input():
         c.step([-0.1, 0.0, 0.0, 0.0])
 
 
+def test_state_is_read_from_arrays_of_any_layout_and_from_sequences():
+    """A contiguous float64 array is read in place, everything else as a sequence: each form of
+    the same state gives the same input, bit for bit, from a fresh controller."""
+    x = np.array([0.3, 0.0, 0.3, 0.0, 0.3, 0.0, 0.3, 0.0])
+    forms = [x[::2].copy(), x[::2], list(x[::2]), tuple(x[::2]),
+             np.array([0.3, 0.3, 0.3, 0.3], dtype=np.float32)]
+    inputs = [controller().step(form)[0] for form in forms]
+    assert inputs[0] != 0.0
+    assert inputs[:4] == [inputs[0]] * 4
+    # float32 0.3 is another state: a close input, not the same one.
+    assert inputs[4] == pytest.approx(inputs[0], rel=1e-5)
+    c = controller()
+    with pytest.raises(ValueError, match="x must be"):
+        c.step("0.3")
+    with pytest.raises(ValueError, match="x must be"):
+        c.step(np.full((2, 2), 0.3))
+
+
 def test_plan_before_the_step_and_huge_sizes_are_refused():
     c = controller()
     c.step(X0)
