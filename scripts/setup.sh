@@ -32,11 +32,15 @@ if [ ! -x .venv/bin/python ]; then
 fi
 stamp=.venv/.stabilis-deps
 deps="maturin>=1.9.4,<2 pytest numpy scipy mcap control dask[distributed]"
-if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$deps" ]; then
+# Versions pinned by a constraints file: an unpinned install changed numpy/scipy under the
+# tests between two machines (see the file's header).
+constraints=scripts/python-constraints.txt
+want="$deps $(sha256sum "$constraints" | cut -d' ' -f1)"
+if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
     echo "setup: installing Python dependencies into .venv"
-    .venv/bin/python -m pip install -q --upgrade pip
+    .venv/bin/python -m pip install -q --upgrade -c "$constraints" pip
     # Split on spaces, never globbed (dask[distributed] is a bracket pattern to the shell).
     # shellcheck disable=SC2086
-    (set -f; .venv/bin/python -m pip install -q $deps)
-    echo "$deps" > "$stamp"
+    (set -f; .venv/bin/python -m pip install -q -c "$constraints" $deps)
+    echo "$want" > "$stamp"
 fi

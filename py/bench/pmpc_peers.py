@@ -6,8 +6,10 @@ How each contender is called (the fastest way its Python API allows):
   * stabilis.pmpc: `Controller.step(x)`, warm-started from the previous working set, without
     and with the per-step iteration budgets given by --budget (default 4, 5, 6 and 8; the shifted
     previous plan is applied when a budget runs out), for each basis size --s and decay rate --nu.
-  * DAQP: one `daqp.Model`, `setup` once, then per step `update(f=, bupper=, blower=)` and
-    `solve()`: H is factorised once and the working set carries over (hot start).
+  * DAQP: one `daqp.Model`, `setup` once, then per step `update(f=, bupper=)` and `solve()`:
+    H is factorised once and the working set carries over (hot start). The changed data (f x0
+    and the state-bound rows) are computed into preallocated arrays, for every peer. DAQP's own
+    `solve_time` leaves out `update`, which refreshes its LDP form (about half its step here).
   * OSQP: one `osqp.OSQP`, `setup` once, per step `update(q=, u=)` and `solve()`; warm start
     from the previous solution (its default), default iteration limit, eps_abs = eps_rel = 1e-6.
   * ProxQP (proxsuite dense): `init` once, per step `update(g=, u=)` and `solve()` warm-started
@@ -25,7 +27,7 @@ the Laguerre generator). J_cl (mean over the starts) = sum_{k>=1} (x'x + u^2)/2 
 samples (spec §8.4); J_int is the same cost integrated over the closed loop (Simpson's rule on
 the 0.5 ms grid); the violation is the largest excess over |u| <= 0.5, x_1 >= 0 on that grid.
 
-    .venv/bin/python -m pip install daqp osqp proxsuite   # measured with 0.11.0, 1.1.3, 0.8.0
+    .venv/bin/python -m pip install -c scripts/python-constraints.txt daqp osqp proxsuite
     .venv/bin/python py/bench/pmpc_peers.py [--s S ...] [--nu NU ...] [--budget B ...]
                                             [--peers daqp osqp proxqp] [--quick]
     .venv/bin/python py/bench/pmpc_peers.py --scan-nu 0.5 0.7 1.0 1.3 [--s 10 12]
@@ -113,13 +115,16 @@ def daqp_controller(h, f, g, e, x0):
 
     n = h.shape[0]
     model = daqp.Model()
-    bl = np.concatenate([np.full(n, -0.5), np.full(n, -1e30)])
-    model.setup(h, f @ x0, g, np.concatenate([np.full(n, 0.5), -e @ x0]), bl)
+    fx, upper, neg_e = np.empty(n), np.concatenate([np.full(n, 0.5), -e @ x0]), -e
+    model.setup(h, f @ x0, g, upper, np.concatenate([np.full(n, -0.5), np.full(n, -1e30)]))
 
     def solve(x):
-        model.update(f=f @ x, bupper=np.concatenate([np.full(n, 0.5), -e @ x]), blower=bl)
+        # Only the data that change, computed into preallocated arrays: f x and the bound rows.
+        np.matmul(f, x, out=fx)
+        np.matmul(neg_e, x, out=upper[n:])
+        model.update(f=fx, bupper=upper)
         sol, _, flag, info = model.solve()
-        return (np.array(sol) if flag >= 1 else None), info["solve_time"]
+        return (sol if flag >= 1 else None), info["solve_time"]
 
     return Discrete(solve, n)
 
@@ -135,8 +140,12 @@ def osqp_controller(h, f, g, e, x0):
                  np.concatenate([np.full(n, 0.5), -e @ x0]),
                  verbose=False, eps_abs=1e-6, eps_rel=1e-6)
 
+    fx, upper, neg_e = np.empty(n), np.concatenate([np.full(n, 0.5), -e @ x0]), -e
+
     def solve(x):
-        solver.update(q=f @ x, u=np.concatenate([np.full(n, 0.5), -e @ x]))
+        np.matmul(f, x, out=fx)
+        np.matmul(neg_e, x, out=upper[n:])
+        solver.update(q=fx, u=upper)
         res = solver.solve()
         ok = res.info.status in ("solved", "solved inaccurate")
         return (np.array(res.x) if ok else None), res.info.solve_time
@@ -158,8 +167,12 @@ def proxqp_controller(h, f, g, e, x0):
     qp.init(h, f @ x0, None, None, c, lo, np.concatenate([np.full(n, 0.5), -e @ x0]))
     qp.solve()  # a previous result must exist before the first warm-started update
 
+    fx, upper, neg_e = np.empty(n), np.concatenate([np.full(n, 0.5), -e @ x0]), -e
+
     def solve(x):
-        qp.update(g=f @ x, u=np.concatenate([np.full(n, 0.5), -e @ x]))
+        np.matmul(f, x, out=fx)
+        np.matmul(neg_e, x, out=upper[n:])
+        qp.update(g=fx, u=upper)
         qp.solve()
         ok = qp.results.info.status == proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
         return (np.array(qp.results.x) if ok else None), qp.results.info.solve_time * 1e-6
