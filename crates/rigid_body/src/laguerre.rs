@@ -149,9 +149,9 @@ impl Laguerre {
     /// coefficients `Mᵀ y`). `y` and `out` have length s and must not alias.
     pub fn mt_apply(&self, y: &[f64], out: &mut [f64]) {
         let mut suffix = 0.0;
-        for i in (0..self.s).rev() {
-            out[i] = -self.nu * y[i] - 2.0 * self.nu * suffix;
-            suffix += y[i];
+        for (o, yi) in out[..self.s].iter_mut().zip(&y[..self.s]).rev() {
+            *o = -self.nu * yi - 2.0 * self.nu * suffix;
+            suffix += yi;
         }
     }
 
@@ -200,10 +200,13 @@ impl Laguerre {
     /// O(s²), no scratch memory. `y` and `out` have length s and must not alias.
     pub fn shift(&self, h: f64, y: &[f64], out: &mut [f64]) {
         let s = self.s;
-        out[..s].fill(0.0);
+        let (y, out) = (&y[..s], &mut out[..s]);
+        out.fill(0.0);
+        // Zipped slices instead of indices: no bounds check in the inner loop, which the
+        // constraint check runs at every Taylor step.
         self.for_each_shift_coeff(h, |d, e| {
-            for j in 0..s - d {
-                out[j] += e * y[j + d];
+            for (o, yj) in out.iter_mut().zip(&y[d..]) {
+                *o += e * yj;
             }
         });
     }
