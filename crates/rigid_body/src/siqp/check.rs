@@ -164,7 +164,6 @@ pub(super) fn polynomial_tail(
     true
 }
 
-/// Keep the larger of two violations (the first one on ties).
 /// Records a violation found by the check: without `scan` it ends the row's check at once
 /// (`Some`), with `scan` it replaces `worst` if larger and the walk goes on (`None`).
 fn record(scan: bool, worst: &mut Option<Violation>, v: Violation) -> Option<RowCheck> {
