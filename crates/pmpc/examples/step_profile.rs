@@ -4,9 +4,9 @@
 //! `POLISH=k` sets the Newton moves per addition (`Settings::polish_steps`), `NU=ν` the basis
 //! decay rate (default the paper's 0.7 1/s), `SCAN=k` the iterations before the check scans
 //! whole rows in the cold first step (`Settings::scan_after_cold`), `SCAN_WARM=k` in the warm
-//! steps (`Settings::scan_after_warm`), `STARTS=random` runs the
-//! 10 starts from [0, 0.2]⁴ of 250 steps each of `tests/budget.rs` instead; `HOT=1` replays the 20 slowest steps from
-//! saved controller states many times, for a profiler.
+//! steps (`Settings::scan_after_warm`), `STARTS=random` runs the 10 starts from [0, 0.2]⁴ of
+//! 250 steps each of `tests/budget.rs` instead; `HOT=1` replays the 20 slowest steps from saved
+//! controller states many times, for a profiler.
 #![allow(clippy::unwrap_used)]
 
 use pmpc::{scenario, simulate, Pmpc, StepInfo};
