@@ -138,7 +138,7 @@ fn own_system(c: &mut Criterion) {
         b.iter(|| {
             let wb = Workbench::new(file.clone(), data.clone(), EstimatorChoice::Auto).unwrap();
             let d = wb.discover().unwrap();
-            assert_eq!(d.found, ["cart_friction"]);
+            assert_eq!(d.conclusion.found, ["cart_friction"]);
             d
         })
     });
@@ -231,7 +231,7 @@ fn nonlinear_system(c: &mut Criterion) {
         b.iter(|| {
             let wb = Workbench::new(file.clone(), data.clone(), EstimatorChoice::Auto).unwrap();
             let d = wb.discover().unwrap();
-            assert_eq!(d.found, ["cart_viscous"]);
+            assert_eq!(d.conclusion.found, ["cart_viscous"]);
             d
         })
     });

@@ -1123,8 +1123,8 @@ impl Workbench {
                 serde_json::json!({
                     "channels": checked(serde_json::to_value(&channels))?,
                     "misfit_channels": d.misfit_channels,
-                    "unexplained": d.unexplained,
-                    "verdict": checked(serde_json::to_value(&d.verdict))?,
+                    "unexplained": d.conclusion.unexplained,
+                    "verdict": checked(serde_json::to_value(&d.conclusion.verdict))?,
                     "verdict_text": d.verdict_sentence(),
                 })
             }

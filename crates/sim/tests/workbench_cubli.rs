@@ -63,15 +63,15 @@ fn param(d: &CubliDiscovery, name: &str) -> f64 {
 #[test]
 fn clean_logs_find_nothing() {
     let d = discover_on("clean", |_| {});
-    assert!(d.found.is_empty(), "{:?}", d.found);
-    assert!(!d.unexplained, "{}", d.verdict_sentence());
+    assert!(d.conclusion.found.is_empty(), "{:?}", d.conclusion.found);
+    assert!(!d.conclusion.unexplained, "{}", d.verdict_sentence());
 }
 
 /// Hides one effect, asserts it is found alone and returns the discovery.
 fn found_alone(tag: &str, effect: &str, hide: impl Fn(&mut Args)) -> CubliDiscovery {
     let d = discover_on(tag, hide);
-    assert_eq!(d.found, [effect]);
-    assert!(!d.unexplained, "{}", d.verdict_sentence());
+    assert_eq!(d.conclusion.found, [effect]);
+    assert!(!d.conclusion.unexplained, "{}", d.verdict_sentence());
     d
 }
 
@@ -162,13 +162,15 @@ fn a_one_sample_input_delay_is_reported_as_unexplained_misfit_and_short_data_is_
     }
     let d = discover(&data, &CubliOptions::default()).unwrap();
     println!("delay:\n{}", d.table());
-    assert!(d.unexplained, "{}", d.verdict_sentence());
+    assert!(d.conclusion.unexplained, "{}", d.verdict_sentence());
     // Candidates that only soak up part of the delay's misfit are not reported as found.
-    assert!(d.found.is_empty(), "{:?}", d.found);
+    assert!(d.conclusion.found.is_empty(), "{:?}", d.conclusion.found);
     assert!(
-        d.tentative.contains(&"torque_constant".to_string()),
+        d.conclusion
+            .tentative
+            .contains(&"torque_constant".to_string()),
         "{:?}",
-        d.tentative
+        d.conclusion.tentative
     );
     assert!(
         d.misfit_channels.iter().any(|c| c.starts_with("p_w")),

@@ -96,11 +96,11 @@ fn check_params(d: &workbench::Discovery, truth: &Model, tol: &[(&str, f64)]) {
 
 fn explained(d: &workbench::Discovery) {
     assert!(
-        matches!(d.verdict, Verdict::ExplainedToNoiseLevel { .. }),
+        matches!(d.conclusion.verdict, Verdict::ExplainedToNoiseLevel { .. }),
         "{}",
-        d.verdict.sentence()
+        d.conclusion.verdict.sentence()
     );
-    assert!(!d.unexplained);
+    assert!(!d.conclusion.unexplained);
 }
 
 #[test]
@@ -109,7 +109,7 @@ fn paper_truth_finds_drag_then_gyroscopic_and_recovers_parameters() {
         &[(Effect::MomentumDrag, &[]), (Effect::FanGyroscopic, &[])],
         1,
     );
-    assert_eq!(d.found, ["momentum_drag", "fan_gyroscopic"]);
+    assert_eq!(d.conclusion.found, ["momentum_drag", "fan_gyroscopic"]);
     explained(&d);
     let total = d.steps.last().unwrap().reduction_percent;
     assert!(total >= 95.0, "total cost reduction {total}%");
@@ -148,7 +148,11 @@ fn paper_truth_finds_drag_then_gyroscopic_and_recovers_parameters() {
 fn low_complexity_truth_finds_nothing() {
     for seed in [2, 7] {
         let (d, _) = discover(&[], seed);
-        assert!(d.found.is_empty(), "seed {seed}: found {:?}", d.found);
+        assert!(
+            d.conclusion.found.is_empty(),
+            "seed {seed}: found {:?}",
+            d.conclusion.found
+        );
         explained(&d);
     }
 }
@@ -180,7 +184,7 @@ fn least_squares_on_closed_loop_fakes_drag() {
 #[test]
 fn drag_alone_is_found_alone() {
     let (d, truth) = discover(&[(Effect::MomentumDrag, &[])], 3);
-    assert_eq!(d.found, ["momentum_drag"]);
+    assert_eq!(d.conclusion.found, ["momentum_drag"]);
     explained(&d);
     check_params(
         &d,
@@ -197,7 +201,7 @@ fn drag_alone_is_found_alone() {
 #[test]
 fn larger_fan_momentum_alone_is_found_alone() {
     let (d, truth) = discover(&[(Effect::FanGyroscopic, &[("c_omega_t0", 0.1)])], 4);
-    assert_eq!(d.found, ["fan_gyroscopic"]);
+    assert_eq!(d.conclusion.found, ["fan_gyroscopic"]);
     explained(&d);
     check_params(&d, &truth, &[("c_omega_t0", 0.05)]);
 }
@@ -207,7 +211,7 @@ fn actuator_lag_alone_is_found_alone() {
     // 30 ms: with the paper's controller a lag of 60-80 ms inside the loop destabilises the
     // simulated hover (the flying_platform simulator reports the divergence).
     let (d, truth) = discover(&[(Effect::ActuatorLag, &[("tau", 0.03)])], 5);
-    assert_eq!(d.found, ["actuator_lag"]);
+    assert_eq!(d.conclusion.found, ["actuator_lag"]);
     explained(&d);
     check_params(&d, &truth, &[("tau", 0.15)]);
 }
@@ -221,7 +225,7 @@ fn drag_and_lag_together_are_both_found() {
         ],
         6,
     );
-    assert_eq!(d.found, ["momentum_drag", "actuator_lag"]);
+    assert_eq!(d.conclusion.found, ["momentum_drag", "actuator_lag"]);
     explained(&d);
     check_params(
         &d,
@@ -234,7 +238,7 @@ fn drag_and_lag_together_are_both_found() {
 fn slow_actuator_lag_alone_is_found_alone() {
     // 70 ms of thrust lag: flown with the slow-actuator tuning (the paper's diverges).
     let (d, truth) = discover_slow(&[(Effect::ActuatorLag, &[("tau", 0.07)])], 8);
-    assert_eq!(d.found, ["actuator_lag"]);
+    assert_eq!(d.conclusion.found, ["actuator_lag"]);
     explained(&d);
     check_params(&d, &truth, &[("tau", 0.15)]);
 }
@@ -248,7 +252,7 @@ fn drag_and_slow_actuator_lag_are_both_found() {
         ],
         9,
     );
-    let mut found = d.found.clone();
+    let mut found = d.conclusion.found.clone();
     found.sort();
     assert_eq!(found, ["actuator_lag", "momentum_drag"]);
     explained(&d);
@@ -276,14 +280,20 @@ fn within_limits_paper_fan_inertia_finds_gyroscopic_in_most_seeds() {
             ExperimentDesign::within_limits(seed).unwrap(),
         );
         let d = workbench_discover(data);
-        assert_eq!(d.found[0], "momentum_drag", "seed {seed}: {:?}", d.found);
-        assert!(
-            d.found[1..].iter().all(|e| e == "fan_gyroscopic"),
+        assert_eq!(
+            d.conclusion.found[0], "momentum_drag",
             "seed {seed}: {:?}",
-            d.found
+            d.conclusion.found
+        );
+        assert!(
+            d.conclusion.found[1..]
+                .iter()
+                .all(|e| e == "fan_gyroscopic"),
+            "seed {seed}: {:?}",
+            d.conclusion.found
         );
         explained(&d);
-        if d.found.len() == 2 {
+        if d.conclusion.found.len() == 2 {
             found_gyroscopic += 1;
             let total = d.steps.last().unwrap().reduction_percent;
             assert!(total >= 95.0, "seed {seed}: total cost reduction {total}%");
@@ -314,7 +324,7 @@ fn within_limits_quarter_fan_inertia_leaves_gyroscopic_out() {
         ExperimentDesign::within_limits(1).unwrap(),
     );
     let d = workbench_discover(data);
-    assert_eq!(d.found, ["momentum_drag"]);
+    assert_eq!(d.conclusion.found, ["momentum_drag"]);
     explained(&d);
 }
 
@@ -331,7 +341,11 @@ fn within_limits_low_complexity_truth_finds_nothing() {
             ExperimentDesign::within_limits(seed).unwrap(),
         );
         let d = workbench_discover(data);
-        assert!(d.found.is_empty(), "seed {seed}: found {:?}", d.found);
+        assert!(
+            d.conclusion.found.is_empty(),
+            "seed {seed}: found {:?}",
+            d.conclusion.found
+        );
         explained(&d);
     }
 }
@@ -363,12 +377,19 @@ fn clean_closed_loop_without_excitation_finds_nothing() {
         .unwrap();
         assert_eq!(wb.frf().estimator, estimator);
         let d = wb.discover().unwrap();
-        assert!(d.found.is_empty(), "{estimator:?}: found {:?}", d.found);
+        assert!(
+            d.conclusion.found.is_empty(),
+            "{estimator:?}: found {:?}",
+            d.conclusion.found
+        );
         // Before this rule both listed drag under `found` (least squares: momentum_drag;
         // H1 Welch: momentum_drag, actuator_lag), with a structured misfit remaining. What
         // absorbs the bias first depends on the band: with the band read from the inputs'
         // power (no excitation logged) H1 Welch starts with input_delay.
-        assert!(!d.tentative.is_empty(), "{estimator:?}: nothing tentative");
+        assert!(
+            !d.conclusion.tentative.is_empty(),
+            "{estimator:?}: nothing tentative"
+        );
         let why = d.tentative_sentence().unwrap();
         assert!(
             why.contains("biased under feedback") && why.contains("/flying_platform/excitation"),

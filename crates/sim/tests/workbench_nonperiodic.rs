@@ -125,28 +125,28 @@ fn discover(effects: &[Effect], seed: u64) -> workbench::Discovery {
 fn drag_and_gyroscopic_truth_finds_drag_first() {
     let d = discover(&[Effect::MomentumDrag, Effect::FanGyroscopic], 11);
     assert_eq!(
-        d.found.first().map(String::as_str),
+        d.conclusion.found.first().map(String::as_str),
         Some("momentum_drag"),
         "found {:?}",
-        d.found
+        d.conclusion.found
     );
     let total = d.steps.last().unwrap().reduction_percent;
     assert!(total >= 90.0, "total cost reduction {total}%");
     assert!(
-        matches!(d.verdict, Verdict::ExplainedToNoiseLevel { .. }),
+        matches!(d.conclusion.verdict, Verdict::ExplainedToNoiseLevel { .. }),
         "{}",
-        d.verdict.sentence()
+        d.conclusion.verdict.sentence()
     );
 }
 
 #[test]
 fn drag_truth_finds_drag_alone() {
     let d = discover(&[Effect::MomentumDrag], 11);
-    assert_eq!(d.found, ["momentum_drag"]);
+    assert_eq!(d.conclusion.found, ["momentum_drag"]);
     assert!(
-        matches!(d.verdict, Verdict::ExplainedToNoiseLevel { .. }),
+        matches!(d.conclusion.verdict, Verdict::ExplainedToNoiseLevel { .. }),
         "{}",
-        d.verdict.sentence()
+        d.conclusion.verdict.sentence()
     );
 }
 
@@ -157,9 +157,9 @@ fn clean_flight_finds_nothing(seed: u64) {
     let d = discover(&[], seed);
     let s = &d.steps[0];
     assert!(
-        d.found.is_empty(),
+        d.conclusion.found.is_empty(),
         "seed {seed}: found {:?}; start cost {} normalised {}, candidates {:?}",
-        d.found,
+        d.conclusion.found,
         s.cost,
         s.normalized_cost,
         s.candidates
@@ -168,9 +168,9 @@ fn clean_flight_finds_nothing(seed: u64) {
             .collect::<Vec<_>>()
     );
     assert!(
-        matches!(d.verdict, Verdict::ExplainedToNoiseLevel { .. }),
+        matches!(d.conclusion.verdict, Verdict::ExplainedToNoiseLevel { .. }),
         "seed {seed}: {}",
-        d.verdict.sentence()
+        d.conclusion.verdict.sentence()
     );
 }
 

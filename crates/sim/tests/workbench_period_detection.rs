@@ -93,12 +93,16 @@ fn drag_truth_without_period_metadata_finds_momentum_drag() {
     .discover()
     .unwrap();
     assert_eq!(
-        d.found.first().map(String::as_str),
+        d.conclusion.found.first().map(String::as_str),
         Some("momentum_drag"),
         "found {:?}",
-        d.found
+        d.conclusion.found
     );
-    assert!(d.tentative.is_empty(), "tentative {:?}", d.tentative);
+    assert!(
+        d.conclusion.tentative.is_empty(),
+        "tentative {:?}",
+        d.conclusion.tentative
+    );
 }
 
 #[test]
@@ -106,8 +110,16 @@ fn clean_truth_without_period_metadata_finds_nothing() {
     let d = workbench(without_period_metadata(records(&[], 13)))
         .discover()
         .unwrap();
-    assert!(d.found.is_empty(), "found {:?}", d.found);
-    assert!(d.tentative.is_empty(), "tentative {:?}", d.tentative);
+    assert!(
+        d.conclusion.found.is_empty(),
+        "found {:?}",
+        d.conclusion.found
+    );
+    assert!(
+        d.conclusion.tentative.is_empty(),
+        "tentative {:?}",
+        d.conclusion.tentative
+    );
 }
 
 #[test]

@@ -1,5 +1,7 @@
 //! Which effect is missing: fit every candidate, test the best one for significance, add it
 //! if the data demand it, repeat; then say whether what is left is noise.
+use std::fmt::Write as _;
+
 use serde::Serialize;
 
 use super::cost::WeightedCost;
@@ -263,13 +265,70 @@ impl Verdict {
 pub const MISFIT_CAVEAT: &str =
     "the final model leaves a structured misfit, which the tests that added them took for noise";
 
-/// Splits the effects a discovery added into `(found, tentative, caveats)`: all found when
-/// nothing speaks against them, all tentative with the reasons otherwise.
-pub fn settle(added: Vec<String>, caveats: Vec<String>) -> (Vec<String>, Vec<String>, Vec<String>) {
-    if caveats.is_empty() || added.is_empty() {
-        (added, Vec::new(), Vec::new())
-    } else {
-        (Vec::new(), added, caveats)
+/// What a discovery concluded, whatever its criterion (FRF, prediction error, the Cubli's
+/// window regression): held once by each result and written once by every report.
+#[derive(Debug, Clone, Serialize)]
+pub struct Conclusion {
+    /// Effects in the order added, when nothing speaks against them.
+    pub found: Vec<String>,
+    /// Effects the loop added that are not confirmed: they lower the cost, but the tests that
+    /// accepted them take the rest for noise, which a caveat refutes (they may be absorbing
+    /// a bias or a remaining misfit).
+    pub tentative: Vec<String>,
+    /// Why the added effects are tentative, one sentence per reason (empty when found).
+    pub caveats: Vec<String>,
+    /// A structured misfit remains.
+    pub unexplained: bool,
+    /// The verdict on the final model.
+    pub verdict: Verdict,
+    /// Significance level of the tests.
+    pub level: f64,
+}
+
+impl Conclusion {
+    /// Settles the effects a discovery added: all found when nothing speaks against them
+    /// (no caveat), all tentative with the reasons otherwise. One rule for every criterion.
+    pub fn settle(
+        added: Vec<String>,
+        caveats: Vec<String>,
+        unexplained: bool,
+        verdict: Verdict,
+        level: f64,
+    ) -> Self {
+        let (found, tentative, caveats) = if caveats.is_empty() || added.is_empty() {
+            (added, Vec::new(), Vec::new())
+        } else {
+            (Vec::new(), added, caveats)
+        };
+        Self {
+            found,
+            tentative,
+            caveats,
+            unexplained,
+            verdict,
+            level,
+        }
+    }
+
+    /// A sentence naming the tentative effects and why; `None` when there are none.
+    pub fn tentative_sentence(&self) -> Option<String> {
+        (!self.tentative.is_empty()).then(|| {
+            format!(
+                "[{}] lower the cost but are tentative, not found: {}",
+                self.tentative.join(", "),
+                self.caveats.join("; ")
+            )
+        })
+    }
+
+    /// The closing lines of a terminal summary: found, tentative and why, verdict.
+    pub fn lines(&self) -> String {
+        let mut s = format!("found: [{}]\n", self.found.join(", "));
+        if let Some(t) = self.tentative_sentence() {
+            let _ = writeln!(s, "tentative: {t}");
+        }
+        let _ = writeln!(s, "verdict: {}", self.verdict.sentence());
+        s
     }
 }
 
@@ -278,43 +337,21 @@ pub fn settle(added: Vec<String>, caveats: Vec<String>) -> (Vec<String>, Vec<Str
 pub struct Discovery {
     /// Steps, starting with the base model.
     pub steps: Vec<Step>,
-    /// Effects in the order added, when they are confirmed: the FRF estimator is unbiased
-    /// under feedback and the final model leaves no structured misfit.
-    pub found: Vec<String>,
-    /// Effects the loop added that are not confirmed (see [`Discovery::caveats`]): they lower
-    /// the cost, but the tests that accepted them take the rest for noise, which a biased
-    /// estimate or a remaining structured misfit refutes (they may be absorbing either).
-    pub tentative: Vec<String>,
-    /// Why the added effects are tentative, one sentence per reason (empty when confirmed).
-    pub caveats: Vec<String>,
-    /// True when a significant misfit remains.
-    pub unexplained: bool,
+    /// Found and tentative effects, verdict. Effects are found when the FRF estimator is
+    /// unbiased under feedback (or the data are open loop) and the final model leaves no
+    /// structured misfit; otherwise they are tentative with those reasons.
+    #[serde(flatten)]
+    pub conclusion: Conclusion,
     /// Under which noise estimate the costs of the steps are weighted (they compare only
     /// under one weighting; `compare` and `discover` may use different ones).
     pub weighting: String,
-    /// The verdict.
-    pub verdict: Verdict,
-    /// Significance level of the tests.
-    pub level: f64,
 }
 
 impl Discovery {
     /// A sentence naming the tentative effects and why; `None` when the loop added nothing
     /// or everything it added is confirmed.
     pub fn tentative_sentence(&self) -> Option<String> {
-        self.conclusion().tentative_sentence()
-    }
-
-    /// What it concluded, for the reports every criterion writes alike.
-    pub fn conclusion(&self) -> super::report::Conclusion<'_> {
-        super::report::Conclusion {
-            found: &self.found,
-            tentative: &self.tentative,
-            caveats: &self.caveats,
-            unexplained: self.unexplained,
-            verdict: &self.verdict,
-            level: self.level,
-        }
+        self.conclusion.tentative_sentence()
     }
 }
 
@@ -625,15 +662,11 @@ impl Workbench {
     pub fn record(&self, step: Step) -> Discovery {
         let verdict = self.verdict(&step);
         let weighting = self.weighting_sentence(&step.effects);
+        let unexplained = matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. });
         Discovery {
             steps: vec![step],
-            found: Vec::new(),
-            tentative: Vec::new(),
-            caveats: Vec::new(),
-            unexplained: matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. }),
+            conclusion: Conclusion::settle(Vec::new(), Vec::new(), unexplained, verdict, LEVEL),
             weighting,
-            verdict,
-            level: LEVEL,
         }
     }
 
@@ -741,18 +774,14 @@ impl Workbench {
             .last()
             .ok_or_else(|| SimError::invalid("discovery", "no step", "nothing was fitted"))?;
         let verdict = self.verdict(last);
-        let (found, tentative, caveats) = settle(found, self.caveats(&verdict));
+        let caveats = self.caveats(&verdict);
+        let unexplained = matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. });
         let weighting =
             self.weighting_sentence(&steps.last().map(|s| s.effects.clone()).unwrap_or_default());
         Ok(Discovery {
             steps,
-            found,
-            tentative,
-            caveats,
-            unexplained: matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. }),
+            conclusion: Conclusion::settle(found, caveats, unexplained, verdict, LEVEL),
             weighting,
-            verdict,
-            level: LEVEL,
         })
     }
 }

@@ -701,14 +701,15 @@ impl Study {
         match result {
             Err(e) => out.error = Some(e.to_string()),
             Ok(d) => {
-                out.found = d.found.contains(&self.spec.effect);
+                out.found = d.conclusion.found.contains(&self.spec.effect);
                 out.other_found = d
+                    .conclusion
                     .found
                     .iter()
                     .filter(|f| **f != self.spec.effect)
                     .cloned()
                     .collect();
-                out.unexplained = d.unexplained;
+                out.unexplained = d.conclusion.unexplained;
                 out.estimate = out
                     .found
                     .then(|| {

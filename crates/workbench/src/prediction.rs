@@ -23,7 +23,7 @@ use serde::Serialize;
 
 use super::diagnose::{diagnose, LEVEL};
 use super::discover::{
-    in_parallel, settle, CandidateScore, Discovery, NestedCosts, Robustness, Step, Verdict,
+    in_parallel, CandidateScore, Conclusion, Discovery, NestedCosts, Robustness, Step, Verdict,
 };
 use super::dynamics::Dynamics;
 use super::fit::{solve, FitResult, LeastSquares};
@@ -761,16 +761,10 @@ impl Workbench {
         let why = unexplained.then(|| {
             "the final model's innovations still correlate with the excitation, which the tests that added them took for noise".to_string()
         });
-        let (found, tentative, caveats) = settle(found, why.into_iter().collect());
         Ok(Discovery {
             weighting: "time-domain prediction error of the extended Kalman predictor in absolute units; every model under the gain and the inverse innovation covariance of the starting model's fit".to_string(),
             steps,
-            found,
-            tentative,
-            caveats,
-            unexplained,
-            verdict,
-            level: LEVEL,
+            conclusion: Conclusion::settle(found, why.into_iter().collect(), unexplained, verdict, LEVEL),
         })
     }
 

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use serde_json::{json, Value};
 
-use super::discover::{CandidateScore, Discovery, Step, Verdict};
+use super::discover::{CandidateScore, Conclusion, Discovery, Step};
 use super::fit::ParamEstimate;
 use super::frf::CMatrix;
 use super::model::Parameter;
@@ -101,7 +101,7 @@ pub fn table(wb: &Workbench, d: &Discovery) -> String {
     for (name, value, why) in wb.model().structure().fixed() {
         let _ = writeln!(s, "fixed {name} = {value} ({why})");
     }
-    s.push_str(&d.conclusion().lines());
+    s.push_str(&d.conclusion.lines());
     s
 }
 
@@ -257,7 +257,7 @@ pub fn json(wb: &Workbench, d: &Discovery) -> Value {
         .into_iter()
         .map(|(n, v, why)| json!({"name": n, "value": v, "why": why}))
         .collect();
-    let mut doc = conclusion_fields(wb.model().structure().system(), steps, &d.conclusion());
+    let mut doc = conclusion_fields(wb.model().structure().system(), steps, &d.conclusion);
     for (k, v) in [
         ("estimator", json!(wb.frf().estimator)),
         ("frequencies_hz", json!(wb.frf().freqs_hz())),
@@ -270,46 +270,6 @@ pub fn json(wb: &Workbench, d: &Discovery) -> Value {
         doc.insert(k.to_string(), v);
     }
     Value::Object(doc)
-}
-
-/// What a discovery concluded, whatever its criterion: the part of every report written once.
-#[derive(Debug, Clone, Copy)]
-pub struct Conclusion<'a> {
-    /// Effects found, in the order added.
-    pub found: &'a [String],
-    /// Effects added but not confirmed.
-    pub tentative: &'a [String],
-    /// Why they are not confirmed.
-    pub caveats: &'a [String],
-    /// A structured misfit remains.
-    pub unexplained: bool,
-    /// The verdict.
-    pub verdict: &'a Verdict,
-    /// Level of the tests.
-    pub level: f64,
-}
-
-impl Conclusion<'_> {
-    /// A sentence naming the tentative effects and why; `None` when there are none.
-    pub fn tentative_sentence(&self) -> Option<String> {
-        (!self.tentative.is_empty()).then(|| {
-            format!(
-                "[{}] lower the cost but are tentative, not found: {}",
-                self.tentative.join(", "),
-                self.caveats.join("; ")
-            )
-        })
-    }
-
-    /// The closing lines of a terminal summary: found, tentative and why, verdict.
-    pub fn lines(&self) -> String {
-        let mut s = format!("found: [{}]\n", self.found.join(", "));
-        if let Some(t) = self.tentative_sentence() {
-            let _ = writeln!(s, "tentative: {t}");
-        }
-        let _ = writeln!(s, "verdict: {}", self.verdict.sentence());
-        s
-    }
 }
 
 /// The JSON fields of a step every criterion writes: what the model holds, its cost, its
@@ -355,7 +315,7 @@ pub fn step_fields(
 pub fn conclusion_fields(
     system: &str,
     steps: Vec<Value>,
-    c: &Conclusion<'_>,
+    c: &Conclusion,
 ) -> serde_json::Map<String, Value> {
     let mut m = serde_json::Map::new();
     for (k, v) in [

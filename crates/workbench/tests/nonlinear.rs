@@ -245,10 +245,10 @@ fn nothing_hidden_finds_nothing() {
         assert_eq!(wb.criterion(), Criterion::Time);
         let d = wb.discover().unwrap();
         assert!(
-            d.found.is_empty() && d.tentative.is_empty(),
+            d.conclusion.found.is_empty() && d.conclusion.tentative.is_empty(),
             "seed {seed}: {:?} {:?}",
-            d.found,
-            d.tentative
+            d.conclusion.found,
+            d.conclusion.tentative
         );
         let p = &d.steps[0].params;
         assert!(
@@ -275,9 +275,19 @@ fn dry_friction_and_a_sensor_offset_are_found_as_themselves() {
     let mut confirmed = 0;
     for seed in [21, 22, 23] {
         let d = workbench(campaign(0.3, 0.0, seed)).discover().unwrap();
-        let added: Vec<&String> = d.found.iter().chain(&d.tentative).collect();
-        assert_eq!(added, ["dry"], "seed {seed}: {}", d.verdict.sentence());
-        confirmed += usize::from(d.found == ["dry"]);
+        let added: Vec<&String> = d
+            .conclusion
+            .found
+            .iter()
+            .chain(&d.conclusion.tentative)
+            .collect();
+        assert_eq!(
+            added,
+            ["dry"],
+            "seed {seed}: {}",
+            d.conclusion.verdict.sentence()
+        );
+        confirmed += usize::from(d.conclusion.found == ["dry"]);
         let last = d.steps.last().unwrap();
         let tc = last.params.iter().find(|p| p.name == "tc").unwrap().value;
         assert!((tc / 0.3 - 1.0).abs() < 0.1, "seed {seed}: tc {tc}");
@@ -285,7 +295,7 @@ fn dry_friction_and_a_sensor_offset_are_found_as_themselves() {
     assert!(confirmed >= 2, "confirmed on {confirmed} of 3 seeds");
     for seed in [31, 32, 33] {
         let d = workbench(campaign(0.0, 0.02, seed)).discover().unwrap();
-        assert_eq!(d.found, ["sensor_bias"], "seed {seed}");
+        assert_eq!(d.conclusion.found, ["sensor_bias"], "seed {seed}");
         let last = d.steps.last().unwrap();
         let bias = last
             .params

@@ -270,11 +270,11 @@ fn discovers_hidden_coupling_and_recovers_it() {
     )
     .unwrap();
     let d = wb.discover().unwrap();
-    assert_eq!(d.found, vec!["coupling".to_string()]);
+    assert_eq!(d.conclusion.found, vec!["coupling".to_string()]);
     assert!(
-        matches!(d.verdict, Verdict::ExplainedToNoiseLevel { .. }),
+        matches!(d.conclusion.verdict, Verdict::ExplainedToNoiseLevel { .. }),
         "{}",
-        d.verdict.sentence()
+        d.conclusion.verdict.sentence()
     );
     let last = d.steps.last().unwrap();
     assert!(
@@ -305,8 +305,16 @@ fn adds_nothing_when_data_are_explained_to_the_noise_level() {
         )
         .unwrap();
         let d = wb.discover().unwrap();
-        assert!(d.found.is_empty(), "seed {seed}: found {:?}", d.found);
-        assert!(!d.unexplained, "seed {seed}: {}", d.verdict.sentence());
+        assert!(
+            d.conclusion.found.is_empty(),
+            "seed {seed}: found {:?}",
+            d.conclusion.found
+        );
+        assert!(
+            !d.conclusion.unexplained,
+            "seed {seed}: {}",
+            d.conclusion.verdict.sentence()
+        );
         assert_eq!(d.steps.len(), 1);
         assert!(d.steps[0].candidates.iter().all(|c| !c.significant));
     }
@@ -354,14 +362,22 @@ fn reports_structured_misfit_that_no_candidate_explains() {
     )
     .unwrap();
     let d = wb.discover().unwrap();
-    assert!(d.unexplained, "{}", d.verdict.sentence());
+    assert!(
+        d.conclusion.unexplained,
+        "{}",
+        d.conclusion.verdict.sentence()
+    );
     // Whatever the loop adds to absorb part of the delay next to the true coupling, with the
     // misfit remaining none of it is confirmed (the Cubli rule).
-    assert!(d.found.is_empty(), "found {:?}", d.found);
+    assert!(
+        d.conclusion.found.is_empty(),
+        "found {:?}",
+        d.conclusion.found
+    );
     if let Some(why) = d.tentative_sentence() {
         assert!(why.contains("structured misfit"), "{why}");
     }
-    match &d.verdict {
+    match &d.conclusion.verdict {
         Verdict::UnexplainedStructuredMisfit {
             outputs, band_hz, ..
         } => {

@@ -44,14 +44,14 @@ use serde_json::{json, Value};
 use workbench::dataset::Dataset;
 use workbench::diagnose::LEVEL;
 use workbench::discover::{
-    settle, CandidateScore, NestedCosts, Robustness, Verdict, MISFIT_CAVEAT,
+    CandidateScore, Conclusion, NestedCosts, Robustness, Verdict, MISFIT_CAVEAT,
 };
 use workbench::fit::ParamEstimate;
 use workbench::load;
 use workbench::model::Parameter;
 use workbench::report::{
     chart, conclusion_fields, cost_bars, escape, page, parameters_html, per_step, publish,
-    step_fields, Conclusion, XAxis,
+    step_fields, XAxis,
 };
 use workbench::search::{forward_selection, Search};
 use workbench::stats::f_sf;
@@ -718,18 +718,10 @@ pub struct ChannelDiagnosis {
 pub struct CubliDiscovery {
     /// Steps from the starting model.
     pub steps: Vec<CubliStep>,
-    /// Effects in the order added, when the final model leaves no structured misfit.
-    pub found: Vec<String>,
-    /// Effects the loop added although a structured misfit remains: they lower the cost, but
-    /// the tests that accepted them assume the rest is noise, which the verdict refutes (they
-    /// may be absorbing the unexplained misfit).
-    pub tentative: Vec<String>,
-    /// Why the added effects are tentative (empty when they are found).
-    pub caveats: Vec<String>,
-    /// True when a structured misfit remains.
-    pub unexplained: bool,
-    /// The verdict, of the type every criterion gives (its outputs are the residual channels).
-    pub verdict: Verdict,
+    /// Found and tentative effects, verdict (its outputs are the residual channels). Effects
+    /// are tentative when the final model leaves a structured misfit.
+    #[serde(flatten)]
+    pub conclusion: Conclusion,
     /// Channels carrying the misfit.
     pub misfit_channels: Vec<String>,
     /// Per-channel p-value of the final residual against the generic probes.
@@ -742,8 +734,6 @@ pub struct CubliDiscovery {
     pub window_samples: usize,
     /// Experiments used.
     pub experiments: usize,
-    /// Significance level.
-    pub level: f64,
     /// Channel, experiment and start time (s) of each window row.
     #[serde(skip)]
     pub rows: Vec<(usize, usize, f64)>,
@@ -752,28 +742,16 @@ pub struct CubliDiscovery {
 impl CubliDiscovery {
     /// The verdict's sentence, with the tentative effects and why.
     pub fn verdict_sentence(&self) -> String {
-        let mut text = self.verdict.sentence();
-        if let (false, Some(last)) = (self.tentative.is_empty(), self.steps.last()) {
+        let mut text = self.conclusion.verdict.sentence();
+        if let (false, Some(last)) = (self.conclusion.tentative.is_empty(), self.steps.last()) {
             text.push_str(&format!(
                 " ([{}] lower the cost by {:.2}% but are tentative, not found: {})",
-                self.tentative.join(", "),
+                self.conclusion.tentative.join(", "),
                 last.reduction_percent,
-                self.caveats.join("; ")
+                self.conclusion.caveats.join("; ")
             ));
         }
         text
-    }
-
-    /// What it concluded, for the reports every criterion writes alike.
-    pub fn conclusion(&self) -> Conclusion<'_> {
-        Conclusion {
-            found: &self.found,
-            tentative: &self.tentative,
-            caveats: &self.caveats,
-            unexplained: self.unexplained,
-            verdict: &self.verdict,
-            level: self.level,
-        }
     }
 
     /// The workbench JSON: the fields every criterion writes ([`step_fields`],
@@ -805,7 +783,7 @@ impl CubliDiscovery {
             .iter()
             .map(|(k, v)| (k.to_string(), json!(v)))
             .collect();
-        let mut doc = conclusion_fields("cubli", steps, &self.conclusion());
+        let mut doc = conclusion_fields("cubli", steps, &self.conclusion);
         for (k, v) in [
             (
                 "method",
@@ -875,7 +853,7 @@ impl CubliDiscovery {
         for (k, v) in HELD {
             let _ = writeln!(s, "  held: {k} ({v})");
         }
-        s.push_str(&self.conclusion().lines());
+        s.push_str(&self.conclusion.lines());
         s
     }
 }
@@ -1086,21 +1064,22 @@ impl CubliBench {
         let misfit_channels = flagged(&channel_p_values);
         let unexplained = !misfit_channels.is_empty();
         let why = unexplained.then(|| MISFIT_CAVEAT.to_string());
-        let (found, tentative, caveats) = settle(found, why.into_iter().collect());
+        let verdict = verdict_of(&channel_p_values);
         CubliDiscovery {
             steps,
-            found,
-            tentative,
-            caveats,
-            unexplained,
-            verdict: verdict_of(&channel_p_values),
+            conclusion: Conclusion::settle(
+                found,
+                why.into_iter().collect(),
+                unexplained,
+                verdict,
+                LEVEL,
+            ),
             misfit_channels,
             channel_p_values,
             noise_std: self.var.iter().map(|v| v.sqrt()).collect(),
             windows: self.rows.r.len() / 9,
             window_samples: self.window,
             experiments: self.experiments,
-            level: LEVEL,
             rows: self
                 .rows
                 .channel
@@ -1324,8 +1303,8 @@ fn cubli_html(d: &CubliDiscovery) -> String {
         d.experiments,
         CHANNELS.join(", "),
         escape(&d.verdict_sentence()),
-        escape(&d.found.join(", ")),
-        escape(&d.tentative.join(", "))
+        escape(&d.conclusion.found.join(", ")),
+        escape(&d.conclusion.tentative.join(", "))
     );
     let _ = write!(body, "<h2>Summary</h2><pre>{}</pre>", escape(&d.table()));
     let bars: Vec<(String, f64)> = d
