@@ -867,3 +867,33 @@ where
             .collect()
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{Conclusion, Verdict};
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Every added effect ends in exactly one list, in its order; effects are tentative
+        /// exactly when a caveat speaks against them, and the caveats are kept exactly then.
+        #[test]
+        fn settle_splits_the_added_effects_by_the_caveats(
+            added in proptest::collection::vec("[a-z_]{1,12}", 0..5),
+            caveats in proptest::collection::vec("[a-z ]{1,20}", 0..3),
+            unexplained: bool,
+        ) {
+            let verdict = Verdict::ExplainedToNoiseLevel { p_value: 0.5 };
+            let c = Conclusion::settle(added.clone(), caveats.clone(), unexplained, verdict, 0.01);
+            if !added.is_empty() && !caveats.is_empty() {
+                prop_assert_eq!(&c.tentative, &added);
+                prop_assert!(c.found.is_empty());
+                prop_assert_eq!(&c.caveats, &caveats);
+            } else {
+                prop_assert_eq!(&c.found, &added);
+                prop_assert!(c.tentative.is_empty());
+                prop_assert!(c.caveats.is_empty());
+            }
+            prop_assert_eq!(c.unexplained, unexplained);
+        }
+    }
+}
