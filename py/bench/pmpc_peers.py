@@ -8,8 +8,9 @@ How each contender is called (the fastest way its Python API allows):
     previous plan is applied when a budget runs out), for each basis size --s and decay rate --nu.
   * DAQP: one `daqp.Model`, `setup` once, then per step `update(f=, bupper=)` and `solve()`:
     H is factorised once and the working set carries over (hot start). The changed data (f x0
-    and the state-bound rows) are computed into preallocated arrays, for every peer. DAQP's own
-    `solve_time` leaves out `update`, which refreshes its LDP form (about half its step here).
+    and the state-bound rows) are computed into preallocated arrays (StepData), for every
+    peer. DAQP's own `solve_time` leaves out `update`, which refreshes its LDP form (about
+    half its step here).
   * OSQP: one `osqp.OSQP`, `setup` once, per step `update(q=, u=)` and `solve()`; warm start
     from the previous solution (its default), default iteration limit, eps_abs = eps_rel = 1e-6.
   * ProxQP (proxsuite dense): `init` once, per step `update(g=, u=)` and `solve()` warm-started
@@ -21,9 +22,9 @@ Python call overhead included for every contender; the first step of every loop 
 (set-up / cold start). "Own solve time" is what each solver reports of itself: DAQP's, OSQP's
 and ProxQP's `solve_time`, and pmpc's `last_step()["solve_time"]` (the whole Rust step).
 Trajectory sets: x0 = 0.3*1 for 1000 steps, and 10 starts drawn uniformly from [0, 0.2]^4
-(seed 14; --starts N draws N, the first ten the same) for 250 steps each. The plant is exact: the discrete inputs are held (ZOH), the pmpc
-input is its continuous plan u(t) = eta_u' tau(t) over each interval (integrated exactly with
-the Laguerre generator). J_cl (mean over the starts) = sum_{k>=1} (x'x + u^2)/2 Td at the
+(seed 14; --starts N draws N, the first ten the same) for 250 steps each. The plant is exact:
+the discrete inputs are held (ZOH), the pmpc input is its continuous plan u(t) = eta_u' tau(t)
+over each interval (integrated exactly with the Laguerre generator). J_cl (mean over the starts) = sum_{k>=1} (x'x + u^2)/2 Td at the
 samples (spec §8.4); J_int is the same cost integrated over the closed loop (Simpson's rule on
 the 0.5 ms grid); the violation is the largest excess over |u| <= 0.5, x_1 >= 0 on that grid.
 
@@ -110,18 +111,32 @@ class Discrete:
         return float(u[0])
 
 
+class StepData:
+    """The only data of the condensed problem that change with the state: f x and the upper
+    bounds (|u| <= 0.5, then the state rows -e x), recomputed in place each step so that no
+    peer pays for building arrays in its timed call."""
+
+    def __init__(self, f, e, x0):
+        n = f.shape[0]
+        self.f, self.neg_e, self.fx = f, -e, f @ x0
+        self.upper = np.concatenate([np.full(n, 0.5), -e @ x0])
+
+    def at(self, x):
+        np.matmul(self.f, x, out=self.fx)
+        np.matmul(self.neg_e, x, out=self.upper[self.fx.shape[0]:])
+        return self.fx, self.upper
+
+
 def daqp_controller(h, f, g, e, x0):
     import daqp
 
     n = h.shape[0]
     model = daqp.Model()
-    fx, upper, neg_e = np.empty(n), np.concatenate([np.full(n, 0.5), -e @ x0]), -e
-    model.setup(h, f @ x0, g, upper, np.concatenate([np.full(n, -0.5), np.full(n, -1e30)]))
+    data = StepData(f, e, x0)
+    model.setup(h, data.fx, g, data.upper, np.concatenate([np.full(n, -0.5), np.full(n, -1e30)]))
 
     def solve(x):
-        # Only the data that change, computed into preallocated arrays: f x and the bound rows.
-        np.matmul(f, x, out=fx)
-        np.matmul(neg_e, x, out=upper[n:])
+        fx, upper = data.at(x)
         model.update(f=fx, bupper=upper)
         sol, _, flag, info = model.solve()
         return (sol if flag >= 1 else None), info["solve_time"]
@@ -135,16 +150,13 @@ def osqp_controller(h, f, g, e, x0):
 
     n = h.shape[0]
     solver = osqp.OSQP()
-    solver.setup(sp.csc_matrix(np.triu(h)), f @ x0, sp.csc_matrix(np.vstack([np.eye(n), g])),
-                 np.concatenate([np.full(n, -0.5), np.full(n, -np.inf)]),
-                 np.concatenate([np.full(n, 0.5), -e @ x0]),
+    data = StepData(f, e, x0)
+    solver.setup(sp.csc_matrix(np.triu(h)), data.fx, sp.csc_matrix(np.vstack([np.eye(n), g])),
+                 np.concatenate([np.full(n, -0.5), np.full(n, -np.inf)]), data.upper,
                  verbose=False, eps_abs=1e-6, eps_rel=1e-6)
 
-    fx, upper, neg_e = np.empty(n), np.concatenate([np.full(n, 0.5), -e @ x0]), -e
-
     def solve(x):
-        np.matmul(f, x, out=fx)
-        np.matmul(neg_e, x, out=upper[n:])
+        fx, upper = data.at(x)
         solver.update(q=fx, u=upper)
         res = solver.solve()
         ok = res.info.status in ("solved", "solved inaccurate")
@@ -164,14 +176,12 @@ def proxqp_controller(h, f, g, e, x0):
     c = np.vstack([np.eye(n), g])
     lo = np.concatenate([np.full(n, -0.5), np.full(n, -1e20)])
     qp.settings.compute_timings = True
-    qp.init(h, f @ x0, None, None, c, lo, np.concatenate([np.full(n, 0.5), -e @ x0]))
+    data = StepData(f, e, x0)
+    qp.init(h, data.fx, None, None, c, lo, data.upper)
     qp.solve()  # a previous result must exist before the first warm-started update
 
-    fx, upper, neg_e = np.empty(n), np.concatenate([np.full(n, 0.5), -e @ x0]), -e
-
     def solve(x):
-        np.matmul(f, x, out=fx)
-        np.matmul(neg_e, x, out=upper[n:])
+        fx, upper = data.at(x)
         qp.update(g=fx, u=upper)
         qp.solve()
         ok = qp.results.info.status == proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
