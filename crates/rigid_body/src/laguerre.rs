@@ -61,6 +61,17 @@ pub(crate) fn check_len(name: &'static str, found: usize, expected: usize) -> Re
     }
 }
 
+/// Taylor data of `g(t) = τ(t)ᵀy` at t = 0 from [`Laguerre::taylor_data`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TaylorData {
+    /// `Σ y`, `Σ Mᵀy`, `Σ (Mᵀ)²y`: g, ġ, g̈ at 0 divided by the entry of τ(0).
+    pub sums: [f64; 3],
+    /// `|y|`.
+    pub norm: f64,
+    /// `|(Mᵀ)³y|`, which bounds the third derivative of g by `c_τ |(Mᵀ)³y|`.
+    pub norm3: f64,
+}
+
 /// The first `s` Laguerre functions with decay rate `nu` (1/s).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Laguerre {
@@ -152,6 +163,30 @@ impl Laguerre {
         for (o, yi) in out[..self.s].iter_mut().zip(&y[..self.s]).rev() {
             *o = -self.nu * yi - 2.0 * self.nu * suffix;
             suffix += yi;
+        }
+    }
+
+    /// The data of a third-order Taylor bound of `g(t) = τ(t)ᵀy` at t = 0, in one O(s) pass
+    /// with no scratch: the three suffix-sum recurrences of [`Self::mt_apply`] run side by
+    /// side. As τ(0) is a multiple of 𝟙, g's derivatives at 0 are multiples of the sums.
+    pub fn taylor_data(&self, y: &[f64]) -> TaylorData {
+        let (a, b) = (-self.nu, -2.0 * self.nu);
+        let (mut s0, mut s1, mut s2) = (0.0, 0.0, 0.0);
+        let (mut y_sq, mut d3_sq) = (0.0, 0.0);
+        for &yi in y[..self.s].iter().rev() {
+            let d1 = a * yi + b * s0;
+            let d2 = a * d1 + b * s1;
+            let d3 = a * d2 + b * s2;
+            s0 += yi;
+            s1 += d1;
+            s2 += d2;
+            y_sq += yi * yi;
+            d3_sq += d3 * d3;
+        }
+        TaylorData {
+            sums: [s0, s1, s2],
+            norm: sqrt(y_sq),
+            norm3: sqrt(d3_sq),
         }
     }
 

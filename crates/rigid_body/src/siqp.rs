@@ -321,7 +321,7 @@ pub struct Workspace<'a> {
     y2: &'a mut [f64],
     d1: &'a mut [f64],
     d2: &'a mut [f64],
-    d3: &'a mut [f64],
+    s_k: &'a mut [f64],
     active: &'a mut [Active],
     n_active: usize,
     dtau: &'a mut [f64],
@@ -363,7 +363,7 @@ impl<'a> Workspace<'a> {
         let (y2, rest) = rest.split_at_mut(s);
         let (d1, rest) = rest.split_at_mut(s);
         let (d2, rest) = rest.split_at_mut(s);
-        let (d3, rest) = rest.split_at_mut(s);
+        let (s_k, rest) = rest.split_at_mut(s);
         let (dtau, rest) = rest.split_at_mut(c * s);
         let (up, rest) = rest.split_at_mut(c * d);
         let (jac, rest) = rest.split_at_mut(4 * c * c);
@@ -400,7 +400,7 @@ impl<'a> Workspace<'a> {
             y2,
             d1,
             d2,
-            d3,
+            s_k,
             active,
             n_active: 0,
             dtau,
@@ -616,9 +616,7 @@ fn find_violations(
         let mut sc = Scratch {
             y: &mut *ws.y,
             y2: &mut *ws.y2,
-            d1: &mut *ws.d1,
-            d2: &mut *ws.d2,
-            d3: &mut *ws.d3,
+            s_k: &mut *ws.s_k,
         };
         let res = check_row(
             &problem.basis,

@@ -306,6 +306,24 @@ proptest! {
     }
 
     #[test]
+    fn taylor_data_matches_dense_powers_of_m_transpose(s in 1usize..=16, nu in 0.1f64..3.0,
+                                                       y in proptest::collection::vec(-1.0f64..1.0, 16)) {
+        let b = basis(s, nu);
+        let yv = DVector::from_column_slice(&y[..s]);
+        let mt = m_dense(&b).transpose();
+        let (d1, d2) = (&mt * &yv, &mt * &mt * &yv);
+        let d3 = &mt * &d2;
+        let data = b.taylor_data(&y[..s]);
+        // Entries of (Mᵀ)^k y grow like (2ν s)^k: compare relative to that scale.
+        let scale = |k: i32| (2.0 * nu * s as f64).powi(k).max(1.0) * s as f64;
+        prop_assert!((data.sums[0] - yv.sum()).abs() < 1e-14 * scale(0));
+        prop_assert!((data.sums[1] - d1.sum()).abs() < 1e-13 * scale(1));
+        prop_assert!((data.sums[2] - d2.sum()).abs() < 1e-13 * scale(2));
+        prop_assert!((data.norm - yv.norm()).abs() < 1e-14 * scale(0));
+        prop_assert!((data.norm3 - d3.norm()).abs() < 1e-13 * scale(3));
+    }
+
+    #[test]
     fn norm_of_tau_is_non_increasing(s in 1usize..=20, nu in 0.1f64..3.0, t in 0.0f64..40.0, dt in 0.0f64..2.0) {
         let b = basis(s, nu);
         let (a, c) = (tau_vec(&b, t).norm(), tau_vec(&b, t + dt).norm());

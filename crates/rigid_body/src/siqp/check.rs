@@ -20,13 +20,12 @@ pub(super) struct Violation {
     pub(super) excess: f64,
 }
 
-/// Scratch vectors (length s each) for one row check.
+/// Scratch vectors (length s each) for one row check: the walked coefficients, the shift's
+/// output, and the polynomial tail's sums.
 pub(super) struct Scratch<'a> {
     pub(super) y: &'a mut [f64],
     pub(super) y2: &'a mut [f64],
-    pub(super) d1: &'a mut [f64],
-    pub(super) d2: &'a mut [f64],
-    pub(super) d3: &'a mut [f64],
+    pub(super) s_k: &'a mut [f64],
 }
 
 /// Result of checking one row.
@@ -34,14 +33,6 @@ pub(super) enum RowCheck {
     Satisfied,
     Violated(Violation),
     StepLimit,
-}
-
-fn sum(v: &[f64]) -> f64 {
-    v.iter().sum()
-}
-
-fn norm(v: &[f64]) -> f64 {
-    sqrt(v.iter().map(|x| x * x).sum())
 }
 
 /// Relative accuracy of the certified step: a step at most this much shorter than the
@@ -215,7 +206,8 @@ pub(super) fn check_row(
         local += 1;
         *steps += 1;
         let y = &*sc.y;
-        let f0 = c0 * sum(y);
+        let taylor = basis.taylor_data(y);
+        let [f0, f1, f2] = taylor.sums.map(|v| c0 * v);
         let here = if f0 > up + 0.5 * eps {
             Some(Violation {
                 t: t_off,
@@ -235,15 +227,10 @@ pub(super) fn check_row(
             if let Some(found) = record(scan, &mut worst, v) {
                 return found;
             }
-        } else if ctau * norm(y) <= tail || polynomial_tail(basis, row, eps, y, sc.d3) {
+        } else if ctau * taylor.norm <= tail || polynomial_tail(basis, row, eps, y, sc.s_k) {
             return done(worst);
         }
-        basis.mt_apply(y, sc.d1);
-        basis.mt_apply(sc.d1, sc.d2);
-        basis.mt_apply(sc.d2, sc.d3);
-        let f1 = c0 * sum(sc.d1);
-        let f2 = c0 * sum(sc.d2);
-        let r = ctau * norm(sc.d3);
+        let r = ctau * taylor.norm3;
         if r <= 0.0 {
             // g is a quadratic in τ with zero third derivative bound: only for y = 0.
             return done(worst);

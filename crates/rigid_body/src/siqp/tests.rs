@@ -47,10 +47,8 @@ fn check(
     let s = b.dim();
     let (y, rest) = buf.split_at_mut(s);
     let (y2, rest) = rest.split_at_mut(s);
-    let (d1, rest) = rest.split_at_mut(s);
-    let (d2, rest) = rest.split_at_mut(s);
-    let d3 = &mut rest[..s];
-    let mut sc = Scratch { y, y2, d1, d2, d3 };
+    let s_k = &mut rest[..s];
+    let mut sc = Scratch { y, y2, s_k };
     let mut steps = 0;
     let res = check_row(b, row, w, settings, scan, &mut sc, &mut steps);
     (res, steps)
