@@ -35,7 +35,7 @@ fn g_at(b: &Laguerre, w: &[f64], t: f64) -> f64 {
     tau.iter().zip(w).map(|(p, q)| p * q).sum()
 }
 
-/// One row check with scratch from `buf` (length ≥ 5 s): result and Taylor steps.
+/// One row check with scratch from `buf` (length ≥ 3 s): result and Taylor steps.
 fn check(
     b: &Laguerre,
     row: Row,
@@ -92,7 +92,7 @@ fn taylor_check_agrees_with_exact_oracle_on_10k_vectors() {
             tolerance: eps,
             ..Settings::default()
         };
-        let mut buf = vec![0.0; 5 * s];
+        let mut buf = vec![0.0; 3 * s];
         let (first, f_steps) = check(&b, row, &w, &settings, false, &mut buf);
         let (worst, w_steps) = check(&b, row, &w, &settings, true, &mut buf);
         max_steps = max_steps.max(f_steps).max(w_steps);
@@ -470,7 +470,7 @@ proptest! {
             _ => Row { lower: -limit, upper: limit },
         };
         let settings = Settings { tolerance: 10f64.powi(-eps_exp), ..Settings::default() };
-        let mut buf = vec![0.0; 5 * s];
+        let mut buf = vec![0.0; 3 * s];
         let (first, _) = check(&b, row, &w, &settings, false, &mut buf);
         let (worst, _) = check(&b, row, &w, &settings, true, &mut buf);
         let (vu, vl) = oracle(&b, &w, row);
