@@ -1,11 +1,15 @@
 """Closed-loop cost of the parametrized MPC on the quadruple integrator for other basis spans
 than one Laguerre decay rate: a design aid that tells whether a richer basis is worth a solver.
 
-A span is a list of real decay rates p_1..p_s (repeats allowed), e.g. `1x6,3x6`: six at 1/s and
-six at 3/s. Its orthonormal basis (Takenaka-Malmquist functions) has the generator
-M = -diag(p) - strictly_lower(tau0 tau0') with tau0_k = sqrt(2 p_k), so M + M' = -tau0 tau0'
-(spec/pmpc.md §3.2, F.1) and the Gram matrix is the identity (checked). A single rate repeated s
-times is the Laguerre basis of `stabilis.pmpc`, which reproduces that controller's J_cl.
+A span is a list of decay rates p_1..p_s (repeats allowed), e.g. `1x6,3x6`: six at 1/s and six
+at 3/s; a complex rate `1.8+0.5i` stands for the pair 1.8 +- 0.5i (Kautz functions), so
+`1.8x10,1.8+0.5ix1` has 12 functions. The Takenaka-Malmquist functions of the rates have the
+generator M = -diag(p) - strictly_lower(tau0 tau0^H), tau0_k = sqrt(2 Re p_k), so that
+M + M^H = -tau0 tau0^H (spec/pmpc.md §3.2, F.1). For real rates that is the basis; for
+conjugate pairs the real basis is the orthonormalized span of the real and imaginary parts
+(the nonzero eigenvectors of their Gram matrix). The Gram matrix of the result is checked to be
+the identity. A single rate repeated s times is the Laguerre basis of `stabilis.pmpc`, which
+reproduces that controller's J_cl.
 
 Every step solves the upper-bound problem of spec §4.2 from the measured state with the stage
 constraints |u| <= 0.5, x_1 >= 0 sampled on a grid (20 ms to 6 s, 0.1 s to 30 s, tolerance
@@ -15,7 +19,7 @@ the shifted previous plan, as the controller does when its budget runs out, and 
 are counted. The plant follows the plan exactly (x(Td) of the plan); J_cl is the sum of §8.4
 over 1000 steps from x0 = 0.3*1, as in `pmpc_peers.py`.
 
-    .venv/bin/python py/bench/basis_spans.py 1.8x12 1x6,3x6 1x4,2.5x8
+    .venv/bin/python py/bench/basis_spans.py 1.8x12 1x6,3x6 1.8x10,1.8+0.5ix1
 """
 import argparse
 import sys
@@ -35,29 +39,42 @@ GRID = np.concatenate([np.arange(0.0, 6.0, 0.02), np.arange(6.0, 30.0, 0.1)])
 
 
 def parse_span(text):
-    """`1x6,3x6` -> [1.0]*6 + [3.0]*6."""
+    """`1x6,3x6` -> [1]*6 + [3]*6; `2+1ix2` -> [2+1j, 2-1j]*2."""
     rates = []
     for part in text.split(","):
         try:
             rate, count = part.split("x")
-            rate, count = float(rate), int(count)
+            rate, count = complex(rate.replace("i", "j")), int(count)
         except ValueError:
             raise SystemExit(f"basis_spans: span {text!r}: part {part!r} is not RATExCOUNT")
-        if not rate > 0.0 or count < 1:
-            raise SystemExit(f"basis_spans: span {text!r}: part {part!r} needs rate > 0, count >= 1")
-        rates += [rate] * count
+        if not rate.real > 0.0 or count < 1:
+            raise SystemExit(f"basis_spans: span {text!r}: part {part!r} needs Re rate > 0, "
+                             "count >= 1")
+        rates += ([rate, rate.conjugate()] if rate.imag else [rate]) * count
     return rates
 
 
 def generator(rates):
-    """(M, tau0) of the orthonormal basis with these decay rates."""
-    p = np.asarray(rates)
-    tau0 = np.sqrt(2.0 * p)
-    m = -np.tril(np.outer(tau0, tau0), -1) - np.diag(p)
-    gram = scipy.linalg.solve_continuous_lyapunov(m, -np.outer(tau0, tau0))
-    if np.abs(gram - np.eye(len(p))).max() > 1e-8:
+    """(M, tau0) of the real orthonormal basis spanned by these rates' functions."""
+    p = np.asarray(rates, complex)
+    s = len(p)
+    tau0 = np.sqrt(2.0 * p.real).astype(complex)
+    mc = -np.tril(np.outer(tau0, tau0.conj()), -1) - np.diag(p)
+    # The real and imaginary parts xi = (Re tau, Im tau) obey xi' = a xi; their span is real.
+    a = np.block([[mc.real, -mc.imag], [mc.imag, mc.real]])
+    xi0 = np.concatenate([tau0.real, tau0.imag])
+    lam, v = np.linalg.eigh(scipy.linalg.solve_continuous_lyapunov(a, -np.outer(xi0, xi0)))
+    keep = lam > 1e-9 * lam.max()
+    if keep.sum() != s:
+        raise SystemExit(f"basis_spans: rates {rates}: the real span has {keep.sum()} functions, "
+                         f"not {s} (is every complex rate paired?)")
+    v, root = v[:, keep], np.sqrt(lam[keep])
+    m = (v.T @ a @ v) * root[None, :] / root[:, None]
+    tau = (v.T @ xi0) / root
+    gram = scipy.linalg.solve_continuous_lyapunov(m, -np.outer(tau, tau))
+    if np.abs(gram - np.eye(s)).max() > 1e-8:
         raise SystemExit(f"basis_spans: rates {rates}: Gram matrix is not the identity")
-    return m, tau0
+    return m, tau
 
 
 class SampledMpc:
@@ -98,7 +115,8 @@ class SampledMpc:
 
 
 def closed_loop(rates):
-    """(J_cl, fallbacks) over STEPS steps from x0 = 0.3*1."""
+    """(J_cl, fallbacks) over STEPS steps from x0 = 0.3*1; J_cl is NaN if the first step has
+    no plan (nothing to fall back on)."""
     mpc = SampledMpc(rates)
     s = mpc.s
     x, cost, fallbacks, plan = np.full(N_STATES, 0.3), 0.0, 0, None
@@ -119,13 +137,16 @@ def closed_loop(rates):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("spans", nargs="+", help="decay rates as RATExCOUNT[,RATExCOUNT...]")
+    parser.add_argument("spans", nargs="+", help="decay rates as RATExCOUNT[,RATExCOUNT...], RATE real or a+bi")
     args = parser.parse_args()
     print("| span | s | J_cl | fallbacks |\n|---|---|---|---|")
     for text in args.spans:
         rates = parse_span(text)
         cost, fallbacks = closed_loop(rates)
-        print(f"| {text} | {len(rates)} | {cost:.4f} | {fallbacks} |", flush=True)
+        if np.isnan(cost):
+            print(f"| {text} | {len(rates)} | no sampled plan from x0 | - |", flush=True)
+        else:
+            print(f"| {text} | {len(rates)} | {cost:.4f} | {fallbacks} |", flush=True)
     return 0
 
 
