@@ -85,29 +85,33 @@ class SampledMpc:
         s = self.s = len(rates)
         dynamics = np.hstack([np.kron(np.eye(N_STATES), m.T) - np.kron(A, np.eye(s)),
                               -np.kron(B, np.eye(s))])
-        self.initial = np.hstack([np.kron(np.eye(N_STATES), self.tau0[None, :]),
-                                  np.zeros((N_STATES, s))])
-        self.free = scipy.linalg.null_space(dynamics)
+        free = scipy.linalg.null_space(dynamics)
+        initial = np.hstack([np.kron(np.eye(N_STATES), self.tau0[None, :]),
+                             np.zeros((N_STATES, s))]) @ free
+        # Plans are z0(x) + z xi: z0 the least-norm plan through x, z the plans through 0.
+        self.particular = free @ np.linalg.pinv(initial)
+        self.z = free @ scipy.linalg.null_space(initial)
         taus = np.array([scipy.linalg.expm(m * t) @ self.tau0 for t in GRID])
-        width = (N_STATES + 1) * s
-        self.rows = np.zeros((2 * len(GRID), width))
+        self.rows = np.zeros((2 * len(GRID), (N_STATES + 1) * s))
         self.rows[:len(GRID), N_STATES * s:] = taus  # u(t)
         self.rows[len(GRID):, :s] = taus  # x_1(t)
-        self.tau_td = scipy.linalg.expm(m * TD) @ self.tau0
-        self.shift = scipy.linalg.expm(m * TD).T
+        self.rows_z = self.rows @ self.z
+        self.hessian = self.z.T @ self.z
+        self.sense = np.zeros(len(self.rows), dtype=c_int)
+        step = scipy.linalg.expm(m * TD)
+        self.tau_td = step @ self.tau0
+        self.shift = step.T
 
     def solve(self, x):
         """The plan from state x, or None if DAQP finds the sampled problem infeasible."""
-        c = self.initial @ self.free
-        z0 = self.free @ np.linalg.lstsq(c, x, rcond=None)[0]
-        z = self.free @ scipy.linalg.null_space(c)
+        z0 = self.particular @ x
         g = self.rows @ z0
         k = len(GRID)
         upper = np.concatenate([0.5 + TOLERANCE - g[:k], np.full(k, 1e30)])
         lower = np.concatenate([-0.5 - TOLERANCE - g[:k], -TOLERANCE - g[k:]])
-        xi, _, flag, _ = daqp.solve(z.T @ z, z.T @ z0, self.rows @ z, upper, lower,
-                                    np.zeros(2 * k, dtype=c_int))
-        return z0 + z @ xi if flag >= 0 else None
+        xi, _, flag, _ = daqp.solve(self.hessian, self.z.T @ z0, self.rows_z, upper, lower,
+                                    self.sense)
+        return z0 + self.z @ xi if flag >= 0 else None
 
     def shifted(self, plan):
         s = self.s
@@ -137,7 +141,8 @@ def closed_loop(rates):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("spans", nargs="+", help="decay rates as RATExCOUNT[,RATExCOUNT...], RATE real or a+bi")
+    parser.add_argument("spans", nargs="+",
+                        help="decay rates as RATExCOUNT[,RATExCOUNT...], RATE real or a+bi")
     args = parser.parse_args()
     print("| span | s | J_cl | fallbacks |\n|---|---|---|---|")
     for text in args.spans:
