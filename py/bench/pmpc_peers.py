@@ -5,7 +5,9 @@ DARE terminal cost, |u| <= 0.5, x_1 >= 0 at k = 1..N), all in one process and on
 How each contender is called (the fastest way its Python API allows):
   * stabilis.pmpc: `Controller.step(x)`, warm-started from the previous working set, without
     and with the per-step iteration budgets given by --budget (default 4, 5, 6 and 8; the shifted
-    previous plan is applied when a budget runs out), for each basis size --s and decay rate --nu.
+    previous plan is applied when a budget runs out; a budgeted controller also caps each row
+    check at 100 Taylor steps, and its note gives the work bound stated before the run and the
+    number of steps beyond it), for each basis size --s and decay rate --nu.
   * DAQP: one `daqp.Model`, `setup` once, then per step `update(f=, bupper=)` and `solve()`:
     H is factorised once and the working set carries over (hot start). The changed data (f x0
     and the state-bound rows) are computed into preallocated arrays (StepData), for every
@@ -20,7 +22,9 @@ On a failed solve a discrete controller applies its shifted previous sequence (c
 Timing is CPU time of the calling thread (time.thread_time_ns) around the step call only,
 Python call overhead included for every contender; the first step of every loop is excluded
 (set-up / cold start). "Own solve time" is what each solver reports of itself: DAQP's, OSQP's
-and ProxQP's `solve_time`, and pmpc's `last_step()["solve_time"]` (the whole Rust step).
+and ProxQP's `solve_time`, and pmpc's `last_step()["solve_time"]` (the whole Rust step). The
+latter runs from caches the Python loop has emptied, DAQP's after its untimed `update` has
+filled them (`EVICT=64` of `step_profile` shows the same effect in Rust alone).
 Trajectory sets: x0 = 0.3*1 for 1000 steps, and 10 starts drawn uniformly from [0, 0.2]^4
 (seed 14; --starts N draws N, the first ten the same) for 250 steps each. The plant is exact:
 the discrete inputs are held (ZOH), the pmpc input is its continuous plan u(t) = eta_u' tau(t)
@@ -226,7 +230,7 @@ def run_pmpc(ctrl, s, x0, steps, a=A, b=B, nu=NU):
     m = laguerre_generator(s, nu)
     tau0 = np.full(s, np.sqrt(2 * nu))
     x, times, cost, viol, fallbacks, iters, own = x0.copy(), [], 0.0, -INF, 0, [], []
-    integral = 0.0
+    integral, beyond, bound = 0.0, 0, ctrl.work_bound()
     ctrl.reset()
     for k in range(steps + 1):
         t0 = time.thread_time_ns()
@@ -236,6 +240,8 @@ def run_pmpc(ctrl, s, x0, steps, a=A, b=B, nu=NU):
         fallbacks += info["fallback"]
         iters.append(info["iterations"])
         own.append(info["solve_time"])
+        if bound and k >= 1:
+            beyond += any(info[key] > limit for key, limit in bound.items())
         if k >= 1:
             cost += 0.5 * (x @ x + u * u) * TD
         eta_u = np.asarray(ctrl.plan)[n * s:]
@@ -255,7 +261,7 @@ def run_pmpc(ctrl, s, x0, steps, a=A, b=B, nu=NU):
             integral += simpson(stage)
         x = xi[:n]
     return (np.array(times[1:]) * 1e-9, (cost, integral), viol, fallbacks, np.array(iters[1:]),
-            np.array(own[1:]))
+            np.array(own[1:]), beyond)
 
 
 def simpson(values):
@@ -297,7 +303,7 @@ def chain(n, s, horizon):
     sub = zoh(a, b, TD / GRID)
     ctrl = pmpc.Controller(a, b, np.eye(n), np.eye(1), x_bounds=[(0.0, INF)] + [(-INF, INF)] * (n - 1),
                            u_bounds=[(-0.5, 0.5)], nu=NU, s=s, td=TD)
-    t, (cost, integral), viol, _, _, _ = run_pmpc(ctrl, s, x0, STEPS_SCAN, a, b)
+    t, (cost, integral), viol, *_ = run_pmpc(ctrl, s, x0, STEPS_SCAN, a, b)
     print("| controller | variables | median | mean | p99 | max (us) | J_cl | J_int | violation |\n"
           "|---|---|---|---|---|---|---|---|---|")
     print(f"| pmpc s={s} | {(n + 1) * s} | " + " | ".join(f"{1e6 * v:.1f}" for v in stats(t))
@@ -322,8 +328,11 @@ def trajectory_sets(quick=False, starts=10):
 
 
 def quad_pmpc(s, nu, budget=None):
+    """A budgeted controller also caps each row check at 100 Taylor steps, as the Rust bench and
+    tests do, so that its work bound is finite and small."""
     return pmpc.Controller(A, B, np.eye(4), np.eye(1), x_bounds=[(0.0, INF)] + [(-INF, INF)] * 3,
-                           u_bounds=[(-0.5, 0.5)], nu=nu, s=s, td=TD, budget=budget)
+                           u_bounds=[(-0.5, 0.5)], nu=nu, s=s, td=TD, budget=budget,
+                           max_check_steps=100 if budget else 10_000)
 
 
 def scan_nu(ss, nus):
@@ -390,10 +399,16 @@ def main():
                     own = np.concatenate([o[5] for o in out])
                     name = f"stabilis.pmpc s={s}" + (f" nu={nu:g}" if nu != NU else "") + (
                         f" budget {budget}" if budget else "")
-                    rows[name] = (t, np.mean([o[1] for o in out], axis=0), max(o[2] for o in out),
-                                  f"own solve time median {1e6 * np.median(own):.1f} us; "
-                                  f"fallbacks {sum(o[3] for o in out)}, iterations "
-                                  f"median {np.median(it):.0f} max {it.max()}")
+                    note = (f"own solve time median {1e6 * np.median(own):.1f} us; "
+                            f"fallbacks {sum(o[3] for o in out)}, iterations "
+                            f"median {np.median(it):.0f} max {it.max()}")
+                    if budget:
+                        bound = ctrl.work_bound()
+                        note += (f"; work bound {bound['iterations']} iterations, "
+                                 f"{bound['taylor_steps']} Taylor steps, {bound['drops']} drops: "
+                                 f"exceeded on {sum(o[6] for o in out)} steps")
+                    rows[name] = (t, np.mean([o[1] for o in out], axis=0),
+                                  max(o[2] for o in out), note)
         for name in args.peers:
             for hz, (h, f, g, e) in problems.items():
                 out, inner, fails = [], [], 0

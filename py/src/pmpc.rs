@@ -63,7 +63,7 @@ pub struct PyController {
 #[pymethods]
 impl PyController {
     #[new]
-    #[pyo3(signature = (a, b, q, r, x_bounds=None, u_bounds=None, cx=None, cu=None, lower=None, upper=None, nu=0.7, s=12, td=0.02, tolerance=1e-6, max_iter=1000, budget=None))]
+    #[pyo3(signature = (a, b, q, r, x_bounds=None, u_bounds=None, cx=None, cu=None, lower=None, upper=None, nu=0.7, s=12, td=0.02, tolerance=1e-6, max_iter=1000, budget=None, max_check_steps=10_000))]
     #[allow(clippy::too_many_arguments)] // mirrors the Python keyword signature
     fn new(
         a: Vec<Vec<f64>>,
@@ -82,6 +82,7 @@ impl PyController {
         tolerance: f64,
         max_iter: usize,
         budget: Option<usize>,
+        max_check_steps: usize,
     ) -> PyResult<Self> {
         let (a, b, q, r) = (
             matrix("A", a)?,
@@ -108,9 +109,15 @@ impl PyController {
             }
         };
         let basis = Laguerre::new(s, nu).map_err(to_py_err)?;
+        if max_check_steps == 0 {
+            return Err(PyValueError::new_err(
+                "max_check_steps = 0 is invalid: at least one Taylor step per row check",
+            ));
+        }
         let settings = Settings {
             tolerance,
             max_iter,
+            max_check_steps,
             ..Settings::default()
         };
         let mut inner = Pmpc::new(&a, &b, &q, &r, &constraints, basis, td)
@@ -182,8 +189,27 @@ impl PyController {
         d.set_item("active", info.active)?;
         d.set_item("fallback", matches!(info.source, Source::Fallback(_)))?;
         d.set_item("taylor_steps", info.stats.taylor_steps)?;
+        d.set_item("adds", info.stats.adds)?;
+        d.set_item("drops", info.stats.drops)?;
+        d.set_item("moves", info.stats.moves)?;
         d.set_item("solve_time", self.solve_time)?;
         Ok(d)
+    }
+
+    /// Worst-case work of every step after the first, known before running (None without a
+    /// budget): outer iterations, Taylor steps, added and dropped instants, Newton moves; the
+    /// keys of `last_step()` that count the same work.
+    fn work_bound<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(b) = self.inner.work_bound() else {
+            return Ok(None);
+        };
+        let d = PyDict::new(py);
+        d.set_item("iterations", b.iterations)?;
+        d.set_item("taylor_steps", b.taylor_steps)?;
+        d.set_item("adds", b.adds)?;
+        d.set_item("drops", b.drops)?;
+        d.set_item("moves", b.moves)?;
+        Ok(Some(d))
     }
 
     /// Forget the previous plan and warm start.

@@ -159,3 +159,32 @@ def test_budget_bounds_every_step_and_keeps_the_constraints():
     assert fallbacks > 0  # the budget binds on this trajectory
     with pytest.raises(ValueError, match="budget"):
         pmpc.Controller(A, B, np.eye(4), np.eye(1), u_bounds=U_BOUNDS, budget=0)
+
+
+def test_work_bound_holds_on_every_step_of_the_real_time_configuration():
+    """s = 10, nu = 1.3, budget 3, 100 Taylor steps per check: the stated bound is the closed
+    form of the docs (2 constrained rows, a working set of s - 4 instants, 3 Newton moves per
+    addition), and every step after the first stays within it on the x0 = 0.3 loop."""
+    c = pmpc.Controller(A, B, np.eye(4), np.eye(1), x_bounds=X_BOUNDS, u_bounds=U_BOUNDS,
+                        nu=1.3, s=10, td=0.02, budget=3, max_check_steps=100)
+    adds = 3 * 2
+    bound = c.work_bound()
+    assert bound == {"iterations": 3, "taylor_steps": 3 * 2 * 100, "adds": adds,
+                     "drops": (10 - 4) * (1 + adds * (2 + 3)), "moves": adds}
+    aug = scipy.linalg.expm(np.block([[A, B], [np.zeros((1, 5))]]) * 0.02)
+    ad, bd = aug[:4, :4], aug[:4, 4:]
+    x, fallbacks, busiest = np.array(X0), 0, dict.fromkeys(bound, 0)
+    for k in range(300):
+        u = c.step(x)
+        info = c.last_step()
+        if k >= 1:
+            for key in bound:
+                assert info[key] <= bound[key], (k, key, info)
+                busiest[key] = max(busiest[key], info[key])
+        fallbacks += info["fallback"]
+        x = ad @ x + bd @ u
+    assert fallbacks > 0 and busiest["iterations"] == 3  # the budget binds
+    assert busiest["adds"] > 0 and busiest["drops"] > 0
+    assert pmpc.Controller(A, B, np.eye(4), np.eye(1), u_bounds=U_BOUNDS).work_bound() is None
+    with pytest.raises(ValueError, match="max_check_steps"):
+        pmpc.Controller(A, B, np.eye(4), np.eye(1), u_bounds=U_BOUNDS, max_check_steps=0)

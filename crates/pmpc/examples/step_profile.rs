@@ -6,7 +6,8 @@
 //! whole rows in the cold first step (`Settings::scan_after_cold`), `SCAN_WARM=k` in the warm
 //! steps (`Settings::scan_after_warm`), `STARTS=random` runs the 10 starts from [0, 0.2]⁴ of
 //! 250 steps each of `tests/budget.rs` instead; `HOT=1` replays the 20 slowest steps from saved
-//! controller states many times, for a profiler.
+//! controller states many times, for a profiler; `EVICT=k` writes k MiB between the timed steps
+//! (beyond the last-level cache: the step runs from memory, as after the other work of a loop).
 #![allow(clippy::unwrap_used)]
 
 use pmpc::{scenario, simulate, Pmpc, StepInfo};
@@ -82,6 +83,9 @@ fn main() {
         }
     };
     let mut ctrl = make();
+    let mut evict = std::env::var("EVICT")
+        .ok()
+        .map(|v| vec![0u64; number("EVICT", v) << 17]);
     let (mut timed, mut loops) = (Vec::new(), Vec::new());
     let (mut cost, mut violation, mut fallbacks) = (0.0, f64::NEG_INFINITY, 0);
     let (mut first_iterations, mut first_us) = (0, 0.0f64);
@@ -91,6 +95,10 @@ fn main() {
         for _ in 0..5 {
             ctrl.reset();
             for (k, x) in cl.x.iter().enumerate() {
+                if let Some(buf) = evict.as_mut() {
+                    buf.iter_mut().for_each(|v| *v = v.wrapping_add(1));
+                    std::hint::black_box(&buf);
+                }
                 let t0 = Instant::now();
                 std::hint::black_box(ctrl.step(x).unwrap());
                 best[k] = best[k].min(t0.elapsed().as_secs_f64() * 1e6);

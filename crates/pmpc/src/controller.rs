@@ -27,6 +27,12 @@ pub struct WorkBound {
     pub iterations: usize,
     /// Taylor steps over all checks: iterations × constrained rows × `max_check_steps`.
     pub taylor_steps: usize,
+    /// Instants added: at most one per violated row and iteration (iterations × rows).
+    pub adds: usize,
+    /// Instants dropped. Each re-factorisation of the working set (one at the start, then
+    /// at most 1 + `polish_steps` per addition) and each dual step drops at most the working
+    /// set's capacity c: c · (1 + adds · (2 + `polish_steps`)).
+    pub drops: usize,
     /// Accepted Newton moves of the working set (at most one per dual step).
     pub moves: usize,
 }
@@ -121,6 +127,8 @@ pub struct Pmpc {
     z_shifted: Vec<f64>,
     w0: Vec<f64>,
     mu: Vec<f64>,
+    /// Scratch of length dof for the plan's coefficients.
+    reduced: Vec<f64>,
     tau: Vec<f64>,
     u: Vec<f64>,
     info: StepInfo,
@@ -165,6 +173,7 @@ impl Pmpc {
             z_shifted: vec![0.0; nvar],
             w0: vec![0.0; l],
             mu: vec![0.0; l],
+            reduced: vec![0.0; problem.dof()],
             tau: vec![0.0; basis.dim()],
             u: vec![0.0; problem.m()],
             info: StepInfo {
@@ -206,10 +215,14 @@ impl Pmpc {
             .iter()
             .filter(|r| r.lower.is_finite() || r.upper.is_finite())
             .count();
+        let adds = iterations * rows;
+        let capacity = self.problem.dof().max(1);
         Some(WorkBound {
             iterations,
             taylor_steps: iterations * rows * self.settings.max_check_steps,
-            moves: iterations * rows,
+            adds,
+            drops: capacity * (1 + adds * (2 + self.settings.polish_steps)),
+            moves: adds,
         })
     }
 
@@ -281,7 +294,8 @@ impl Pmpc {
         let source = if status == Status::Optimal {
             out.multiplier_coefficients(&sp, &mut self.tau, &mut self.mu);
             let active = out.active.len();
-            self.problem.coefficients(x, &self.mu, &mut self.z);
+            self.problem
+                .coefficients(x, &self.mu, &mut self.reduced, &mut self.z);
             self.info.active = active;
             Source::Optimal
         } else if self.has_plan {

@@ -6,7 +6,9 @@
 //!
 //! reduced to constraint-coefficient space by the range-space matrices
 //! S = Z(ZᵀHZ)⁻¹Zᵀ (Z a null-space basis of A_eq), G (x0 ↦ equality-only minimiser b̂),
-//! Φ = C_z S C_zᵀ, Ψ = C_z G and S C_zᵀ. Online work is then a few small mat-vecs.
+//! Φ = C_z S C_zᵀ, Ψ = C_z G and S C_zᵀ = Y (C_z Y)ᵀ with S = Y Yᵀ (Y = Z L⁻ᵀ, L the Cholesky
+//! factor of ZᵀHZ): rank m·s − n, so the plan costs (n+m)s·(n + m·s − n) + nc·s·(m·s − n)
+//! multiplications instead of (n+m)s·(n + nc·s). Online work is then a few small mat-vecs.
 
 use crate::constraints::Constraints;
 use crate::error::{Error, Result};
@@ -44,7 +46,10 @@ pub struct Problem {
     phi: Vec<f64>,
     psi: Vec<f64>,
     g: Vec<f64>,
-    scz: Vec<f64>,
+    /// Y = Z L⁻ᵀ, (n+m)s × dof row-major: S = Y Yᵀ.
+    y: Vec<f64>,
+    /// C_z Y, nc·s × dof row-major.
+    cy: Vec<f64>,
     dof: usize,
 }
 
@@ -127,18 +132,25 @@ impl Problem {
         let u = svd.u.as_ref().ok_or(Error::RankDeficient(0.0))?;
         let projector = DMatrix::<f64>::identity(big_n, big_n) - vt.transpose() * vt;
         let eig = SymmetricEigen::new(projector);
-        let dof = big_n - p;
         let keep: Vec<usize> = (0..big_n).filter(|&i| eig.eigenvalues[i] > 0.5).collect();
+        // (n+m)s − (ns + n) for a full-rank A_eq; counted from Z so that Y's width is it.
+        let dof = keep.len();
         let z = DMatrix::from_fn(big_n, keep.len(), |i, j| eig.eigenvectors[(i, keep[j])]);
-        let s_mat = if keep.is_empty() {
-            DMatrix::zeros(big_n, big_n)
+        let y = if keep.is_empty() {
+            DMatrix::zeros(big_n, 0)
         } else {
             let reduced = z.transpose() * &h * &z;
             let chol = reduced
                 .cholesky()
                 .ok_or(Error::NotPositiveDefinite("reduced Hessian Z^T H Z"))?;
-            &z * chol.inverse() * z.transpose()
+            // Yᵀ = L⁻¹ Zᵀ; L is invertible because ZᵀHZ is positive definite.
+            let yt = chol
+                .l()
+                .solve_lower_triangular(&z.transpose())
+                .ok_or(Error::NotPositiveDefinite("reduced Hessian Z^T H Z"))?;
+            yt.transpose()
         };
+        let s_mat = &y * y.transpose();
         // Particular solution of A_eq z = (0, x0) by the pseudo-inverse, projected to the
         // equality-only minimiser: b̂ = (I − S H) A⁺ (0, x0).
         let sinv = DMatrix::from_diagonal(&svd.singular_values.map(|v| 1.0 / v));
@@ -148,7 +160,7 @@ impl Problem {
         let phi = &cz * &s_mat * cz.transpose();
         let phi = (&phi + phi.transpose()) * 0.5;
         let psi = &cz * &g;
-        let scz = &s_mat * cz.transpose();
+        let cy = &cz * &y;
         let rows = constraints
             .lower
             .iter()
@@ -171,7 +183,8 @@ impl Problem {
             phi: row_major(&phi),
             psi: row_major(&psi),
             g: row_major(&g),
-            scz: row_major(&scz),
+            y: row_major(&y),
+            cy: row_major(&cy),
             dof,
         })
     }
@@ -263,18 +276,28 @@ impl Problem {
     }
 
     /// z = G x − S C_zᵀ μ into `out` (length (n+m)s), from the solver's multiplier
-    /// coefficients μ.
-    pub fn coefficients(&self, x: &[f64], mu: &[f64], out: &mut [f64]) {
-        let l = self.rows.len() * self.basis.dim();
+    /// coefficients μ (empty for none), as G x − Y ((C_z Y)ᵀ μ); `reduced` is scratch of
+    /// length [`Problem::dof`].
+    pub fn coefficients(&self, x: &[f64], mu: &[f64], reduced: &mut [f64], out: &mut [f64]) {
+        let k = self.dof;
+        let reduced = &mut reduced[..k];
+        reduced.fill(0.0);
+        if k > 0 {
+            for (&mi, row) in mu.iter().zip(self.cy.chunks_exact(k)) {
+                for (r, c) in reduced.iter_mut().zip(row) {
+                    *r += mi * c;
+                }
+            }
+        }
         for (i, o) in out.iter_mut().enumerate() {
             let gx: f64 = self.g[i * self.n..(i + 1) * self.n]
                 .iter()
                 .zip(x)
                 .map(|(a, b)| a * b)
                 .sum();
-            let sm: f64 = self.scz[i * l..(i + 1) * l]
+            let sm: f64 = self.y[i * k..(i + 1) * k]
                 .iter()
-                .zip(mu)
+                .zip(reduced.iter())
                 .map(|(a, b)| a * b)
                 .sum();
             *o = gx - sm;
@@ -367,6 +390,44 @@ mod tests {
             let zv = DVector::from_column_slice(&z);
             let dense = 0.5 * zv.dot(&(p.hessian() * &zv));
             prop_assert!((p.cost(&z) - dense).abs() <= 1e-12 * (1.0 + dense.abs()));
+        }
+
+        /// The plan from the low-rank factor, G x − Y((C_z Y)ᵀμ), is the minimiser of
+        /// ½zᵀHz + μᵀC_z z subject to A_eq z = (0, x), from the dense KKT system (LU).
+        #[test]
+        fn plan_coefficients_solve_the_equality_constrained_qp(
+            n in 1usize..4,
+            m in 1usize..3,
+            s in 4usize..9,
+            entries in proptest::collection::vec(-1.0f64..1.0, 64),
+            mus in proptest::collection::vec(-1.0f64..1.0, 64),
+            x in proptest::collection::vec(-1.0f64..1.0, 3),
+        ) {
+            let a = DMatrix::from_fn(n, n, |i, j| entries[i * 4 + j]);
+            let b = DMatrix::from_fn(n, m, |i, j| entries[16 + i * 3 + j]);
+            let fq = DMatrix::from_fn(n, n, |i, j| entries[32 + i * 4 + j]);
+            let q = &fq * fq.transpose() + DMatrix::identity(n, n);
+            let r = DMatrix::identity(m, m);
+            let c = Constraints::boxes(&vec![(-1.0, 1.0); n], &vec![(-1.0, 1.0); m]);
+            let p = Problem::new(&a, &b, &q, &r, &c, Laguerre::new(s, 0.7).unwrap());
+            prop_assume!(p.is_ok());
+            let p = p.unwrap();
+            let (nv, ne, l) = (p.num_variables(), p.num_equalities(), p.rows().len() * s);
+            let mu: Vec<f64> = (0..l).map(|i| mus[i % 64]).collect();
+            let mut z = vec![0.0; nv];
+            p.coefficients(&x[..n], &mu, &mut vec![0.0; p.dof()], &mut z);
+            let mut kkt = DMatrix::zeros(nv + ne, nv + ne);
+            kkt.view_mut((0, 0), (nv, nv)).copy_from(p.hessian());
+            kkt.view_mut((0, nv), (nv, ne)).copy_from(&p.equality_matrix().transpose());
+            kkt.view_mut((nv, 0), (ne, nv)).copy_from(p.equality_matrix());
+            let mut rhs = DVector::zeros(nv + ne);
+            rhs.rows_mut(0, nv).copy_from(&-(p.stage_matrix().transpose() * DVector::from_column_slice(&mu)));
+            rhs.rows_mut(nv, ne).copy_from(&p.equality_rhs(&x[..n]));
+            let reference = kkt.lu().solve(&rhs).unwrap();
+            let scale = 1.0 + reference.rows(0, nv).amax();
+            for (i, zi) in z.iter().enumerate() {
+                prop_assert!((zi - reference[i]).abs() <= 1e-8 * scale, "z[{i}] {zi} vs {}", reference[i]);
+            }
         }
     }
 }

@@ -67,8 +67,11 @@ fn budget_bounds_every_step_of_both_trajectory_sets() {
         let bound = budgeted.work_bound().unwrap();
         assert_eq!(bound.iterations, budget);
         assert_eq!(bound.taylor_steps, budget * 2 * CHECK_STEPS);
+        // Two constrained rows; the working set holds m·s − n = s − 4 instants; 3 Newton moves.
+        assert_eq!(bound.adds, budget * 2);
+        assert_eq!(bound.drops, (s - 4) * (1 + budget * 2 * 5));
         let mut free = controller(s, nu, None);
-        let (mut steps, mut fallbacks, mut worst) = (0, 0, 0);
+        let (mut steps, mut fallbacks, mut worst, mut most_drops) = (0, 0, 0, 0);
         let (mut lowest, mut highest) = (f64::INFINITY, f64::NEG_INFINITY);
         for (x0, n) in starts() {
             let cl = simulate::run_pmpc(&mut budgeted, &x0, n, 40).unwrap();
@@ -78,10 +81,13 @@ fn budget_bounds_every_step_of_both_trajectory_sets() {
                 assert!(
                     st.iterations <= bound.iterations
                         && st.taylor_steps <= bound.taylor_steps
+                        && st.adds <= bound.adds
+                        && st.drops <= bound.drops
                         && st.moves <= bound.moves,
                     "s={s} nu={nu} x0={x0:?} step {k}: {st:?} exceeds {bound:?}"
                 );
                 worst = worst.max(st.iterations);
+                most_drops = most_drops.max(st.drops);
                 steps += 1;
                 fallbacks += matches!(info.source, Source::Fallback(_)) as usize;
             }
@@ -104,8 +110,9 @@ fn budget_bounds_every_step_of_both_trajectory_sets() {
             );
         }
         eprintln!(
-            "s={s} nu={nu}: budget {budget}, worst {worst} iterations, fallbacks {fallbacks}/{steps} steps, \
+            "s={s} nu={nu}: budget {budget}, worst {worst} iterations, {most_drops} drops (bound {}), fallbacks {fallbacks}/{steps} steps, \
              J_cl change vs unbudgeted {:+.2} % ... {:+.2} % over the starts",
+            bound.drops,
             100.0 * lowest,
             100.0 * highest
         );

@@ -5,6 +5,12 @@ problem offline; ``step(x)`` returns the input to apply now, warm-started from t
 step; ``bounds(x0)`` returns the upper bound J_s, the lower bound J~_s and the gap that bounds
 the sub-optimality.
 
+Real-time mode: ``budget=B`` stops every step after the first after B outer iterations and
+then applies the shifted previous plan; with ``max_check_steps`` (Taylor steps per row check)
+``work_bound()`` states the worst-case work of a step before running (iterations, Taylor steps,
+added and dropped instants, Newton moves), and ``last_step()`` counts the same work of the
+step just taken.
+
 >>> import numpy as np
 >>> from stabilis import pmpc
 >>> A = np.diag(np.ones(3), 1)
