@@ -26,7 +26,7 @@ pub fn upper_bound(problem: &Problem, x0: &[f64], settings: &Settings) -> Result
     crate::check_vector("x0", x0, problem.n())?;
     let mut z = vec![0.0; problem.num_variables()];
     if problem.rows().is_empty() {
-        problem.coefficients(x0, &[], &mut vec![0.0; problem.dof()], &mut z);
+        problem.coefficients(x0, &[], &mut vec![0.0; problem.n() + problem.dof()], &mut z);
         return Ok(UpperBound {
             cost: problem.cost(&z),
             z,
@@ -49,7 +49,7 @@ pub fn upper_bound(problem: &Problem, x0: &[f64], settings: &Settings) -> Result
     let mut tau = vec![0.0; problem.basis().dim()];
     let mut mu = vec![0.0; l];
     out.multiplier_coefficients(&sp, &mut tau, &mut mu);
-    problem.coefficients(x0, &mu, &mut vec![0.0; problem.dof()], &mut z);
+    problem.coefficients(x0, &mu, &mut vec![0.0; problem.n() + problem.dof()], &mut z);
     Ok(UpperBound {
         cost: problem.cost(&z),
         z,

@@ -127,8 +127,8 @@ pub struct Pmpc {
     z_shifted: Vec<f64>,
     w0: Vec<f64>,
     mu: Vec<f64>,
-    /// Scratch of length dof for the plan's coefficients.
-    reduced: Vec<f64>,
+    /// Scratch of length n + dof for the plan's coefficients.
+    scratch: Vec<f64>,
     tau: Vec<f64>,
     u: Vec<f64>,
     info: StepInfo,
@@ -173,7 +173,7 @@ impl Pmpc {
             z_shifted: vec![0.0; nvar],
             w0: vec![0.0; l],
             mu: vec![0.0; l],
-            reduced: vec![0.0; problem.dof()],
+            scratch: vec![0.0; problem.n() + problem.dof()],
             tau: vec![0.0; basis.dim()],
             u: vec![0.0; problem.m()],
             info: StepInfo {
@@ -295,12 +295,14 @@ impl Pmpc {
             out.multiplier_coefficients(&sp, &mut self.tau, &mut self.mu);
             let active = out.active.len();
             self.problem
-                .coefficients(x, &self.mu, &mut self.reduced, &mut self.z);
+                .coefficients(x, &self.mu, &mut self.scratch, &mut self.z);
             self.info.active = active;
             Source::Optimal
         } else if self.has_plan {
-            // The shifted previous plan is applied (feasible, with the Lyapunov decrease).
-            self.z.copy_from_slice(&self.z_shifted);
+            // The shifted previous plan is applied (feasible, with the Lyapunov decrease); it
+            // is shifted here, when it is needed, not after every step.
+            self.problem.shift(&self.z, self.td, &mut self.z_shifted);
+            std::mem::swap(&mut self.z, &mut self.z_shifted);
             Source::Fallback(status)
         } else if status == Status::Infeasible {
             return Err(Error::Infeasible { x: x.to_vec() });
@@ -311,7 +313,6 @@ impl Pmpc {
             }));
         };
         self.has_plan = true;
-        self.problem.shift(&self.z, self.td, &mut self.z_shifted);
         self.problem
             .input_at(&self.z, 0.0, &mut self.tau, &mut self.u);
         self.info = StepInfo {

@@ -45,11 +45,11 @@ pub struct Problem {
     rows: Vec<siqp::Row>,
     phi: Vec<f64>,
     psi: Vec<f64>,
-    g: Vec<f64>,
-    /// Y = Z L⁻ᵀ, (n+m)s × dof row-major: S = Y Yᵀ.
-    y: Vec<f64>,
-    /// C_z Y, nc·s × dof row-major.
-    cy: Vec<f64>,
+    /// [G, −Y], (n+m)s × (n + dof) row-major, with Y = Z L⁻ᵀ (S = Y Yᵀ): the plan is
+    /// [G, −Y] (x, (C_z Y)ᵀμ).
+    g_y: Vec<f64>,
+    /// (C_z Y)ᵀ, dof × nc·s row-major.
+    cy_t: Vec<f64>,
     dof: usize,
 }
 
@@ -182,9 +182,14 @@ impl Problem {
             rows,
             phi: row_major(&phi),
             psi: row_major(&psi),
-            g: row_major(&g),
-            y: row_major(&y),
-            cy: row_major(&cy),
+            g_y: row_major(&DMatrix::from_fn(big_n, n + dof, |i, j| {
+                if j < n {
+                    g[(i, j)]
+                } else {
+                    -y[(i, j - n)]
+                }
+            })),
+            cy_t: row_major(&cy.transpose()),
             dof,
         })
     }
@@ -276,32 +281,17 @@ impl Problem {
     }
 
     /// z = G x − S C_zᵀ μ into `out` (length (n+m)s), from the solver's multiplier
-    /// coefficients μ (empty for none), as G x − Y ((C_z Y)ᵀ μ); `reduced` is scratch of
-    /// length [`Problem::dof`].
-    pub fn coefficients(&self, x: &[f64], mu: &[f64], reduced: &mut [f64], out: &mut [f64]) {
-        let k = self.dof;
-        let reduced = &mut reduced[..k];
-        reduced.fill(0.0);
-        if k > 0 {
-            for (&mi, row) in mu.iter().zip(self.cy.chunks_exact(k)) {
-                for (r, c) in reduced.iter_mut().zip(row) {
-                    *r += mi * c;
-                }
-            }
+    /// coefficients μ (empty for none), as [G, −Y] (x, (C_z Y)ᵀμ); `scratch` has length
+    /// n + [`Problem::dof`].
+    pub fn coefficients(&self, x: &[f64], mu: &[f64], scratch: &mut [f64], out: &mut [f64]) {
+        let (xs, reduced) = scratch[..self.n + self.dof].split_at_mut(self.n);
+        xs.copy_from_slice(x);
+        if mu.is_empty() {
+            reduced.fill(0.0);
+        } else {
+            matvec(&self.cy_t, self.rows.len() * self.basis.dim(), mu, reduced);
         }
-        for (i, o) in out.iter_mut().enumerate() {
-            let gx: f64 = self.g[i * self.n..(i + 1) * self.n]
-                .iter()
-                .zip(x)
-                .map(|(a, b)| a * b)
-                .sum();
-            let sm: f64 = self.y[i * k..(i + 1) * k]
-                .iter()
-                .zip(reduced.iter())
-                .map(|(a, b)| a * b)
-                .sum();
-            *o = gx - sm;
-        }
+        matvec(&self.g_y, self.n + self.dof, scratch, out);
     }
 
     /// Cost ½ zᵀHz, from the blocks of H = blkdiag(Q⊗I_s, R⊗I_s) (O((n² + m²)s), no
@@ -415,7 +405,7 @@ mod tests {
             let (nv, ne, l) = (p.num_variables(), p.num_equalities(), p.rows().len() * s);
             let mu: Vec<f64> = (0..l).map(|i| mus[i % 64]).collect();
             let mut z = vec![0.0; nv];
-            p.coefficients(&x[..n], &mu, &mut vec![0.0; p.dof()], &mut z);
+            p.coefficients(&x[..n], &mu, &mut vec![0.0; n + p.dof()], &mut z);
             let mut kkt = DMatrix::zeros(nv + ne, nv + ne);
             kkt.view_mut((0, 0), (nv, nv)).copy_from(p.hessian());
             kkt.view_mut((0, nv), (nv, ne)).copy_from(&p.equality_matrix().transpose());

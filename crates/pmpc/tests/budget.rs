@@ -19,8 +19,10 @@ use rigid_body::siqp::Settings;
 /// (s, ν, outer iterations per step) of the peer benchmark (README), and Taylor steps per row
 /// check. At s = 8 a budget below 13 makes fallbacks that cost 3-6 % in J_cl (which step
 /// falls back matters more than how many); at ν = 1.3, s = 12 with 4 iterations is 3 % and s = 10
-/// with 2 is 1.3 % above its unbudgeted loop on x0 = 0.3, and neither is offered.
-const BUDGETS: [(usize, f64, usize); 13] = [
+/// with 2 is 1.3 % above its unbudgeted loop on x0 = 0.3, and neither is offered; s = 10 with 4
+/// has been +0.3 %, +0.85 % and +1.1 % there after changes at rounding level (which step falls
+/// back moves), so it is not offered either.
+const BUDGETS: [(usize, f64, usize); 12] = [
     (8, scenario::NU, 15),
     (10, scenario::NU, 6),
     (10, scenario::NU, 8),
@@ -31,7 +33,6 @@ const BUDGETS: [(usize, f64, usize); 13] = [
     (12, scenario::NU, 8),
     (12, scenario::NU, 15),
     (10, scenario::REAL_TIME_NU, scenario::REAL_TIME_BUDGET),
-    (10, scenario::REAL_TIME_NU, 4),
     (10, scenario::REAL_TIME_NU, 6),
     (12, scenario::REAL_TIME_NU, 6),
 ];
