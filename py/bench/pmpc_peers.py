@@ -24,7 +24,8 @@ Python call overhead included for every contender; the first step of every loop 
 (set-up / cold start). "Own solve time" is what each solver reports of itself: DAQP's, OSQP's
 and ProxQP's `solve_time`, and pmpc's `last_step()["solve_time"]` (the whole Rust step). The
 latter runs from caches the Python loop has emptied, DAQP's after its untimed `update` has
-filled them (`EVICT=64` of `step_profile` shows the same effect in Rust alone).
+filled them (`EVICT=64` of `step_profile` shows the same effect in Rust alone); --evict puts
+both in memory.
 Trajectory sets: x0 = 0.3*1 for 1000 steps, and 10 starts drawn uniformly from [0, 0.2]^4
 (seed 14; --starts N draws N, the first ten the same) for 250 steps each. The plant is exact:
 the discrete inputs are held (ZOH), the pmpc input is its continuous plan u(t) = eta_u' tau(t)
@@ -35,6 +36,7 @@ the 0.5 ms grid); the violation is the largest excess over |u| <= 0.5, x_1 >= 0 
     .venv/bin/python -m pip install -c scripts/python-constraints.txt daqp osqp proxsuite
     .venv/bin/python py/bench/pmpc_peers.py [--s S ...] [--nu NU ...] [--budget B ...]
                                             [--peers daqp osqp proxqp] [--quick] [--starts N]
+                                            [--evict MiB]
     .venv/bin/python py/bench/pmpc_peers.py --scan-nu 0.5 0.7 1.0 1.3 [--s 10 12]
     .venv/bin/python py/bench/pmpc_peers.py --scan-horizons 80 82 83 90 92 93
     .venv/bin/python py/bench/pmpc_peers.py --chain 7
@@ -60,6 +62,9 @@ INF = float("inf")
 A = np.diag(np.ones(3), 1)
 B = np.array([[0.0], [0.0], [0.0], [1.0]])
 GRID = 40  # 0.5 ms
+# --evict MiB: an array written between DAQP's `update` and `solve` and before each pmpc step,
+# so that both own solve times are measured from memory (the other columns then include it).
+EVICT = None
 
 
 def zoh(a, b, h):
@@ -142,6 +147,8 @@ def daqp_controller(h, f, g, e, x0):
     def solve(x):
         fx, upper = data.at(x)
         model.update(f=fx, bupper=upper)
+        if EVICT is not None:
+            np.add(EVICT, 1.0, out=EVICT)
         sol, _, flag, info = model.solve()
         return (sol if flag >= 1 else None), info["solve_time"]
 
@@ -233,6 +240,8 @@ def run_pmpc(ctrl, s, x0, steps, a=A, b=B, nu=NU):
     integral, beyond, bound = 0.0, 0, ctrl.work_bound()
     ctrl.reset()
     for k in range(steps + 1):
+        if EVICT is not None:
+            np.add(EVICT, 1.0, out=EVICT)
         t0 = time.thread_time_ns()
         u = float(ctrl.step(x)[0])
         times.append(time.thread_time_ns() - t0)
@@ -356,6 +365,7 @@ def scan_nu(ss, nus):
 
 
 def main():
+    global EVICT
     ap = argparse.ArgumentParser()
     ap.add_argument("--scan-horizons", type=int, nargs="*", default=None,
                     help="only scan the discrete MPC's stabilizing horizons (e.g. 80 81 82 83 92 93)")
@@ -373,7 +383,12 @@ def main():
     ap.add_argument("--quick", action="store_true", help="x0 = 0.3 set only")
     ap.add_argument("--starts", type=int, default=10,
                     help="random starts of the second set (the first ten are the benchmark's)")
+    ap.add_argument("--evict", type=int, default=0,
+                    help="MiB written before each pmpc step and between DAQP's update and solve "
+                         "(compare the own solve times only)")
     args = ap.parse_args()
+    if args.evict:
+        EVICT = np.zeros(args.evict << 17)
     if args.scan_horizons:
         scan_horizons(args.scan_horizons)
         return
