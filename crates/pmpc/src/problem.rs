@@ -358,6 +358,17 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    /// A, B, Q ≻ 0 and R ≻ 0 of an n-state, m-input system from 64 numbers in [−1, 1].
+    fn system(n: usize, m: usize, e: &[f64]) -> [DMatrix<f64>; 4] {
+        let a = DMatrix::from_fn(n, n, |i, j| e[i * 4 + j]);
+        let b = DMatrix::from_fn(n, m, |i, j| e[16 + i * 3 + j]);
+        let fq = DMatrix::from_fn(n, n, |i, j| e[32 + i * 4 + j]);
+        let fr = DMatrix::from_fn(m, m, |i, j| e[48 + i * 3 + j]);
+        let q = &fq * fq.transpose() + DMatrix::identity(n, n);
+        let r = &fr * fr.transpose() + DMatrix::identity(m, m);
+        [a, b, q, r]
+    }
+
     proptest! {
         /// The block-wise cost equals the dense ½ zᵀHz.
         #[test]
@@ -368,12 +379,7 @@ mod tests {
             entries in proptest::collection::vec(-1.0f64..1.0, 64),
             zs in proptest::collection::vec(-2.0f64..2.0, 64),
         ) {
-            let a = DMatrix::from_fn(n, n, |i, j| entries[i * 4 + j]);
-            let b = DMatrix::from_fn(n, m, |i, j| entries[16 + i * 3 + j]);
-            let fq = DMatrix::from_fn(n, n, |i, j| entries[32 + i * 4 + j]);
-            let q = &fq * fq.transpose() + DMatrix::identity(n, n);
-            let fr = DMatrix::from_fn(m, m, |i, j| entries[48 + i * 3 + j]);
-            let r = &fr * fr.transpose() + DMatrix::identity(m, m);
+            let [a, b, q, r] = system(n, m, &entries);
             let c = Constraints::boxes(&vec![(f64::NEG_INFINITY, f64::INFINITY); n], &vec![(-1.0, 1.0); m]);
             let p = Problem::new(&a, &b, &q, &r, &c, Laguerre::new(s, 0.7).unwrap()).unwrap();
             let z: Vec<f64> = (0..p.num_variables()).map(|i| zs[i % 64] * (1.0 + i as f64 / 64.0)).collect();
@@ -393,11 +399,7 @@ mod tests {
             mus in proptest::collection::vec(-1.0f64..1.0, 64),
             x in proptest::collection::vec(-1.0f64..1.0, 3),
         ) {
-            let a = DMatrix::from_fn(n, n, |i, j| entries[i * 4 + j]);
-            let b = DMatrix::from_fn(n, m, |i, j| entries[16 + i * 3 + j]);
-            let fq = DMatrix::from_fn(n, n, |i, j| entries[32 + i * 4 + j]);
-            let q = &fq * fq.transpose() + DMatrix::identity(n, n);
-            let r = DMatrix::identity(m, m);
+            let [a, b, q, r] = system(n, m, &entries);
             let c = Constraints::boxes(&vec![(-1.0, 1.0); n], &vec![(-1.0, 1.0); m]);
             let p = Problem::new(&a, &b, &q, &r, &c, Laguerre::new(s, 0.7).unwrap());
             prop_assume!(p.is_ok());
