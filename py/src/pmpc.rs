@@ -51,7 +51,10 @@ fn bounds_list(name: &str, v: Option<Vec<(f64, f64)>>, len: usize) -> PyResult<V
 /// Parametrized infinite-horizon MPC: states and inputs in the span of `s` Laguerre functions
 /// with decay `nu` (1/s), constraints imposed for all t ≥ 0, re-solved every `Td` seconds.
 /// Constraints are box limits `x_bounds` / `u_bounds` (lists of (lower, upper), ±inf for
-/// none) or general rows `lower <= Cx x + Cu u <= upper`.
+/// none) or general rows `lower <= Cx x + Cu u <= upper`. Real-time mode: `budget` outer
+/// iterations per step after the first (the shifted previous plan when it runs out) and at
+/// most `max_check_steps` Taylor steps per row check; `work_bound()` states the resulting
+/// worst case before running.
 #[pyclass(name = "Controller", module = "stabilis.pmpc")]
 #[derive(Debug)]
 pub struct PyController {
