@@ -339,9 +339,9 @@ def trajectory_sets(quick=False, starts=10):
 def quad_pmpc(s, nu, budget=None):
     """A budgeted controller also caps each row check at 100 Taylor steps, as the Rust bench and
     tests do, so that its work bound is finite and small."""
+    real_time = {"budget": budget, "max_check_steps": 100} if budget else {}
     return pmpc.Controller(A, B, np.eye(4), np.eye(1), x_bounds=[(0.0, INF)] + [(-INF, INF)] * 3,
-                           u_bounds=[(-0.5, 0.5)], nu=nu, s=s, td=TD, budget=budget,
-                           max_check_steps=100 if budget else 10_000)
+                           u_bounds=[(-0.5, 0.5)], nu=nu, s=s, td=TD, **real_time)
 
 
 def scan_nu(ss, nus):

@@ -21,8 +21,12 @@ fn row_major(m: &DMatrix<f64>) -> Vec<f64> {
     m.transpose().as_slice().to_vec()
 }
 
-/// `out = M x` for a row-major `rows × cols` matrix.
+/// `out = M x` for a row-major `rows × cols` matrix (zero when `cols` is 0).
 pub(crate) fn matvec(m: &[f64], cols: usize, x: &[f64], out: &mut [f64]) {
+    if cols == 0 {
+        out.fill(0.0);
+        return;
+    }
     for (o, row) in out.iter_mut().zip(m.chunks_exact(cols)) {
         *o = row.iter().zip(x).map(|(a, b)| a * b).sum();
     }
@@ -281,16 +285,12 @@ impl Problem {
     }
 
     /// z = G x − S C_zᵀ μ into `out` (length (n+m)s), from the solver's multiplier
-    /// coefficients μ (empty for none), as [G, −Y] (x, (C_z Y)ᵀμ); `scratch` has length
-    /// n + [`Problem::dof`].
+    /// coefficients μ (length nc·s, empty without rows), as [G, −Y] (x, (C_z Y)ᵀμ);
+    /// `scratch` has length n + [`Problem::dof`].
     pub fn coefficients(&self, x: &[f64], mu: &[f64], scratch: &mut [f64], out: &mut [f64]) {
         let (xs, reduced) = scratch[..self.n + self.dof].split_at_mut(self.n);
         xs.copy_from_slice(x);
-        if mu.is_empty() {
-            reduced.fill(0.0);
-        } else {
-            matvec(&self.cy_t, self.rows.len() * self.basis.dim(), mu, reduced);
-        }
+        matvec(&self.cy_t, self.rows.len() * self.basis.dim(), mu, reduced);
         matvec(&self.g_y, self.n + self.dof, scratch, out);
     }
 
