@@ -415,10 +415,14 @@ mod tests {
             let mut rhs = DVector::zeros(nv + ne);
             rhs.rows_mut(0, nv).copy_from(&-(p.stage_matrix().transpose() * DVector::from_column_slice(&mu)));
             rhs.rows_mut(nv, ne).copy_from(&p.equality_rhs(&x[..n]));
+            let sv = kkt.singular_values();
+            let cond = sv.max() / sv.min();
             let reference = kkt.lu().solve(&rhs).unwrap();
-            let scale = 1.0 + reference.rows(0, nv).amax();
+            // Both solves carry a forward error of order cond(KKT)·ε; random systems near
+            // uncontrollable reach cond ≈ 1e11.
+            let tol = (1e-8 + 64.0 * f64::EPSILON * cond) * (1.0 + reference.rows(0, nv).amax());
             for (i, zi) in z.iter().enumerate() {
-                prop_assert!((zi - reference[i]).abs() <= 1e-8 * scale, "z[{i}] {zi} vs {}", reference[i]);
+                prop_assert!((zi - reference[i]).abs() <= tol, "z[{i}] {zi} vs {} cond {cond:e}", reference[i]);
             }
         }
     }
