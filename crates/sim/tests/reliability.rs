@@ -105,6 +105,44 @@ fn report_onto_a_file_or_a_non_empty_current_directory_is_refused() {
     );
 }
 
+/// Two outputs of one run on the same path (or one inside the other) are refused before any
+/// work: nothing is written, and the message names both options.
+#[test]
+fn outputs_that_clash_with_each_other_are_refused_before_the_work() {
+    let dir = scratch("clash");
+    let same = dir.join("rr2");
+    let s = same.to_str().unwrap();
+    let run = stabilis(&["discover", "--report", s, "--json", s]);
+    assert_refused(&run, "rr2");
+    let stderr = text(&run.stderr);
+    assert!(
+        stderr.contains(&format!("--json {s} and --report {s} name the same path")),
+        "{stderr}"
+    );
+    // Refused before the discovery: no report was written.
+    assert!(text(&run.stdout).is_empty(), "{}", text(&run.stdout));
+    let inside = same.join("result.json");
+    let run = stabilis(&["compare", "--report", s, "--json", inside.to_str().unwrap()]);
+    assert_refused(&run, "result.json");
+    assert!(text(&run.stderr).contains("lies inside --report"));
+    // A simulated log and its JSON on one path.
+    let log = dir.join("run.json");
+    let l = log.to_str().unwrap();
+    let run = stabilis(&[
+        "sim",
+        "wheel-pendulum",
+        "--duration",
+        "1",
+        "--out",
+        l,
+        "--json",
+        l,
+    ]);
+    assert_refused(&run, "run.json");
+    assert!(text(&run.stderr).contains("name the same path"));
+    assert_eq!(snapshot(&dir), Vec::new());
+}
+
 #[test]
 fn tilt_out_onto_its_input_is_refused() {
     let dir = scratch("tilt");

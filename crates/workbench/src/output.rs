@@ -2,7 +2,8 @@
 //! destroy a user's data:
 //!
 //! - an output may not be one of the inputs, lie inside an input directory, or (for a directory)
-//!   contain an input;
+//!   contain an input; two outputs of one run may not name the same path or lie one inside the
+//!   other ([`check_outputs`], before any work);
 //! - an existing file is replaced only when it is of the kind being written (an MCAP log by an
 //!   MCAP log, JSON by JSON) or empty; anything else (a directory, a CSV, a device) is refused;
 //! - an existing directory is replaced only when it is empty or was written by this module (it
@@ -217,6 +218,65 @@ pub fn check_file(target: &Path, kind: Kind, inputs: &[PathBuf]) -> Result<()> {
             target,
             format!("exists and is not {}; not overwriting it", kind.name()),
         ));
+    }
+    Ok(())
+}
+
+/// What an output of a run is: a file of a kind, or a directory.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Target {
+    /// A file of this kind (see [`check_file`]).
+    File(Kind),
+    /// A directory (see [`check_dir`]).
+    Dir,
+    /// A directory the run writes files into beside what it holds (each file checked when it
+    /// is written): here only kept apart from the other outputs.
+    Into,
+}
+
+/// An output a run is going to write: the option that names it (`--json`), its path and what
+/// it is.
+#[derive(Debug, Clone, Copy)]
+pub struct Planned<'a> {
+    /// The option or argument that names it, for the message.
+    pub option: &'a str,
+    /// Where it goes.
+    pub path: &'a Path,
+    /// File or directory.
+    pub target: Target,
+}
+
+/// Checks every output of a run before any work is done: no two name the same path or lie one
+/// inside the other (`--json out/r and --report out/r name the same path`), and each may be
+/// written given the `inputs` ([`check_file`], [`check_dir`]).
+pub fn check_outputs(outputs: &[Planned<'_>], inputs: &[PathBuf]) -> Result<()> {
+    let resolved: Vec<PathBuf> = outputs.iter().map(|o| resolve(o.path)).collect();
+    for (i, a) in outputs.iter().enumerate() {
+        for (j, b) in outputs.iter().enumerate().skip(i + 1) {
+            let (ra, rb) = (&resolved[i], &resolved[j]);
+            let named = |o: &Planned<'_>| format!("{} {}", o.option, o.path.display());
+            if ra == rb || same_file(a.path, b.path) {
+                return Err(refuse(
+                    b.path,
+                    format!("{} and {} name the same path", named(b), named(a)),
+                ));
+            }
+            for (inner, r_inner, outer, r_outer) in [(a, ra, b, rb), (b, rb, a, ra)] {
+                if r_inner.starts_with(r_outer) {
+                    return Err(refuse(
+                        inner.path,
+                        format!("{} lies inside {}", named(inner), named(outer)),
+                    ));
+                }
+            }
+        }
+    }
+    for o in outputs {
+        match o.target {
+            Target::File(kind) => check_file(o.path, kind, inputs)?,
+            Target::Dir => check_dir(o.path, inputs)?,
+            Target::Into => check_inputs(o.path, inputs)?,
+        }
     }
     Ok(())
 }
@@ -548,6 +608,45 @@ mod tests {
         assert!(err.to_string().contains("is an input"), "{err}");
         assert_eq!(std::fs::read(&log).unwrap(), b"\x89MCAP0\r\nrest");
         assert_eq!(std::fs::read_to_string(&csv).unwrap(), "t,x\n0,1\n");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn outputs_that_name_the_same_path_or_lie_one_inside_the_other_are_refused() {
+        let dir = scratch("clash");
+        let report = dir.join("r");
+        let json = dir.join("r");
+        fn planned<'a>(report: &'a Path, json: &'a Path) -> [Planned<'a>; 2] {
+            [
+                Planned {
+                    option: "--report",
+                    path: report,
+                    target: Target::Dir,
+                },
+                Planned {
+                    option: "--json",
+                    path: json,
+                    target: Target::File(Kind::Json),
+                },
+            ]
+        }
+        let err = check_outputs(&planned(&report, &json), &[]).unwrap_err();
+        assert_eq!(err.exit_code(), 2);
+        let text = err.to_string();
+        assert!(
+            text.contains("--json") && text.contains("--report"),
+            "{text}"
+        );
+        assert!(text.contains("name the same path"), "{text}");
+        // Another spelling of the same path, and a file inside the report directory.
+        let dotted = dir.join(".").join("r");
+        let err = check_outputs(&planned(&report, &dotted), &[]).unwrap_err();
+        assert!(err.to_string().contains("name the same path"), "{err}");
+        let inside = report.join("x.json");
+        let err = check_outputs(&planned(&report, &inside), &[]).unwrap_err();
+        assert!(err.to_string().contains("lies inside --report"), "{err}");
+        check_outputs(&planned(&report, &dir.join("r.json")), &[]).unwrap();
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

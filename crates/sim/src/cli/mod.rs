@@ -139,18 +139,12 @@ fn workbench_inputs(common: &workbench::Common) -> Vec<std::path::PathBuf> {
 }
 
 impl Command {
-    /// The files and directories the verb reads (and, for `sim`, the log it writes): no output
-    /// may replace or go inside any of them.
+    /// The files and directories the verb reads: no output may replace or go inside any of them.
     pub fn inputs(&self) -> Vec<std::path::PathBuf> {
         match self {
-            Self::Sim(system) => match system {
-                SimSystem::FlyingPlatform(args) => args.out.iter().cloned().collect(),
-                other => other.scenario().common().out.iter().cloned().collect(),
-            },
+            Self::Sim(_) => Vec::new(),
             Self::Info(args) => vec![args.file.clone()],
-            Self::Tilt(args) => std::iter::once(args.data.clone())
-                .chain(args.out.clone())
-                .collect(),
+            Self::Tilt(args) => vec![args.data.clone()],
             Self::Discover(args) => workbench_inputs(&args.common),
             Self::Compare(args) | Self::Fit(args) => workbench_inputs(&args.common),
             Self::Model(model::Command::Check(args)) => vec![args.file.clone()],
@@ -158,14 +152,34 @@ impl Command {
         }
     }
 
-    /// The `--report DIR` of the workbench verbs.
-    fn report(&self) -> Option<&std::path::Path> {
-        match self {
-            Self::Discover(args) => args.common.report.as_deref(),
-            Self::Compare(args) | Self::Fit(args) => args.common.report.as_deref(),
-            Self::Power(args) => args.report.as_deref(),
-            _ => None,
-        }
+    /// The outputs the verb writes besides `--json` (`--out`, `--report`), with their options.
+    fn outputs(&self) -> Vec<output::Planned<'_>> {
+        use output::{Kind, Planned, Target};
+        let (option, path, target) = match self {
+            // The flying platform writes its logs into a directory.
+            Self::Sim(SimSystem::FlyingPlatform(args)) => {
+                ("--out", args.out.as_deref(), Target::Into)
+            }
+            Self::Sim(system) => (
+                "--out",
+                system.scenario().common().out.as_deref(),
+                Target::File(Kind::Mcap),
+            ),
+            Self::Tilt(args) => ("--out", args.out.as_deref(), Target::File(Kind::Mcap)),
+            Self::Discover(args) => ("--report", args.common.report.as_deref(), Target::Dir),
+            Self::Compare(args) | Self::Fit(args) => {
+                ("--report", args.common.report.as_deref(), Target::Dir)
+            }
+            Self::Power(args) => ("--report", args.report.as_deref(), Target::Dir),
+            Self::Info(_) | Self::Model(_) => ("", None, Target::Dir),
+        };
+        path.map(|path| Planned {
+            option,
+            path,
+            target,
+        })
+        .into_iter()
+        .collect()
     }
 
     /// Runs the verb.
@@ -254,19 +268,25 @@ where
         return error.exit_code();
     }
     let inputs = cli.command.inputs();
-    // Outputs are refused before the work, not after it.
+    // Outputs are refused before the work, not after it: each against the inputs and against
+    // the others.
     let json = cli
         .json
         .as_deref()
         .filter(|p| *p != std::path::Path::new("-"));
-    let checked = json
-        .map(|path| output::check_file(path, output::Kind::Json, &inputs))
-        .unwrap_or(Ok(()))
-        .and_then(|()| match cli.command.report() {
-            Some(dir) => output::check_dir(dir, &inputs),
-            None => Ok(()),
-        });
-    if let Err(error) = checked {
+    let mut outputs = cli.command.outputs();
+    // The other outputs, which the JSON written at the end must not replace either.
+    let written: Vec<std::path::PathBuf> = inputs
+        .iter()
+        .cloned()
+        .chain(outputs.iter().map(|o| o.path.to_path_buf()))
+        .collect();
+    outputs.extend(json.map(|path| output::Planned {
+        option: "--json",
+        path,
+        target: output::Target::File(output::Kind::Json),
+    }));
+    if let Err(error) = output::check_outputs(&outputs, &inputs) {
         eprintln!("error: {error}");
         return error.exit_code();
     }
@@ -276,7 +296,7 @@ where
         .and_then(|output| match cli.json.as_deref() {
             Some(p) if p != std::path::Path::new("-") => {
                 let text = format!("{:#}\n", output.json);
-                output::write_atomically(p, output::Kind::Json, &inputs, |tmp| {
+                output::write_atomically(p, output::Kind::Json, &written, |tmp| {
                     std::fs::write(tmp, text).map_err(|e| SimError::io(tmp, e))
                 })?;
                 Ok(output.human)
