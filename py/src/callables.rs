@@ -14,6 +14,8 @@ use pyo3::types::PyDict;
 use workbench::dynamics::Dynamics;
 use workbench::model::StateSpace;
 
+use crate::real::real_array;
+
 /// `f`, `h` and where the model is linearized and the predictor starts.
 #[derive(Debug)]
 pub struct Callables {
@@ -61,14 +63,20 @@ impl Callables {
             ),
         )?;
         let value = value.bind(py);
-        // A float64 array is read directly; anything else (a list) as a sequence.
+        // A float64 array is read directly; anything else (a list) is converted by the
+        // package's one rule for arrays (a complex result is a TypeError, not its real part).
         let values: Vec<f64> = match value.cast::<PyArray1<f64>>() {
             Ok(a) => a.readonly().as_array().to_vec(),
-            Err(_) => value.extract::<Vec<f64>>().map_err(|_| {
-                PyValueError::new_err(format!(
-                    "model {model}: {label}(x, u, params) must return a 1-D sequence of numbers"
-                ))
-            })?,
+            Err(_) => real_array(value, &format!("model {model}: {label}(x, u, params)"))?
+                .cast_into::<PyArray1<f64>>()
+                .map_err(|_| {
+                    PyValueError::new_err(format!(
+                        "model {model}: {label}(x, u, params) must return a 1-D sequence of numbers"
+                    ))
+                })?
+                .readonly()
+                .as_array()
+                .to_vec(),
         };
         if values.len() != out.len() {
             return Err(PyValueError::new_err(format!(

@@ -20,6 +20,7 @@ mod workbench;
 #[pymodule]
 fn _stabilis(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
+    real::register(m)?;
     event_est::register(m)?;
     flying_platform::register(m)?;
     cubli::register(m)?;

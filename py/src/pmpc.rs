@@ -12,6 +12,7 @@ use rigid_body::laguerre::Laguerre;
 use rigid_body::siqp::Settings;
 
 use crate::errors::{to_py_err, Error, IntoPyError};
+use crate::real::{check_real, Real};
 
 impl IntoPyError for PmpcError {
     fn into_py_error(self) -> PyErr {
@@ -69,16 +70,16 @@ impl PyController {
     #[pyo3(signature = (a, b, q, r, x_bounds=None, u_bounds=None, cx=None, cu=None, lower=None, upper=None, nu=0.7, s=12, td=0.02, tolerance=1e-6, max_iter=1000, budget=None, max_check_steps=10_000))]
     #[allow(clippy::too_many_arguments)] // mirrors the Python keyword signature
     fn new(
-        a: Vec<Vec<f64>>,
-        b: Vec<Vec<f64>>,
-        q: Vec<Vec<f64>>,
-        r: Vec<Vec<f64>>,
-        x_bounds: Option<Vec<(f64, f64)>>,
-        u_bounds: Option<Vec<(f64, f64)>>,
-        cx: Option<Vec<Vec<f64>>>,
-        cu: Option<Vec<Vec<f64>>>,
-        lower: Option<Vec<f64>>,
-        upper: Option<Vec<f64>>,
+        a: Real<Vec<Vec<f64>>>,
+        b: Real<Vec<Vec<f64>>>,
+        q: Real<Vec<Vec<f64>>>,
+        r: Real<Vec<Vec<f64>>>,
+        x_bounds: Option<Real<Vec<(f64, f64)>>>,
+        u_bounds: Option<Real<Vec<(f64, f64)>>>,
+        cx: Option<Real<Vec<Vec<f64>>>>,
+        cu: Option<Real<Vec<Vec<f64>>>>,
+        lower: Option<Real<Vec<f64>>>,
+        upper: Option<Real<Vec<f64>>>,
         nu: f64,
         s: usize,
         td: f64,
@@ -87,19 +88,20 @@ impl PyController {
         budget: Option<usize>,
         max_check_steps: usize,
     ) -> PyResult<Self> {
+        let (x_bounds, u_bounds) = (x_bounds.map(|b| b.0), u_bounds.map(|b| b.0));
         let (a, b, q, r) = (
-            matrix("A", a)?,
-            matrix("B", b)?,
-            matrix("Q", q)?,
-            matrix("R", r)?,
+            matrix("A", a.0)?,
+            matrix("B", b.0)?,
+            matrix("Q", q.0)?,
+            matrix("R", r.0)?,
         );
         let (n, m) = (a.nrows(), b.ncols());
         let constraints = match (cx, cu, lower, upper) {
             (Some(cx), Some(cu), Some(lower), Some(upper)) => Constraints {
-                cx: matrix("Cx", cx)?,
-                cu: matrix("Cu", cu)?,
-                lower,
-                upper,
+                cx: matrix("Cx", cx.0)?,
+                cu: matrix("Cu", cu.0)?,
+                lower: lower.0,
+                upper: upper.0,
             },
             (None, None, None, None) => Constraints::boxes(
                 &bounds_list("x_bounds", x_bounds, n)?,
@@ -156,6 +158,7 @@ impl PyController {
         let x = match array.as_ref().and_then(|a| a.as_slice().ok()) {
             Some(x) => x,
             None => {
+                check_real(x, "x")?;
                 copied = x.extract().map_err(|_| {
                     PyValueError::new_err("x must be a 1-D sequence of numbers (the state)")
                 })?;
@@ -221,8 +224,8 @@ impl PyController {
     }
 
     /// Upper bound J_s, lower bound J~_s (Clarabel), their gap and the L2 error bound at x0.
-    fn bounds<'py>(&self, py: Python<'py>, x0: Vec<f64>) -> PyResult<Bound<'py, PyDict>> {
-        let b = bounds(self.inner.problem(), &x0, self.inner.settings()).map_err(to_py_err)?;
+    fn bounds<'py>(&self, py: Python<'py>, x0: Real<Vec<f64>>) -> PyResult<Bound<'py, PyDict>> {
+        let b = bounds(self.inner.problem(), &x0.0, self.inner.settings()).map_err(to_py_err)?;
         let d = PyDict::new(py);
         d.set_item("upper", b.upper)?;
         d.set_item("lower", b.lower)?;

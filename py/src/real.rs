@@ -1,31 +1,111 @@
-//! Real-number arguments that refuse complex values. pyo3 converts a numpy complex through
-//! `__float__`, which keeps the real part and only warns; a [`Real`] argument raises
-//! `TypeError` instead.
-use pyo3::exceptions::PyTypeError;
+//! Real-number arguments: the one rule by which every array or number the package takes is
+//! read. Numbers whose numpy dtype is boolean, integer or floating point are accepted; a
+//! complex, object, string or other dtype is a `TypeError` naming the argument and the dtype.
+//! (numpy would otherwise cast a complex array to float, keeping the real part with only a
+//! `ComplexWarning`, and parse an array of strings as numbers.) [`real_array`] converts an
+//! array argument to float64 under this rule; a [`Real`] argument checks it before extracting
+//! a number or a sequence; the Python wrappers call [`real_array`] through
+//! `stabilis._arrays.real_array`.
+use numpy::{PyArrayDyn, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyComplex, PyList, PyTuple};
 
+/// The numpy dtype kinds read as real numbers: boolean, signed and unsigned integer, float.
+const REAL_KINDS: [&str; 4] = ["b", "i", "u", "f"];
+
+/// The dtype of a numpy array or scalar whose values are not real numbers (`complex128`,
+/// `object`, `<U3`...); None for a real dtype and for objects without a numpy dtype.
+fn refused_dtype(obj: &Bound<'_, PyAny>) -> PyResult<Option<String>> {
+    let Ok(dtype) = obj.getattr("dtype") else {
+        return Ok(None);
+    };
+    // Objects with a `dtype` that is not numpy's (no `kind`) are left to the conversion.
+    let Ok(kind) = dtype.getattr("kind").and_then(|k| k.extract::<String>()) else {
+        return Ok(None);
+    };
+    if REAL_KINDS.contains(&kind.as_str()) {
+        return Ok(None);
+    }
+    Ok(Some(dtype.str()?.to_string()))
+}
+
+/// The `TypeError` for values of dtype `dtype` where `expected` ("x must hold") wants real
+/// numbers.
+fn refusal(expected: &str, dtype: &str) -> PyErr {
+    let hint = if dtype.starts_with("complex") {
+        " (pass .real to drop the imaginary part)"
+    } else {
+        ""
+    };
+    PyTypeError::new_err(format!("{expected} real numbers; got dtype {dtype}{hint}"))
+}
+
+/// `value` (anything `numpy.asarray` accepts) as a C-contiguous float64 array; `TypeError`
+/// naming `name` and the dtype when its values are not real numbers (see the module doc).
+pub fn real_array<'py>(
+    value: &Bound<'py, PyAny>,
+    name: &str,
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    if let Ok(array) = value.cast::<PyArrayDyn<f64>>() {
+        if array.is_c_contiguous() {
+            return Ok(array.clone());
+        }
+    }
+    let np = value.py().import("numpy")?;
+    let array = np.call_method1("asarray", (value,)).map_err(|e| {
+        let message = format!("{name}: {}", e.value(value.py()));
+        if e.is_instance_of::<PyTypeError>(value.py()) {
+            PyTypeError::new_err(message)
+        } else {
+            PyValueError::new_err(message)
+        }
+    })?;
+    if let Some(dtype) = refused_dtype(&array)? {
+        return Err(refusal(&format!("{name} must hold"), &dtype));
+    }
+    let array = np.call_method1("ascontiguousarray", (array, "float64"))?;
+    Ok(array.cast_into::<PyArrayDyn<f64>>()?)
+}
+
+/// `stabilis._arrays.real_array(x, name="argument")`: [`real_array`] for the Python wrappers.
+#[pyfunction]
+#[pyo3(name = "real_array", signature = (x, name = "argument"))]
+fn py_real_array<'py>(x: &Bound<'py, PyAny>, name: &str) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    real_array(x, name)
+}
+
 /// An argument extracted as `T` (`f64`, `Vec<f64>`, `[f64; 3]`...) after checking that it
-/// holds no complex number.
+/// holds no value of a refused dtype (see the module doc).
 #[derive(Debug, Clone)]
 pub struct Real<T>(pub T);
 
-/// Whether `obj` is a complex number, a complex numpy array, or a list or tuple holding one.
-fn holds_complex(obj: &Bound<'_, PyAny>) -> PyResult<bool> {
+/// The dtype of the first value in `obj` (a number, a numpy array, or a list or tuple of
+/// them) that is not a real number: a Python complex is `complex`.
+fn refused(obj: &Bound<'_, PyAny>) -> PyResult<Option<String>> {
     if obj.is_instance_of::<PyComplex>() {
-        return Ok(true);
+        return Ok(Some("complex".to_string()));
     }
-    if let Ok(dtype) = obj.getattr("dtype") {
-        return Ok(dtype.getattr("kind")?.extract::<String>()? == "c");
+    if let Some(dtype) = refused_dtype(obj)? {
+        return Ok(Some(dtype));
     }
     if obj.is_instance_of::<PyList>() || obj.is_instance_of::<PyTuple>() {
         for item in obj.try_iter()? {
-            if holds_complex(&item?)? {
-                return Ok(true);
+            if let Some(dtype) = refused(&item?)? {
+                return Ok(Some(dtype));
             }
         }
     }
-    Ok(false)
+    Ok(None)
+}
+
+/// `TypeError` naming `name` and the dtype when `obj` (a number, a numpy array, or a list or
+/// tuple of them) holds a value that is not a real number.
+pub fn check_real(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<()> {
+    match refused(obj)? {
+        Some(dtype) => Err(refusal(&format!("{name} must hold"), &dtype)),
+        None => Ok(()),
+    }
 }
 
 impl<'a, 'py, T> FromPyObject<'a, 'py> for Real<T>
@@ -36,11 +116,15 @@ where
     type Error = PyErr;
 
     fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
-        if holds_complex(&obj)? {
-            return Err(PyTypeError::new_err(
-                "expected real numbers, got complex values (pass .real to drop the imaginary part)",
-            ));
+        if let Some(dtype) = refused(&obj)? {
+            // pyo3 adds the note "while processing 'ARG'" naming the argument.
+            return Err(refusal("expected", &dtype));
         }
         Ok(Self(obj.extract::<T>()?))
     }
+}
+
+/// Adds `real_array` to the native module.
+pub fn register(module: &Bound<'_, PyModule>) -> PyResult<()> {
+    module.add_function(wrap_pyfunction!(py_real_array, module)?)
 }

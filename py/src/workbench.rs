@@ -11,7 +11,9 @@ use numpy::{Complex64, IntoPyArray, PyArray1, PyReadonlyArray2};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use sim::systems::cubli::{write_cubli_report, CubliBench, CubliDiscovery};
+use sim::systems::cubli::{
+    load_cubli, write_cubli_report, CubliBench, CubliDiscovery, CubliOptions,
+};
 use sim::systems::flying_platform::embedded_dataset;
 use sim::systems::{self, Source};
 use workbench::dataset::detect_period;
@@ -21,7 +23,8 @@ use workbench::report::{json, write_report};
 use workbench::{load, Dataset, Discovery, EstimatorChoice, Experiment, ModelFile, ModelStructure};
 
 use crate::callables::{Callables, PyDynamics};
-use crate::errors::to_py_err;
+use crate::errors::{to_py_err, ModelError};
+use crate::real::real_array;
 
 fn to_dict<'py>(py: Python<'py>, value: &serde_json::Value) -> PyResult<Bound<'py, PyAny>> {
     py.import("json")?
@@ -162,7 +165,6 @@ impl PyEffect {
                 effect.name
             ))
         })?;
-        let np = py.import("numpy")?;
         let mut additions = Vec::new();
         for (key, value) in out.iter() {
             let key: String = key.extract()?;
@@ -172,8 +174,8 @@ impl PyEffect {
                     effect.name
                 )));
             };
-            let array = np.call_method1("asarray", (value, "float64"))?;
-            let array: PyReadonlyArray2<f64> = array.extract().map_err(|_| {
+            let array = real_array(&value, &format!("effect {}: {key}", effect.name))?;
+            let array: PyReadonlyArray2<f64> = array.as_any().extract().map_err(|_| {
                 PyValueError::new_err(format!("effect {}: {key} must be a 2-D array", effect.name))
             })?;
             let array = array.as_array();
@@ -352,7 +354,7 @@ impl PyStructure {
         for ((key, part), want) in ["A", "B", "C", "D"].iter().zip(parts).zip(shapes) {
             let array = np.call_method1(
                 "atleast_2d",
-                (np.call_method1("asarray", (part, "float64"))?,),
+                (real_array(&part, &format!("model {}: {key}", self.name))?,),
             )?;
             let array: PyReadonlyArray2<f64> = array.extract().map_err(|_| {
                 PyValueError::new_err(format!("model {}: {key} must be a 2-D array", self.name))
@@ -678,12 +680,23 @@ impl Model {
         })
     }
 
-    /// Reads a model file (TOML; README "Your own system").
+    /// Reads a model file (TOML; README "Your own system"). `stabilis.ModelError` when the
+    /// file is missing, unreadable or malformed.
     #[staticmethod]
     fn from_file(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
         let file = py
             .detach(|| ModelFile::from_path(&path))
-            .map_err(to_py_err)?;
+            .map_err(|e| match e {
+                // Not a log: the model file itself is what is missing or unreadable.
+                sim::SimError::FileNotFound { path } => {
+                    ModelError::new_err(format!("model file not found: {}", path.display()))
+                }
+                sim::SimError::Io { path, source } => ModelError::new_err(format!(
+                    "cannot read model file {}: {source}",
+                    path.display()
+                )),
+                other => to_py_err(other),
+            })?;
         Ok(Self {
             structure: Arc::new(file),
             unnamed: None,
@@ -743,18 +756,16 @@ fn dataset_from_arrays(
     experiments: &[Bound<'_, PyDict>],
     sample_rate_hz: f64,
 ) -> PyResult<Dataset> {
-    let np = experiments
-        .first()
-        .map(|e| e.py().import("numpy"))
-        .transpose()?
-        .ok_or_else(|| PyValueError::new_err("data: give at least one experiment"))?;
+    if experiments.is_empty() {
+        return Err(PyValueError::new_err("data: give at least one experiment"));
+    }
     let mut out = Vec::with_capacity(experiments.len());
     for (i, e) in experiments.iter().enumerate() {
         let get = |key: &str, cols: usize| -> PyResult<Option<nalgebra::DMatrix<f64>>> {
             let Some(v) = e.get_item(key)? else {
                 return Ok(None);
             };
-            let arr = np.call_method1("asarray", (v, "float64"))?;
+            let arr = real_array(&v, &format!("data[{i}][{key:?}]"))?.into_any();
             let arr = if arr.getattr("ndim")?.extract::<usize>()? == 1 {
                 arr.call_method1("reshape", ((-1i64, 1i64),))?
             } else {
@@ -799,6 +810,20 @@ fn dataset_from_arrays(
     Ok(data)
 }
 
+/// `ValueError` when the `sample_rate_hz` given in Python contradicts the rate the data carry
+/// (logs and the embedded dataset have their own; a matching value is accepted).
+fn check_rate(given: Option<f64>, data_hz: f64) -> PyResult<()> {
+    match given {
+        Some(fs) if fs.is_nan() || (fs - data_hz).abs() > 1e-6 * data_hz.abs() => {
+            Err(PyValueError::new_err(format!(
+                "sample_rate_hz={fs} contradicts the data, which were recorded at {data_hz} Hz; \
+                 omit sample_rate_hz (it is needed only for data given as arrays) or give {data_hz}"
+            )))
+        }
+        _ => Ok(()),
+    }
+}
+
 /// What a workbench works on.
 enum Inner {
     /// FRF-based (flying platform).
@@ -814,7 +839,8 @@ enum Inner {
 }
 
 /// Workbench on one system's measurements (for the flying platform, the embedded dataset when
-/// `data` is None; the Cubli needs logs).
+/// `data` is None; the Cubli needs logs). `sample_rate_hz` is required for data given as
+/// arrays; logs carry their own rate, and a different `sample_rate_hz` is a `ValueError`.
 #[pyclass(name = "Workbench", module = "stabilis._stabilis.workbench")]
 struct Workbench {
     inner: Inner,
@@ -1001,22 +1027,20 @@ impl Workbench {
                 };
                 let s = Arc::clone(&structure);
                 let shipped_default = model.is_none() && system == "flying_platform";
+                let dataset = match dataset {
+                    Some(d) => d,
+                    None => run_with(&error, py, || match &paths {
+                        Some(p) => load::load(s.system(), &s.inputs(), &s.outputs(), p),
+                        None if shipped_default => embedded_dataset(),
+                        None => Err(sim::SimError::invalid(
+                            "data",
+                            "None",
+                            format!("{} needs measurements: data=[paths] or arrays", s.system()),
+                        )),
+                    })?,
+                };
+                check_rate(sample_rate_hz, dataset.sample_rate_hz)?;
                 let mut wb = run_with(&error, py, move || {
-                    let dataset = match (dataset, &paths) {
-                        (Some(d), _) => d,
-                        (None, Some(p)) => load::load(s.system(), &s.inputs(), &s.outputs(), p)?,
-                        (None, None) if shipped_default => embedded_dataset()?,
-                        (None, None) => {
-                            return Err(sim::SimError::invalid(
-                                "data",
-                                "None",
-                                format!(
-                                    "{} needs measurements: data=[paths] or arrays",
-                                    s.system()
-                                ),
-                            ))
-                        }
-                    };
                     workbench::Workbench::with_options(
                         s,
                         dataset,
@@ -1045,7 +1069,11 @@ impl Workbench {
                         "the cubli workbench needs logs: data=[run1.mcap, run2.mcap, ...]",
                     )
                 })?;
-                let bench = py.detach(|| CubliBench::load(&paths)).map_err(to_py_err)?;
+                let data = py.detach(|| load_cubli(&paths)).map_err(to_py_err)?;
+                check_rate(sample_rate_hz, data.sample_rate_hz)?;
+                let bench = py
+                    .detach(|| CubliBench::new(&data, &CubliOptions::default()))
+                    .map_err(to_py_err)?;
                 Inner::Cubli {
                     bench: Box::new(bench),
                     last: None,
@@ -1197,7 +1225,11 @@ impl Workbench {
         }
     }
 
-    /// The measured FRF: `(freqs_hz, G, std)` with `G` complex of shape (lines, outputs, inputs).
+    /// The measured FRF as a dict: `freqs_hz` (float array, one frequency per line), `G`
+    /// (complex array of shape (lines, outputs, inputs)), `std` (float array of `G`'s shape:
+    /// the standard deviation of each entry), `inputs` and `outputs` (channel names, in the
+    /// order of `G`'s axes) and `estimator` (`"LeastSquares"`, `"InstrumentalVariable"`,
+    /// `"H1Welch"` or `"H1WelchInstrumental"`).
     fn frf<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let Inner::Frf { wb, .. } = &self.inner else {
             return Err(PyValueError::new_err(

@@ -125,6 +125,23 @@ def test_state_is_read_from_arrays_of_any_layout_and_from_sequences():
         c.step(np.full((2, 2), 0.3))
 
 
+def test_complex_and_non_numeric_arrays_are_refused_not_truncated():
+    # numpy complex values would otherwise reach the solver as their real parts (a
+    # ComplexWarning at most); the TypeError names the dtype (pyo3 notes the argument).
+    with pytest.raises(TypeError, match="expected real numbers; got dtype complex128") as error:
+        pmpc.Controller(A + 0j, B, np.eye(4), np.eye(1), u_bounds=U_BOUNDS)
+    assert "while processing 'a'" in error.value.__notes__
+    with pytest.raises(TypeError, match="got dtype object"):
+        pmpc.Controller(A, B, np.eye(4).astype(object), np.eye(1), u_bounds=U_BOUNDS)
+    c = controller()
+    with pytest.raises(TypeError, match="x must hold real numbers; got dtype complex128"):
+        c.step(np.array(X0) + 1j)
+    with pytest.raises(TypeError, match="x must hold real numbers; got dtype complex"):
+        c.step([0.3 + 1j, 0.3, 0.3, 0.3])
+    with pytest.raises(TypeError, match="expected real numbers; got dtype complex128"):
+        c.bounds(np.array(X0) + 0j)
+
+
 def test_plan_before_the_step_and_huge_sizes_are_refused():
     c = controller()
     c.step(X0)

@@ -168,6 +168,19 @@ def test_complex_arrays_are_refused_not_truncated():
         est.d_criterion(g * (1 + 1j))
 
 
+def test_string_and_object_arrays_are_refused_not_parsed():
+    # numpy.asarray(x, float64) would parse "1" as 1.0 and unpack an object array.
+    with pytest.raises(TypeError, match="exp must hold real numbers; got dtype <U"):
+        geometry.so3.exp(np.array(["0.1", "0.2", "0.3"]))
+    with pytest.raises(TypeError, match="exp must hold real numbers; got dtype object"):
+        geometry.so3.exp(np.array([0.1, 0.2, 0.3], dtype=object))
+    positions = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [0.2 / np.sqrt(3)] * 3])
+    with pytest.raises(TypeError, match="positions must hold real numbers; got dtype <U"):
+        tilt.Estimator(positions.astype(str))
+    with pytest.raises(TypeError, match="excitation must hold real numbers; got dtype object"):
+        flying_platform.simulate(excitation=np.zeros((10, 9)).astype(object))
+
+
 def test_huge_rotation_vectors_and_measurements():
     # exp of a vector too large to square is still a rotation (about x by 1e300 rad).
     r = geometry.so3.exp(np.array([1e300, 0.0, 0.0]))

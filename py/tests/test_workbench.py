@@ -201,3 +201,20 @@ def test_cubli_bad_input_raises(tmp_path):
         stabilis.Workbench("cubli")
     with pytest.raises(stabilis.LogError):
         stabilis.Workbench("cubli", data=[str(tmp_path / "missing.mcap")])
+
+
+def test_frf_docstring_describes_the_returned_dict(wb):
+    doc = stabilis.Workbench.frf.__doc__
+    assert "(freqs_hz, G, std)" not in doc
+    frf = wb.frf()
+    assert isinstance(frf, dict)
+    for key in frf:
+        assert f"`{key}`" in doc, key
+    assert f'"{frf["estimator"]}"' in doc
+
+
+def test_cubli_sample_rate_hz_that_contradicts_the_logs_is_a_value_error(tmp_path):
+    path = str(tmp_path / "run.mcap")
+    stabilis.sim.run("cubli", duration=10.0, out=path, seed=1, tilt_deg=3.0)
+    with pytest.raises(ValueError, match="sample_rate_hz=50 contradicts the data, which were recorded at 100 Hz"):
+        stabilis.Workbench("cubli", data=[path], sample_rate_hz=50.0)

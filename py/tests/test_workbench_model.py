@@ -140,3 +140,65 @@ def test_a_bad_model_file_raises_model_error_naming_key_and_position(tmp_path):
                    '[parameters]\na = 1.0\n[linear]\nA = [["-a*bb"]]\nB = [[1]]\nC = [[1]]\n')
     with pytest.raises(stabilis.ModelError, match=r'linear.A\[0\]\[0\]: unknown name "bb" at position 4'):
         stabilis.Model.from_file(str(bad))
+
+
+def test_complex_string_and_object_arrays_are_refused_naming_the_key_and_dtype():
+    # numpy would cast complex data to their real part with only a ComplexWarning, and parse
+    # strings as numbers; the workbench refuses both (README "Guarantees").
+    e = experiments(plant(42.0, 2.4, 31.0), seeds=(1,))[0]
+    bad = [("u", e["u"] + 1j * e["u"], r'data\[0\]\["u"\] must hold real numbers; got dtype complex128'),
+           ("y", e["y"].astype(str), r'data\[0\]\["y"\] must hold real numbers; got dtype <U'),
+           ("r", e["r"].astype(object), r'data\[0\]\["r"\] must hold real numbers; got dtype object')]
+    for key, value, message in bad:
+        with pytest.raises(TypeError, match=message):
+            stabilis.Workbench(model=model(), data=[{**e, key: value}], sample_rate_hz=FS)
+    # What the user's callables return goes through the same conversion.
+    with pytest.raises(TypeError, match="model oscillator: B must hold real numbers; got dtype complex128"):
+        stabilis.Model(states=["q", "qdot"], inputs=["u"], outputs=["q"], name="oscillator",
+                       parameters={"k": 1.0},
+                       matrices=lambda p: (np.eye(2), np.ones((2, 1)) * 1j, np.ones((1, 2)),
+                                           np.zeros((1, 1))))
+    with pytest.raises(TypeError, match=r"model nl: h\(x, u, params\) must hold real numbers; got dtype complex128"):
+        stabilis.Model(states=["q"], inputs=["u"], outputs=["q"], name="nl", parameters={"k": 1.0},
+                       f=lambda x, u, p: [-p["k"] * x[0] + u[0]], h=lambda x, u, p: [x[0] + 0j],
+                       operating_point={"q": 0.0, "u": 0.0})
+    wb = stabilis.Workbench(model=model(), data=[e], sample_rate_hz=FS)
+    with pytest.raises(TypeError, match="effect cdrag: A must hold real numbers; got dtype complex128"):
+        wb.add(lambda p, m: {"A": np.zeros((2, 2)) * p["d"] * 1j}, params={"d": 0.1}, name="cdrag")
+    # Real dtypes (integers, booleans) are still read as numbers.
+    wb = stabilis.Workbench(model=model(), data=[{**e, "u": (e["u"] > 0).astype(int)}],
+                            sample_rate_hz=FS)
+    assert wb.system == "oscillator"
+
+
+def test_a_missing_model_file_is_a_model_error_naming_the_path(tmp_path):
+    missing = tmp_path / "absent.toml"
+    with pytest.raises(stabilis.ModelError, match=r"model file not found: .*absent\.toml"):
+        stabilis.Model.from_file(str(missing))
+    with pytest.raises(stabilis.ModelError, match=r"model file not found: .*absent\.toml"):
+        stabilis.Workbench(model=str(missing), data=experiments(plant(42.0, 2.4, 31.0)),
+                           sample_rate_hz=FS)
+    with pytest.raises(stabilis.ModelError, match=f"cannot read model file {tmp_path}"):
+        stabilis.Model.from_file(str(tmp_path))
+
+
+def csv_logs(directory, data, fs):
+    """The experiments as CSV logs (t, u, q, r_u) sampled at `fs`."""
+    for i, e in enumerate(data):
+        n = len(e["u"])
+        np.savetxt(directory / f"e{i}.csv", np.column_stack([np.arange(n) / fs, e["u"], e["y"], e["r"]]),
+                   delimiter=",", header="t,u,q,r_u", comments="")
+    return [str(directory)]
+
+
+def test_sample_rate_hz_that_contradicts_the_logs_is_a_value_error(tmp_path):
+    paths = csv_logs(tmp_path, experiments(plant(42.0, 2.4, 31.0)), FS)
+    with pytest.raises(ValueError, match="sample_rate_hz=100 contradicts the data, which were recorded at 50 Hz"):
+        stabilis.Workbench(model=model(), data=paths, sample_rate_hz=2 * FS)
+    # The logs' own rate, given again, is accepted and is the rate used.
+    given = stabilis.Workbench(model=model(), data=paths, sample_rate_hz=FS).compare()
+    own = stabilis.Workbench(model=model(), data=paths).compare()
+    assert given["steps"][0]["cost"] == own["steps"][0]["cost"]
+    # The embedded flying-platform dataset carries its rate (50 Hz) too.
+    with pytest.raises(ValueError, match="sample_rate_hz=200 contradicts the data, which were recorded at 50 Hz"):
+        stabilis.Workbench(sample_rate_hz=200.0)

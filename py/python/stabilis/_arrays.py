@@ -1,13 +1,12 @@
-"""Conversion of array arguments: anything ``numpy.asarray`` accepts, as float64, except complex
-values, which are refused instead of silently losing their imaginary part."""
+"""Conversion of array arguments: anything ``numpy.asarray`` accepts, as float64, except values
+of a complex, object, string or other non-numeric dtype, which are refused (TypeError naming the
+argument and the dtype) instead of silently losing their imaginary part or being parsed.
+
+``real_array`` is the native conversion (``py/src/real.rs``) that the workbench, the models'
+callables and ``pmpc`` use too: one rule for every array the package takes."""
 import numpy as np
 
-
-def real_array(x, name="argument"):
-    """``x`` as a C-contiguous float64 array; TypeError for complex input."""
-    if np.iscomplexobj(x):
-        raise TypeError(f"{name} must be real; got complex values (pass x.real to drop the imaginary part)")
-    return np.ascontiguousarray(x, dtype=np.float64)
+from ._stabilis import real_array
 
 
 def _complex(value):
