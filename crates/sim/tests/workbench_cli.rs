@@ -272,7 +272,7 @@ fn cubli_compare_fit_discover_and_report() {
     }
     assert!(!html.contains("<script"));
     let doc: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(report.join("discover.json")).unwrap())
+        serde_json::from_str(&std::fs::read_to_string(report.join("report.json")).unwrap())
             .unwrap();
     assert_eq!(doc["found"], serde_json::json!(["wheel_viscous_friction"]));
     let stderr = refused(&[

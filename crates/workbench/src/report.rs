@@ -16,17 +16,62 @@ use crate::output;
 /// Selects parameters for a named list of the summary.
 type Pick = fn(&ParamEstimate) -> bool;
 
-/// The terminal summary: one row per step with cost, reduction and fit % per output.
+/// The terminal summary of a discovery: one row per step with cost, reduction and fit % per
+/// output.
 pub fn table(wb: &Workbench, d: &Discovery) -> String {
+    summary(wb, d, false)
+}
+
+/// The terminal summary of `compare` and `fit`: [`table`] with the fitted parameters of the
+/// last step (value ± standard error, unit, documented value; held and fixed ones marked).
+pub fn fit_table(wb: &Workbench, d: &Discovery) -> String {
+    summary(wb, d, true)
+}
+
+/// `n` and the noun, in the plural unless `n` is 1 (`1 experiment`, `4 experiments`).
+pub fn count(n: usize, noun: &str) -> String {
+    if n == 1 {
+        format!("{n} {noun}")
+    } else {
+        format!("{n} {noun}s")
+    }
+}
+
+/// The end of a misfit verdict's sentence, which says that the candidates were tried.
+const NO_CANDIDATE_EXPLAINS: &str = "; no candidate effect explains it";
+
+/// A verdict's `sentence` for a record in which no candidate effect was tried (`compare`,
+/// `fit`, or a model without candidates): it does not claim that none explains the misfit.
+pub fn untried_verdict(sentence: &str, has_candidates: bool) -> String {
+    match sentence.strip_suffix(NO_CANDIDATE_EXPLAINS) {
+        Some(head) if has_candidates => format!(
+            "{head}; no candidate effect was tried (compare and fit test none: discover tries them)"
+        ),
+        Some(head) => format!("{head}; the model has no candidate effects to try"),
+        None => sentence.to_string(),
+    }
+}
+
+/// The verdict's sentence of `d` (see [`untried_verdict`]).
+pub fn verdict_text(wb: &Workbench, d: &Discovery) -> String {
+    let sentence = d.conclusion.verdict.sentence();
+    if d.steps.iter().any(|st| !st.candidates.is_empty()) {
+        sentence
+    } else {
+        untried_verdict(&sentence, !wb.model().candidates().is_empty())
+    }
+}
+
+fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
     let mut s = String::new();
     let outputs = &wb.frf().outputs;
     let _ = writeln!(
         s,
-        "FRF: {} lines {:.2}-{:.2} Hz, {} experiments, estimator: {}",
+        "FRF: {} lines {:.2}-{:.2} Hz, {}, estimator: {}",
         wb.frf().lines.len(),
         wb.frf().lines.first().map_or(0.0, |l| l.freq_hz),
         wb.frf().lines.last().map_or(0.0, |l| l.freq_hz),
-        wb.data().experiments.len(),
+        count(wb.data().experiments.len(), "experiment"),
         wb.frf().describe()
     );
     let _ = writeln!(
@@ -98,10 +143,74 @@ pub fn table(wb: &Workbench, d: &Discovery) -> String {
             }
         }
     }
-    for (name, value, why) in wb.model().structure().fixed() {
-        let _ = writeln!(s, "fixed {name} = {value} ({why})");
+    if parameters {
+        s.push_str(&parameter_lines(wb, d));
+    } else {
+        for (name, value, why) in wb.model().structure().fixed() {
+            let _ = writeln!(s, "fixed {name} = {value} ({why})");
+        }
     }
-    s.push_str(&d.conclusion.lines());
+    let sentence = d.conclusion.verdict.sentence();
+    s.push_str(
+        &d.conclusion
+            .lines()
+            .replace(&sentence, &verdict_text(wb, d)),
+    );
+    s
+}
+
+/// The parameters of the last step, one per line: value ± standard error and unit, the
+/// documented value, and why a parameter was not estimated (held, fixed) or is doubtful.
+fn parameter_lines(wb: &Workbench, d: &Discovery) -> String {
+    let Some(last) = d.steps.last() else {
+        return String::new();
+    };
+    let documented = documented(wb, d);
+    let fixed = wb.model().structure().fixed();
+    let width = last
+        .params
+        .iter()
+        .map(|p| p.name.len())
+        .chain(fixed.iter().map(|(n, _, _)| n.len()))
+        .max()
+        .unwrap_or(0);
+    let mut s = String::from("parameters (value ± standard error, unit; documented value):\n");
+    for p in &last.params {
+        // Dimensionless ("1" or none) shows no unit.
+        let unit = match p.unit.as_str() {
+            "" | "1" => String::new(),
+            u => format!(" {u}"),
+        };
+        let value = match (p.held, p.std) {
+            (true, _) => format!(
+                "{}{unit}  held at its documented value (not separable by the data)",
+                fmt_num(p.value)
+            ),
+            (false, Some(sd)) => format!("{} ± {}{unit}", fmt_num(p.value), fmt_num(sd)),
+            (false, None) => format!("{}{unit}  (no standard error)", fmt_num(p.value)),
+        };
+        let mut notes: Vec<String> = Vec::new();
+        if !p.held {
+            if let Some(doc) = documented.iter().find(|q| q.name == p.name) {
+                notes.push(format!("documented {}", fmt_num(doc.value)));
+            }
+        }
+        if p.at_bound {
+            notes.push("at a bound".into());
+        }
+        if p.poorly_determined {
+            notes.push("poorly determined".into());
+        }
+        let notes = if notes.is_empty() {
+            String::new()
+        } else {
+            format!("  ({})", notes.join(", "))
+        };
+        let _ = writeln!(s, "  {:<width$} = {value}{notes}", p.name);
+    }
+    for (name, value, why) in fixed {
+        let _ = writeln!(s, "  {name:<width$} = {}  fixed ({why})", fmt_num(value));
+    }
     s
 }
 
@@ -258,6 +367,7 @@ pub fn json(wb: &Workbench, d: &Discovery) -> Value {
         .map(|(n, v, why)| json!({"name": n, "value": v, "why": why}))
         .collect();
     let mut doc = conclusion_fields(wb.model().structure().system(), steps, &d.conclusion);
+    doc.insert("verdict_text".to_string(), json!(verdict_text(wb, d)));
     for (k, v) in [
         ("estimator", json!(wb.frf().estimator)),
         ("frequencies_hz", json!(wb.frf().freqs_hz())),
@@ -351,12 +461,16 @@ pub fn write_report(dir: &Path, wb: &Workbench, d: &Discovery) -> Result<()> {
     publish(dir, &html(wb, d), &json(wb, d))
 }
 
-/// Writes `index.html` and `discover.json` into a new directory `dir`.
+/// Name of the JSON document in a report directory, whichever verb wrote it (`discover`,
+/// `compare`, `fit`): the same document as `--json`.
+pub const REPORT_JSON: &str = "report.json";
+
+/// Writes `index.html` and [`REPORT_JSON`] into a new directory `dir`.
 pub fn publish(dir: &Path, html: &str, json: &Value) -> Result<()> {
     output::write_dir_atomically(dir, &[], |tmp| {
         let index = tmp.join("index.html");
         std::fs::write(&index, html).map_err(|e| SimError::io(&index, e))?;
-        write_json(&tmp.join("discover.json"), json)
+        write_json(&tmp.join(REPORT_JSON), json)
     })
 }
 
@@ -661,11 +775,11 @@ fn html(wb: &Workbench, d: &Discovery) -> String {
     let mut body = String::new();
     let _ = write!(
         body,
-        "<h1>stabilis workbench: {}</h1><p>Estimator: {}. {} excited lines, {} experiments. Expected cost of the true model from noise alone: {:.0}.</p>",
+        "<h1>stabilis workbench: {}</h1><p>Estimator: {}. {} excited lines, {}. Expected cost of the true model from noise alone: {:.0}.</p>",
         escape(wb.model().structure().system()),
         frf.describe(),
         f.len(),
-        wb.data().experiments.len(),
+        count(wb.data().experiments.len(), "experiment"),
         wb.noise().mean()
     );
     let _ = write!(body, "<h2>Summary</h2><pre>{}</pre>", escape(&table(wb, d)));
@@ -767,11 +881,9 @@ fn html(wb: &Workbench, d: &Discovery) -> String {
     page(&body)
 }
 
-/// Parameters per step: documented value, then value ± standard error per step (held ones
-/// marked), so that `fit` reports show nominal against fitted.
-fn parameter_table(wb: &Workbench, d: &Discovery) -> String {
-    let documented: Vec<Parameter> = d
-        .steps
+/// The documented parameters of the last step's model.
+fn documented(wb: &Workbench, d: &Discovery) -> Vec<Parameter> {
+    d.steps
         .last()
         .and_then(|st| {
             st.effects
@@ -782,7 +894,13 @@ fn parameter_table(wb: &Workbench, d: &Discovery) -> String {
                 .ok()
         })
         .and_then(|m| m.parameters().ok())
-        .unwrap_or_default();
+        .unwrap_or_default()
+}
+
+/// Parameters per step: documented value, then value ± standard error per step (held ones
+/// marked), so that `fit` reports show nominal against fitted.
+fn parameter_table(wb: &Workbench, d: &Discovery) -> String {
+    let documented = documented(wb, d);
     let steps: Vec<(Option<&str>, &[ParamEstimate])> = d
         .steps
         .iter()

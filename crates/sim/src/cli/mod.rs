@@ -189,7 +189,8 @@ impl Command {
             Self::Info(args) => args.run(),
             Self::Tilt(args) => args.run(),
             Self::Discover(args) => args.run(),
-            Self::Compare(args) | Self::Fit(args) => args.run(),
+            Self::Compare(args) => args.run(),
+            Self::Fit(args) => args.run_fit(),
             Self::Model(cmd) => cmd.run(),
             Self::Power(args) => args.run(),
         }

