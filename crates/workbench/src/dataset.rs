@@ -67,6 +67,13 @@ impl Dataset {
                 "need at least one input and one output",
             ));
         }
+        if let Some(c) = self.inputs.iter().find(|c| self.outputs.contains(c)) {
+            return Err(SimError::invalid(
+                "channels",
+                c,
+                "is named as an input and as an output; a log's column or field can feed only one",
+            ));
+        }
         if self.experiments.is_empty() {
             return Err(SimError::invalid(
                 "data",
@@ -74,11 +81,25 @@ impl Dataset {
                 "need at least one experiment",
             ));
         }
-        for e in &self.experiments {
+        for (i, e) in self.experiments.iter().enumerate() {
             check_block(&e.name, "input", &self.inputs, &e.u, e.u.nrows())?;
             check_block(&e.name, "output", &self.outputs, &e.y, e.u.nrows())?;
             if let Some(r) = &e.r {
                 check_block(&e.name, "excitation", &self.inputs, r, e.u.nrows())?;
+            }
+            if let Some(first) = self.experiments[..i]
+                .iter()
+                .find(|f| same_samples(&f.u, &e.u) && same_samples(&f.y, &e.y))
+            {
+                return Err(SimError::invalid(
+                    "data",
+                    &e.name,
+                    format!(
+                        "holds the samples of {} (within {SAME_SAMPLES:e} of their range); each \
+                         experiment must be given once, in one format",
+                        first.name
+                    ),
+                ));
             }
             if let Some(p) = e.periodic {
                 if p.period < 4 {
@@ -254,6 +275,21 @@ fn check_block(
     Ok(())
 }
 
+/// Relative distance below which two experiments hold the same samples: a log written twice in
+/// different formats (a CSV's printed digits against an MCAP's doubles) differs by rounding,
+/// two records of one rig differ by their noise.
+const SAME_SAMPLES: f64 = 1e-6;
+
+/// Whether `a` and `b` have one shape and agree within [`SAME_SAMPLES`] of their largest
+/// magnitude, compared from the first row so that different records part at once.
+fn same_samples(a: &DMatrix<f64>, b: &DMatrix<f64>) -> bool {
+    if a.shape() != b.shape() || a.is_empty() {
+        return false;
+    }
+    let tol = SAME_SAMPLES * a.amax().max(b.amax());
+    (0..a.nrows()).all(|i| (0..a.ncols()).all(|j| (a[(i, j)] - b[(i, j)]).abs() <= tol))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -368,6 +404,46 @@ mod tests {
                 }),
             }],
         }
+    }
+
+    proptest! {
+        /// An experiment given again with its samples printed to 10 digits (a CSV of an MCAP
+        /// log) is refused naming both; one that differs by noise at 1e-4 of the range is
+        /// another record.
+        #[test]
+        fn the_same_samples_twice_are_refused_and_noisy_repeats_are_not(
+            samples in proptest::collection::vec(-100.0f64..100.0, 40),
+            noise in proptest::collection::vec(-1.0f64..1.0, 40),
+        ) {
+            let scale = samples.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            prop_assume!(scale > 1.0 && noise.iter().any(|v| v.abs() > 0.5));
+            let mut d = small();
+            d.experiments[0].periodic = None;
+            d.experiments[0].u = DMatrix::from_fn(20, 1, |i, _| samples[i]);
+            d.experiments[0].y = DMatrix::from_fn(20, 1, |i, _| samples[20 + i]);
+            let mut printed = d.experiments[0].clone();
+            printed.name = "e1.csv".into();
+            printed.u = printed.u.map(|v| format!("{v:.9e}").parse().unwrap());
+            printed.y = printed.y.map(|v| format!("{v:.9e}").parse().unwrap());
+            let mut noisy = d.experiments[0].clone();
+            noisy.name = "e2".into();
+            noisy.y += DMatrix::from_fn(20, 1, |i, _| 1e-4 * scale * noise[i]);
+            let mut twice = d.clone();
+            twice.experiments.push(printed);
+            let err = twice.validate().unwrap_err().to_string();
+            prop_assert!(err.contains("e1.csv") && err.contains("holds the samples of e1"), "{}", err);
+            d.experiments.push(noisy);
+            prop_assert!(d.validate().is_ok());
+        }
+    }
+
+    #[test]
+    fn a_channel_that_is_an_input_and_an_output_is_refused() {
+        let mut d = small();
+        d.outputs = vec!["u".into()];
+        let err = d.validate().unwrap_err().to_string();
+        assert!(err.contains("\"u\"") || err.contains("= u"), "{err}");
+        assert!(err.contains("input and as an output"), "{err}");
     }
 
     #[test]

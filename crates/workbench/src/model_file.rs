@@ -422,6 +422,12 @@ impl ModelFile {
         if let Some(s) = states.iter().find(|s| inputs.contains(s)) {
             return Err(r.err("inputs", format!("{s:?} is a state and an input")));
         }
+        if let Some(o) = outputs.iter().find(|o| inputs.contains(o)) {
+            return Err(r.err(
+                "outputs",
+                format!("{o:?} is an input and an output; a log's column can feed only one"),
+            ));
+        }
 
         // The symbol table: base parameters, effect parameters, definitions.
         let mut symbols: Vec<String> = Vec::new();
@@ -1241,6 +1247,10 @@ A = { "omega,omega" = "-b/Jp" }        # added terms, keyed "row,column" by stat
                     "states = [\"theta\", \"theta\"]",
                 ),
                 vec!["states", "named twice"],
+            ),
+            (
+                PENDULUM.replace("outputs = [\"theta\"]", "outputs = [\"T\"]"),
+                vec!["outputs", "\"T\" is an input and an output"],
             ),
             (
                 PENDULUM.replace("l = 0.4", "l = 0.4\nm = 2.0"),
