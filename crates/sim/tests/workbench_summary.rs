@@ -194,3 +194,66 @@ fn one_experiment_is_counted_in_the_singular() {
     assert!(html.contains("1 experiment.") && !html.contains("1 experiments"));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Two masses joined by a spring, free to move together: A has a double zero eigenvalue,
+/// which rounding leaves at about +-1e-17.
+const TWO_MASS: &str = r#"
+name = "twomass"
+states = ["x1", "v1", "x2", "v2"]
+inputs = ["F"]
+outputs = ["x1", "x2"]
+
+[parameters]
+m1 = { value = 1.0, min = 0.1, max = 10, unit = "kg" }
+m2 = { value = 0.5, min = 0.05, max = 5, unit = "kg" }
+k  = { value = 200.0, min = 1.0, max = 2000, unit = "N/m" }
+c  = { value = 0.2, min = 0.0, max = 20, unit = "N s/m" }
+
+[linear]
+A = [[0, 1, 0, 0],
+     ["-k/m1", "-c/m1", "k/m1", "c/m1"],
+     [0, 0, 0, 1],
+     ["k/m2", "c/m2", "-k/m2", "-c/m2"]]
+B = [[0], ["1/m1"], [0], [0]]
+C = [[1, 0, 0, 0], [0, 0, 1, 0]]
+"#;
+
+#[test]
+fn model_check_puts_both_zero_eigenvalues_on_the_imaginary_axis() {
+    let dir = scratch("eig");
+    let file = dir.join("twomass.toml");
+    std::fs::write(&file, TWO_MASS).unwrap();
+    let f = file.to_str().unwrap();
+    let stdout = ok(&["model", "check", f]);
+    assert!(stdout.contains("no unstable eigenvalue"), "{stdout}");
+    let axis = stdout
+        .lines()
+        .find(|l| l.starts_with("on the imaginary axis"))
+        .unwrap_or_else(|| panic!("{stdout}"));
+    assert_eq!(axis.matches("0.00000 +0.00000i").count(), 2, "{axis}");
+    let json: serde_json::Value =
+        serde_json::from_str(&ok(&["model", "check", f, "--json"])).unwrap();
+    assert_eq!(json["unstable"], serde_json::json!([]));
+    assert_eq!(json["marginal"].as_array().unwrap().len(), 2, "{json}");
+    assert_eq!(json["eigenvalues"].as_array().unwrap().len(), 4);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bounds_the_wrong_way_round_are_named_as_such() {
+    let dir = scratch("minmax");
+    let file = dir.join("bad.toml");
+    let text = TWO_MASS.replace(
+        "m2 = { value = 0.5, min = 0.05, max = 5,",
+        "m2 = { value = 0.5, min = 5, max = 0.05,",
+    );
+    assert_ne!(text, TWO_MASS);
+    std::fs::write(&file, text).unwrap();
+    let stderr = refused(&["model", "check", file.to_str().unwrap()]);
+    assert!(
+        stderr.contains("bad.toml: parameters.m2: min 5 > max 0.05"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("lies outside"), "{stderr}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

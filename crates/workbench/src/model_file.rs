@@ -254,6 +254,9 @@ impl Reader<'_> {
         if !p.value.is_finite() {
             return Err(self.err(key, format!("value {} is not finite", p.value)));
         }
+        if p.lower > p.upper {
+            return Err(self.err(key, format!("min {} > max {}", p.lower, p.upper)));
+        }
         if !(p.lower <= p.value && p.value <= p.upper) {
             return Err(self.err(
                 key,

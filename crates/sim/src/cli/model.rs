@@ -1,10 +1,10 @@
 //! `stabilis model check FILE`: a model file at its documented values: the matrices, the
-//! eigenvalues (which are unstable), the effects discovery will try, and which parameters the
+//! eigenvalues (which are unstable, which lie on the imaginary axis), the effects discovery will try, and which parameters the
 //! outputs cannot separate.
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use nalgebra::DMatrix;
+use nalgebra::{Complex, DMatrix};
 use serde_json::json;
 
 use super::Output;
@@ -50,6 +50,23 @@ fn render(name: &str, m: &DMatrix<f64>) -> String {
     out
 }
 
+/// Real parts within `1e-9 max(1, |A|)` (Frobenius norm) of zero are taken as zero: rounding
+/// leaves the eigenvalues of a double integrator at +-1e-17, not 0.
+const EIGENVALUE_TOLERANCE: f64 = 1e-9;
+
+/// The tolerance on real parts and the eigenvalues `eig` of `a` that are unstable (real part
+/// above it) and on the imaginary axis (within it).
+fn classify(a: &DMatrix<f64>, eig: &[Complex<f64>]) -> (f64, Vec<Complex<f64>>, Vec<Complex<f64>>) {
+    let tolerance = EIGENVALUE_TOLERANCE * a.norm().max(1.0);
+    let unstable = eig.iter().copied().filter(|l| l.re > tolerance).collect();
+    let marginal = eig
+        .iter()
+        .copied()
+        .filter(|l| l.re.abs() <= tolerance)
+        .collect();
+    (tolerance, unstable, marginal)
+}
+
 impl CheckArgs {
     /// Reads and analyses the file.
     pub fn run(&self) -> Result<Output> {
@@ -60,11 +77,14 @@ impl CheckArgs {
         let theta: Vec<f64> = params.iter().map(|p| p.value).collect();
         let id = identifiability::analyse(&model, &theta)?;
         let eig = ss.a.complex_eigenvalues();
-        let unstable: Vec<String> = eig
-            .iter()
-            .filter(|l| l.re > 0.0)
-            .map(|l| format!("{:.5} {:+.5}i", l.re, l.im))
-            .collect();
+        let (tolerance, unstable, marginal) = classify(&ss.a, eig.as_slice());
+        let show = |ls: &[Complex<f64>]| -> String {
+            ls.iter()
+                .map(|l| format!("{:.5} {:+.5}i", l.re, l.im))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let pairs = |ls: &[Complex<f64>]| ls.iter().map(|l| [l.re, l.im]).collect::<Vec<_>>();
         let mut human = format!(
             "{} ({}): states {}, inputs {}, outputs {}\n",
             file.system(),
@@ -94,8 +114,17 @@ impl CheckArgs {
         human.push_str(&if unstable.is_empty() {
             "no unstable eigenvalue\n".to_string()
         } else {
-            format!("unstable (real part > 0): {}\n", unstable.join(", "))
+            format!(
+                "unstable (real part > {tolerance:.1e}): {}\n",
+                show(&unstable)
+            )
         });
+        if !marginal.is_empty() {
+            human.push_str(&format!(
+                "on the imaginary axis (|real part| <= {tolerance:.1e}, marginally stable at best): {}\n",
+                show(&marginal)
+            ));
+        }
         human.push_str(&format!(
             "effects discovery tries: {}\n",
             model
@@ -129,10 +158,34 @@ impl CheckArgs {
             "parameters": params,
             "A": rows(&ss.a), "B": rows(&ss.b), "C": rows(&ss.c), "D": rows(&ss.d),
             "eigenvalues": eig.iter().map(|l| [l.re, l.im]).collect::<Vec<_>>(),
-            "unstable": eig.iter().filter(|l| l.re > 0.0).map(|l| [l.re, l.im]).collect::<Vec<_>>(),
+            "unstable": pairs(&unstable),
+            "marginal": pairs(&marginal),
+            "eigenvalue_tolerance": tolerance,
             "candidates": model.candidates(),
             "identifiability": id,
         });
         Ok(Output { human, json })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn both_zero_eigenvalues_of_a_double_integrator_lie_on_the_imaginary_axis() {
+        let a = DMatrix::from_row_slice(2, 2, &[0.0, 1.0, 0.0, 0.0]);
+        // What rounding leaves of them.
+        let eig = [Complex::new(2.2e-17, 0.0), Complex::new(-2.2e-17, 0.0)];
+        let (tolerance, unstable, marginal) = classify(&a, &eig);
+        assert_eq!(tolerance, 1e-9);
+        assert!(unstable.is_empty());
+        assert_eq!(marginal.len(), 2);
+        // Relative to the matrix: a small real part of a large matrix is zero too.
+        let big = &a * 1e6;
+        let (_, unstable, marginal) = classify(&big, &[Complex::new(1e-5, 3.0)]);
+        assert!(unstable.is_empty() && marginal.len() == 1);
+        let (_, unstable, _) = classify(&a, &[Complex::new(1e-6, 0.0)]);
+        assert_eq!(unstable.len(), 1);
     }
 }
