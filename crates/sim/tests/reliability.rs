@@ -377,7 +377,7 @@ fn workbench_logs_with_uneven_time_or_a_wrong_rate_or_given_twice_are_refused() 
     let g = good.to_str().unwrap();
     // The same log twice, by two spellings.
     let again = fp.join(".").join("flying_platform_hover.mcap");
-    let run = stabilis(&["fit", "--data", g, again.to_str().unwrap()]);
+    let run = stabilis(&["compare", "--data", g, again.to_str().unwrap()]);
     let stderr = text(&run.stderr);
     assert_eq!(run.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("is the same log as"), "{stderr}");
@@ -391,7 +391,7 @@ fn workbench_logs_with_uneven_time_or_a_wrong_rate_or_given_twice_are_refused() 
             m.insert("sample_rate_hz".into(), "1000".into());
         },
     );
-    let run = stabilis(&["fit", "--data", wrong_rate.to_str().unwrap()]);
+    let run = stabilis(&["compare", "--data", wrong_rate.to_str().unwrap()]);
     let stderr = text(&run.stderr);
     assert_eq!(run.status.code(), Some(2), "{stderr}");
     assert!(
@@ -406,7 +406,7 @@ fn workbench_logs_with_uneven_time_or_a_wrong_rate_or_given_twice_are_refused() 
         |k, t| if k == 100 { t + 0.01 } else { t },
         |_| {},
     );
-    let run = stabilis(&["fit", "--data", uneven.to_str().unwrap()]);
+    let run = stabilis(&["compare", "--data", uneven.to_str().unwrap()]);
     let stderr = text(&run.stderr);
     assert_eq!(run.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("uneven sampling"), "{stderr}");
@@ -418,7 +418,7 @@ fn a_cut_off_log_is_read_with_a_warning() {
     let bytes = std::fs::read(hover_log(&dir.join("fp"), 30.0)).unwrap();
     let cut = dir.join("cut.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() * 3 / 4]).unwrap();
-    let run = stabilis(&["fit", "--data", cut.to_str().unwrap()]);
+    let run = stabilis(&["compare", "--data", cut.to_str().unwrap()]);
     let stderr = text(&run.stderr);
     assert!(
         stderr.contains("warning:") && stderr.contains("incomplete"),
