@@ -257,3 +257,34 @@ fn bounds_the_wrong_way_round_are_named_as_such() {
     assert!(!stderr.contains("lies outside"), "{stderr}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A loop that grows without overflowing (a controller pole at 1.02 per sample: 4e8-fold over
+/// the record) is named as diverging in `closed_loop_error`, not scored as a fit of -1e16 %.
+#[test]
+fn a_slowly_diverging_closed_loop_is_named() {
+    let dir = scratch("diverging");
+    let model = dir.join("lag.toml");
+    let controller = "\n[controller]\nsample_rate_hz = 100\ntype = \"discrete\"\n\
+                      A = [[1.02]]\nB = [[1]]\nC = [[0.001]]\nD = [[0]]\n";
+    std::fs::write(&model, format!("{LAG_MODEL}{controller}")).unwrap();
+    let data = dir.join("runs");
+    std::fs::create_dir_all(&data).unwrap();
+    one_experiment(&data);
+    let json: serde_json::Value = serde_json::from_str(&ok(&[
+        "compare",
+        "--model",
+        model.to_str().unwrap(),
+        "--data",
+        data.to_str().unwrap(),
+        "--json",
+    ]))
+    .unwrap();
+    let time_fit = &json["steps"][0]["time_fit"];
+    let why = time_fit["closed_loop_error"].as_str().unwrap_or_default();
+    assert!(
+        why.contains("diverges in") && why.contains("-fold"),
+        "{time_fit}"
+    );
+    assert!(time_fit["closed_loop"].is_null(), "{time_fit}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -56,6 +56,14 @@ pub fn closed_loop_fit(
             let mean = c.mean();
             c.add_scalar_mut(-mean);
         }
+        let growth = growth(&y);
+        if growth > GROWTH {
+            return Err(format!(
+                "the loop of the fitted model and the controller diverges in {}: the output rms \
+                 grows {growth:.1e}-fold from the second to the last quarter of the record",
+                e.name
+            ));
+        }
         measured.push((ym, from));
         simulated.push(y);
     }
@@ -70,6 +78,27 @@ pub fn closed_loop_fit(
         ),
         fit: data.outputs.iter().cloned().zip(fit).collect(),
     })
+}
+
+/// Growth of the output rms over a record above which a simulated loop counts as diverged
+/// (a stable loop driven by a stationary excitation and noise keeps its level; an unstable one
+/// that is slow to overflow, such as a controller pole just outside the unit circle, would
+/// otherwise score a fit of -1e24 %).
+pub const GROWTH: f64 = 10.0;
+
+/// The largest ratio over the outputs of the rms over the last quarter of `y` to the rms over
+/// its second quarter (the first holds the start-up).
+pub fn growth(y: &DMatrix<f64>) -> f64 {
+    let q = y.nrows() / 4;
+    if q == 0 {
+        return 1.0;
+    }
+    y.column_iter()
+        .map(|c| {
+            let rms = |from: usize| c.rows(from, q).norm();
+            rms(y.nrows() - q) / rms(q).max(f64::MIN_POSITIVE)
+        })
+        .fold(0.0, f64::max)
 }
 
 /// The rate the controller runs at, Hz.

@@ -223,9 +223,38 @@ pub enum Verdict {
     },
 }
 
+/// Whether a result put candidate effects to the test, for the closing words of a misfit
+/// verdict: only a discovery that tried them may say that none explains the misfit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Candidates {
+    /// The discovery loop scored the model's candidates.
+    Tried,
+    /// The model has candidates but this result (`compare`, `fit`) tested none.
+    Untried,
+    /// The model declares no candidate effects.
+    Absent,
+}
+
+impl Candidates {
+    /// What a result on `model` that `tried` its candidates (or not) may say of them.
+    pub fn of(model: &Model, tried: bool) -> Self {
+        match (model.candidates().is_empty(), tried) {
+            (true, _) => Self::Absent,
+            (false, true) => Self::Tried,
+            (false, false) => Self::Untried,
+        }
+    }
+}
+
 impl Verdict {
-    /// A sentence for the summary.
+    /// A sentence for the summary, after a discovery that tried the candidates.
     pub fn sentence(&self) -> String {
+        self.sentence_given(Candidates::Tried)
+    }
+
+    /// A sentence for the summary; a misfit's closing words say what `candidates` allows.
+    pub fn sentence_given(&self, candidates: Candidates) -> String {
         match self {
             Self::ExplainedToNoiseLevel { p_value } => {
                 format!("explained to the noise level (p = {p_value:.3} for the remaining cost under noise alone)")
@@ -252,8 +281,15 @@ impl Verdict {
                     }
                     (None, true) => String::new(),
                 };
+                let closing = match candidates {
+                    Candidates::Tried => "no candidate effect explains it",
+                    Candidates::Untried => {
+                        "no candidate effect was tried (compare and fit test none: discover tries them)"
+                    }
+                    Candidates::Absent => "the model has no candidate effects to try",
+                };
                 format!(
-                    "unexplained structured misfit (p = {p_value:.2e}) in outputs [{}]{place}; no candidate effect explains it",
+                    "unexplained structured misfit (p = {p_value:.2e}) in outputs [{}]{place}; {closing}",
                     outputs.join(", "),
                 )
             }
@@ -291,6 +327,8 @@ pub struct Conclusion {
     pub verdict: Verdict,
     /// Significance level of the tests.
     pub level: f64,
+    /// Whether the candidates were tried ([`Conclusion::settle`] assumes so).
+    pub candidates: Candidates,
 }
 
 impl Conclusion {
@@ -315,7 +353,18 @@ impl Conclusion {
             unexplained,
             verdict,
             level,
+            candidates: Candidates::Tried,
         }
+    }
+
+    /// The same conclusion for a result that tried the candidates or not (see [`Candidates`]).
+    pub fn with_candidates(self, candidates: Candidates) -> Self {
+        Self { candidates, ..self }
+    }
+
+    /// The verdict's sentence, with the closing words the candidates allow.
+    pub fn verdict_sentence(&self) -> String {
+        self.verdict.sentence_given(self.candidates)
     }
 
     /// A sentence naming the tentative effects and why; `None` when there are none.
@@ -335,7 +384,7 @@ impl Conclusion {
         if let Some(t) = self.tentative_sentence() {
             let _ = writeln!(s, "tentative: {t}");
         }
-        let _ = writeln!(s, "verdict: {}", self.verdict.sentence());
+        let _ = writeln!(s, "verdict: {}", self.verdict_sentence());
         s
     }
 }
@@ -673,7 +722,8 @@ impl Workbench {
         let unexplained = matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. });
         Discovery {
             steps: vec![step],
-            conclusion: Conclusion::settle(Vec::new(), Vec::new(), unexplained, verdict, LEVEL),
+            conclusion: Conclusion::settle(Vec::new(), Vec::new(), unexplained, verdict, LEVEL)
+                .with_candidates(Candidates::of(&self.model, false)),
             weighting,
         }
     }
@@ -751,7 +801,7 @@ impl Workbench {
                 .filter(|(_, sd)| **sd > 0.0)
                 .map(|(g, sd)| bias * g.norm() / sd)
                 .fold(0.0, f64::max);
-            if ratio > SMOOTHING_BIAS_LIMIT && worst.map_or(true, |w| ratio > w.0) {
+            if ratio > SMOOTHING_BIAS_LIMIT && worst.is_none_or(|w| ratio > w.0) {
                 worst = Some((ratio, freq, width, bias));
             }
         }
@@ -849,7 +899,8 @@ impl Workbench {
             self.weighting_sentence(&steps.last().map(|s| s.effects.clone()).unwrap_or_default());
         Ok(Discovery {
             steps,
-            conclusion: Conclusion::settle(found, caveats, unexplained, verdict, LEVEL),
+            conclusion: Conclusion::settle(found, caveats, unexplained, verdict, LEVEL)
+                .with_candidates(Candidates::of(&self.model, true)),
             weighting,
         })
     }

@@ -32,7 +32,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 
-use super::closed_loop::{controller_rate, run_loop};
+use super::closed_loop::{controller_rate, growth, run_loop, GROWTH};
 use super::dataset::{Dataset, Experiment, Periodic};
 use super::diagnose::LEVEL;
 use super::kalman::Predictor;
@@ -377,25 +377,6 @@ fn check_values(values: &[f64], p: &super::model::Parameter) -> Result<()> {
 /// Simulated records per noise source the calibration averages over (a short record's
 /// period-to-period noise varies much from one draw to the next).
 const CALIBRATION_DRAWS: usize = 8;
-
-/// Growth of the output rms over a record above which a simulated loop counts as diverged
-/// (a stable loop driven by a stationary excitation and noise keeps its level).
-const GROWTH: f64 = 10.0;
-
-/// The largest ratio over the outputs of the rms over the last quarter of `y` to the rms over
-/// its second quarter (the first holds the start-up).
-fn growth(y: &DMatrix<f64>) -> f64 {
-    let q = y.nrows() / 4;
-    if q == 0 {
-        return 1.0;
-    }
-    y.column_iter()
-        .map(|c| {
-            let rms = |from: usize| c.rows(from, q).norm();
-            rms(y.nrows() - q) / rms(q).max(f64::MIN_POSITIVE)
-        })
-        .fold(0.0, f64::max)
-}
 
 /// A symmetric positive semi-definite matrix's square root factor `L` (`L Lᵀ = S`) from its
 /// eigen-decomposition, negative rounding clipped (the process covariance may be singular).

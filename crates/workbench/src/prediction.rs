@@ -764,7 +764,8 @@ impl Workbench {
         Ok(Discovery {
             weighting: "time-domain prediction error of the extended Kalman predictor in absolute units; every model under the gain and the inverse innovation covariance of the starting model's fit".to_string(),
             steps,
-            conclusion: Conclusion::settle(found, why.into_iter().collect(), unexplained, verdict, LEVEL),
+            conclusion: Conclusion::settle(found, why.into_iter().collect(), unexplained, verdict, LEVEL)
+                .with_candidates(super::discover::Candidates::of(&self.model, true)),
         })
     }
 

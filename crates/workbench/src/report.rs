@@ -37,31 +37,6 @@ pub fn count(n: usize, noun: &str) -> String {
     }
 }
 
-/// The end of a misfit verdict's sentence, which says that the candidates were tried.
-const NO_CANDIDATE_EXPLAINS: &str = "; no candidate effect explains it";
-
-/// A verdict's `sentence` for a record in which no candidate effect was tried (`compare`,
-/// `fit`, or a model without candidates): it does not claim that none explains the misfit.
-pub fn untried_verdict(sentence: &str, has_candidates: bool) -> String {
-    match sentence.strip_suffix(NO_CANDIDATE_EXPLAINS) {
-        Some(head) if has_candidates => format!(
-            "{head}; no candidate effect was tried (compare and fit test none: discover tries them)"
-        ),
-        Some(head) => format!("{head}; the model has no candidate effects to try"),
-        None => sentence.to_string(),
-    }
-}
-
-/// The verdict's sentence of `d` (see [`untried_verdict`]).
-pub fn verdict_text(wb: &Workbench, d: &Discovery) -> String {
-    let sentence = d.conclusion.verdict.sentence();
-    if d.steps.iter().any(|st| !st.candidates.is_empty()) {
-        sentence
-    } else {
-        untried_verdict(&sentence, !wb.model().candidates().is_empty())
-    }
-}
-
 fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
     let mut s = String::new();
     let outputs = &wb.frf().outputs;
@@ -150,12 +125,7 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
             let _ = writeln!(s, "fixed {name} = {value} ({why})");
         }
     }
-    let sentence = d.conclusion.verdict.sentence();
-    s.push_str(
-        &d.conclusion
-            .lines()
-            .replace(&sentence, &verdict_text(wb, d)),
-    );
+    s.push_str(&d.conclusion.lines());
     s
 }
 
@@ -367,7 +337,10 @@ pub fn json(wb: &Workbench, d: &Discovery) -> Value {
         .map(|(n, v, why)| json!({"name": n, "value": v, "why": why}))
         .collect();
     let mut doc = conclusion_fields(wb.model().structure().system(), steps, &d.conclusion);
-    doc.insert("verdict_text".to_string(), json!(verdict_text(wb, d)));
+    doc.insert(
+        "verdict_text".to_string(),
+        json!(d.conclusion.verdict_sentence()),
+    );
     for (k, v) in [
         ("estimator", json!(wb.frf().estimator)),
         ("frequencies_hz", json!(wb.frf().freqs_hz())),
@@ -436,7 +409,7 @@ pub fn conclusion_fields(
         ("tentative_why", json!(c.caveats)),
         ("unexplained", json!(c.unexplained)),
         ("verdict", json!(c.verdict)),
-        ("verdict_text", json!(c.verdict.sentence())),
+        ("verdict_text", json!(c.verdict_sentence())),
         ("level", json!(c.level)),
     ] {
         m.insert(k.to_string(), v);

@@ -742,7 +742,7 @@ pub struct CubliDiscovery {
 impl CubliDiscovery {
     /// The verdict's sentence, with the tentative effects and why.
     pub fn verdict_sentence(&self) -> String {
-        let mut text = self.conclusion.verdict.sentence();
+        let mut text = self.conclusion.verdict_sentence();
         if let (false, Some(last)) = (self.conclusion.tentative.is_empty(), self.steps.last()) {
             text.push_str(&format!(
                 " ([{}] lower the cost by {:.2}% but are tentative, not found: {})",
