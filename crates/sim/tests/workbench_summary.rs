@@ -288,3 +288,37 @@ fn a_slowly_diverging_closed_loop_is_named() {
     assert!(time_fit["closed_loop"].is_null(), "{time_fit}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `--band-hz` narrows a periodic estimate to its excited lines within the band (it used to be
+/// ignored unless the logs went through Welch); a band without a line is refused.
+#[test]
+fn a_band_keeps_the_periodic_lines_within_it() {
+    let dir = scratch("band");
+    let model = dir.join("lag.toml");
+    std::fs::write(&model, LAG_MODEL).unwrap();
+    let data = dir.join("runs");
+    std::fs::create_dir_all(&data).unwrap();
+    one_experiment(&data);
+    let (m, d) = (model.to_str().unwrap(), data.to_str().unwrap());
+    let json: serde_json::Value = serde_json::from_str(&ok(&[
+        "compare",
+        "--model",
+        m,
+        "--data",
+        d,
+        "--band-hz",
+        "2.5,7.5",
+        "--json",
+    ]))
+    .unwrap();
+    assert_eq!(
+        json["frequencies_hz"],
+        serde_json::json!([3.0, 4.0, 5.0, 6.0, 7.0])
+    );
+    let stderr = refused(&["compare", "--model", m, "--data", d, "--band-hz", "30,40"]);
+    assert!(
+        stderr.contains("holds none of the 20 excited lines"),
+        "{stderr}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

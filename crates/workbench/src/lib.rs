@@ -77,8 +77,9 @@ pub struct Workbench {
 /// Choices a user may make about the data; the defaults take everything from the data.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct DataOptions {
-    /// The band of a Welch estimate, Hz, when the experiment was designed for a known band;
-    /// `None` finds it from the data ([`welch::excited_band`]).
+    /// The band, Hz, when the experiment was designed for a known band: a Welch estimate
+    /// covers it, a periodic one keeps its excited lines within it; `None` finds it from the
+    /// data ([`welch::excited_band`], every excited line).
     pub band_hz: Option<(f64, f64)>,
     /// The criterion; `None`: the prediction error for a nonlinear model, else the FRF
     /// ([`Criterion::default_for`]).
@@ -145,7 +146,20 @@ impl Workbench {
             }
         }
         let (frf, noise) = if data.is_periodic() {
-            let frf = frf::periodic_frf(&data, estimator)?;
+            let mut frf = frf::periodic_frf(&data, estimator)?;
+            if let Some((lo, hi)) = options.band_hz {
+                // The excited lines within the band: the user's band narrows the periodic
+                // estimate as it sets the Welch one.
+                let all = frf.lines.len();
+                frf.lines.retain(|l| (lo..=hi).contains(&l.freq_hz));
+                if frf.lines.is_empty() {
+                    return Err(SimError::invalid(
+                        "band",
+                        format!("{lo},{hi} Hz"),
+                        format!("holds none of the {all} excited lines of the periodic logs"),
+                    ));
+                }
+            }
             let noise = NoiseReference::periodic(&frf, NOISE_DRAWS, 0x5eed)?;
             (frf, noise)
         } else {

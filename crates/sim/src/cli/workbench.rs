@@ -39,8 +39,8 @@ pub struct Common {
     /// Non-parametric estimator.
     #[arg(long, value_enum, default_value = "auto")]
     pub estimator: EstimatorArg,
-    /// Band of a Welch estimate in Hz, LOW,HIGH, for an excitation designed for it (default:
-    /// the band the data excite).
+    /// Band in Hz, LOW,HIGH, for an excitation designed for it: a Welch estimate covers it, a
+    /// periodic one keeps its excited lines within it (default: the band the data excite).
     #[arg(long, value_name = "LOW,HIGH", value_delimiter = ',', num_args = 1)]
     pub band_hz: Vec<f64>,
     /// Criterion: frf (variance-weighted FRF misfit) or time (prediction error of the
