@@ -49,16 +49,28 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
         count(wb.data().experiments.len(), "experiment"),
         wb.frf().describe()
     );
-    let _ = writeln!(
-        s,
-        "noise level: expected cost {:.0} for the true model ({} real residuals)",
-        wb.noise().mean(),
-        wb.noise().n_residuals
-    );
+    // The FRF criterion's cost is judged against the FRF's noise reference; the time
+    // criterion's (a prediction error in absolute units) by its innovations' tests.
+    let normalized = if wb.criterion() == crate::Criterion::Time {
+        let _ = writeln!(
+            s,
+            "noise level: cost is the prediction error in absolute units, cost/resid. its mean \
+             per residual; the residual tests below judge the noise level"
+        );
+        "cost/resid."
+    } else {
+        let _ = writeln!(
+            s,
+            "noise level: expected cost {:.0} for the true model ({} real residuals)",
+            wb.noise().mean(),
+            wb.noise().n_residuals
+        );
+        "cost/noise"
+    };
     let _ = write!(
         s,
         "{:<5} {:<16} {:>12} {:>9} {:>8}",
-        "step", "effect added", "cost", "reduct.%", "cost/noise"
+        "step", "effect added", "cost", "reduct.%", normalized
     );
     for o in outputs {
         let _ = write!(s, " {:>7}", format!("fit%{o}"));

@@ -244,6 +244,12 @@ fn nothing_hidden_finds_nothing() {
         let wb = workbench(campaign(0.0, 0.0, seed));
         assert_eq!(wb.criterion(), Criterion::Time);
         let d = wb.discover().unwrap();
+        // The summary judges this cost by the residual tests, not the FRF's noise reference.
+        let summary = workbench::report::table(&wb, &d);
+        assert!(
+            summary.contains("cost/resid.") && !summary.contains("expected cost"),
+            "{summary}"
+        );
         assert!(
             d.conclusion.found.is_empty() && d.conclusion.tentative.is_empty(),
             "seed {seed}: {:?} {:?}",
