@@ -96,19 +96,20 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
     let last = d.steps.last();
     if let Some(st) = last {
         for c in &st.candidates {
+            if c.abandoned {
+                // Its cost is where the fit stopped, not a fitted one: no reduction to show.
+                let _ = writeln!(
+                    s,
+                    "  not added: {:<15} fit stopped: the linear model of its cost cannot reach \
+                     the significance threshold  +{} params",
+                    c.effect, c.added_parameters,
+                );
+                continue;
+            }
             let _ = writeln!(
                 s,
-                "  not added: {:<15} reduction {:>6.2}%  +{} params  p = {:.2e}  dBIC {:+.1}{}",
-                c.effect,
-                c.reduction_percent,
-                c.added_parameters,
-                c.p_value,
-                c.delta_bic,
-                if c.abandoned {
-                    "  (fit stopped: cannot reach the noise threshold)"
-                } else {
-                    ""
-                }
+                "  not added: {:<15} reduction {:>6.2}%  +{} params  p = {:.2e}  dBIC {:+.1}",
+                c.effect, c.reduction_percent, c.added_parameters, c.p_value, c.delta_bic,
             );
         }
         let lists: [(&str, Pick); 2] = [

@@ -250,6 +250,22 @@ fn nothing_hidden_finds_nothing() {
             summary.contains("cost/resid.") && !summary.contains("expected cost"),
             "{summary}"
         );
+        // A candidate whose fit stopped early shows no reduction: its cost is not a fitted one.
+        for c in d
+            .steps
+            .iter()
+            .flat_map(|s| &s.candidates)
+            .filter(|c| c.abandoned)
+        {
+            let line = summary
+                .lines()
+                .find(|l| l.contains(&format!("not added: {}", c.effect)))
+                .unwrap_or_else(|| panic!("{summary}"));
+            assert!(
+                line.contains("fit stopped") && !line.contains("reduction"),
+                "{line}"
+            );
+        }
         assert!(
             d.conclusion.found.is_empty() && d.conclusion.tentative.is_empty(),
             "seed {seed}: {:?} {:?}",
