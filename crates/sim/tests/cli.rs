@@ -1,23 +1,15 @@
 //! The `stabilis` binary end to end: exit codes, messages, and the logs it writes.
 #![allow(clippy::unwrap_used)]
-use std::path::PathBuf;
-use std::process::{Command, Output};
+mod common;
 
-fn stabilis(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_stabilis"))
-        .args(args)
-        .output()
-        .unwrap()
-}
+use std::path::PathBuf;
+
+use common::{stabilis, text};
 
 fn temp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("sim-cli-tests-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     dir.join(name)
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
 }
 
 #[test]

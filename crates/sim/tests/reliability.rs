@@ -3,30 +3,18 @@
 //! machine are refused before anything is allocated, damaged logs are named errors, and a
 //! closed pipe is not a crash.
 #![allow(clippy::unwrap_used)]
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
-fn stabilis(args: &[&str]) -> Output {
-    stabilis_in(Path::new("."), args)
-}
-
-fn stabilis_in(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_stabilis"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .unwrap()
-}
+use common::{stabilis, stabilis_in, text};
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("sim-reliability-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
 }
 
 /// A short wheel-pendulum log at `path`.

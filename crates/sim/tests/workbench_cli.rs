@@ -3,36 +3,12 @@
 #![allow(clippy::unwrap_used)]
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
+mod common;
+
+use common::{ok, refused};
 use sim::log::LogWriter;
 use sim::systems::flying_platform::embedded_dataset;
-
-fn stabilis(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_stabilis"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-/// Runs the binary, asserts exit code 0 and returns its stdout.
-fn ok(args: &[&str]) -> String {
-    let run = stabilis(args);
-    assert_eq!(
-        run.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    String::from_utf8_lossy(&run.stdout).into_owned()
-}
-
-/// Runs the binary, asserts exit code 2 (bad input) and returns its stderr.
-fn refused(args: &[&str]) -> String {
-    let run = stabilis(args);
-    assert_eq!(run.status.code(), Some(2), "{:?}", run);
-    String::from_utf8_lossy(&run.stderr).into_owned()
-}
 
 fn temp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("sim-workbench-cli-{}", std::process::id()));

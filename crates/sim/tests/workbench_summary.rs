@@ -2,33 +2,11 @@
 //! that claims no candidate test that was not run, `fit` without an effect refused, counts in
 //! the singular, eigenvalues on the imaginary axis, and bounds the wrong way round.
 #![allow(clippy::unwrap_used)]
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn stabilis(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_stabilis"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
-
-/// Runs the binary, asserts exit code 0 and returns its stdout.
-fn ok(args: &[&str]) -> String {
-    let run = stabilis(args);
-    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
-    text(&run.stdout)
-}
-
-/// Runs the binary, asserts exit code 2 and returns its stderr.
-fn refused(args: &[&str]) -> String {
-    let run = stabilis(args);
-    assert_eq!(run.status.code(), Some(2), "{run:?}");
-    text(&run.stderr)
-}
+use common::{ok, refused};
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("sim-summary-{}-{name}", std::process::id()));
