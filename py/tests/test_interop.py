@@ -23,6 +23,16 @@ def stabilis_bin():
     return str(path)
 
 
+def discover_model_file(model: Path, data: Path, tmp: Path) -> dict:
+    """`stabilis discover --model MODEL --data DATA --json FILE` (exit code 0 asserted): the JSON."""
+    out = tmp / "discover.json"
+    done = subprocess.run([stabilis_bin(), "discover", "--model", str(model), "--data",
+                           str(data), "--json", str(out)], capture_output=True, text=True,
+                          check=False)
+    assert done.returncode == 0, done.stderr
+    return json.loads(out.read_text())
+
+
 def run_cli(*args):
     return subprocess.run([stabilis_bin(), *args], capture_output=True, text=True, check=False)
 

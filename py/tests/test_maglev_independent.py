@@ -10,14 +10,12 @@ Every (truth, seed) is its own case, so the pass rate is the count of passing ca
 """
 from __future__ import annotations
 
-import json
-import subprocess
 from pathlib import Path
 
 import pytest
 
 import independent_maglev as im
-from test_interop import stabilis_bin
+from test_interop import discover_model_file
 
 MODEL = Path(__file__).parent / "data" / "maglev.toml"
 TOLERANCE = 0.15  # relative, on the hidden parameters
@@ -38,12 +36,7 @@ def campaign(tmp: Path, hidden: dict, seed: int) -> Path:
 
 
 def discover_cli(data: Path, tmp: Path) -> dict:
-    out = tmp / "discover.json"
-    done = subprocess.run([stabilis_bin(), "discover", "--model", str(MODEL), "--data",
-                           str(data), "--json", str(out)], capture_output=True, text=True,
-                          check=False)
-    assert done.returncode == 0, done.stderr
-    return json.loads(out.read_text())
+    return discover_model_file(MODEL, data, tmp)
 
 
 @pytest.mark.parametrize("seed", SEEDS)

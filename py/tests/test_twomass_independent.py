@@ -8,14 +8,12 @@ passing cases.
 """
 from __future__ import annotations
 
-import json
-import subprocess
 from pathlib import Path
 
 import pytest
 
 import independent_twomass as tm
-from test_interop import stabilis_bin
+from test_interop import discover_model_file
 
 MODEL = Path(__file__).parent / "data" / "twomass.toml"
 B2 = 0.8  # the hidden friction of mass 2, N s/m
@@ -23,12 +21,7 @@ B2 = 0.8  # the hidden friction of mass 2, N s/m
 
 def discover(tmp: Path, b2: float, seconds: float, seed: int) -> dict:
     data = tm.campaign(tmp / "data", tm.Plant(b2=b2), seconds=seconds, seed=seed)
-    out = tmp / "discover.json"
-    done = subprocess.run([stabilis_bin(), "discover", "--model", str(MODEL), "--data",
-                           str(data), "--json", str(out)], capture_output=True, text=True,
-                          check=False)
-    assert done.returncode == 0, done.stderr
-    return json.loads(out.read_text())
+    return discover_model_file(MODEL, data, tmp)
 
 
 @pytest.mark.parametrize("seed", (1, 2))
