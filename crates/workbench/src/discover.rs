@@ -288,9 +288,13 @@ impl Verdict {
                     }
                     Candidates::Absent => "the model has no candidate effects to try",
                 };
+                let which = if outputs.is_empty() {
+                    "in the outputs together (none alone is flagged)".to_string()
+                } else {
+                    format!("in outputs [{}]", outputs.join(", "))
+                };
                 format!(
-                    "unexplained structured misfit (p = {p_value:.2e}) in outputs [{}]{place}; {closing}",
-                    outputs.join(", "),
+                    "unexplained structured misfit (p = {p_value:.2e}) {which}{place}; {closing}"
                 )
             }
         }
@@ -990,8 +994,36 @@ where
 
 #[cfg(test)]
 mod tests {
-    use super::{Conclusion, Verdict};
+    use super::{Candidates, Conclusion, Verdict};
     use proptest::prelude::*;
+
+    /// A misfit no single output carries says so instead of "in outputs []"; the closing words
+    /// follow what was tried.
+    #[test]
+    fn a_misfit_sentence_names_its_outputs_or_says_none_alone() {
+        let misfit = |outputs: Vec<String>| Verdict::UnexplainedStructuredMisfit {
+            p_value: 3.6e-3,
+            outputs,
+            band_hz: None,
+            worst_entries: Vec::new(),
+        };
+        let together = misfit(Vec::new()).sentence();
+        assert!(
+            together.contains("in the outputs together (none alone is flagged)")
+                && !together.contains("[]"),
+            "{together}"
+        );
+        let named = misfit(vec!["x".into(), "theta".into()]);
+        assert!(named
+            .sentence()
+            .contains("in outputs [x, theta]; no candidate effect explains it"));
+        assert!(named.sentence_given(Candidates::Untried).ends_with(
+            "no candidate effect was tried (compare and fit test none: discover tries them)"
+        ));
+        assert!(named
+            .sentence_given(Candidates::Absent)
+            .ends_with("the model has no candidate effects to try"));
+    }
 
     proptest! {
         /// Every added effect ends in exactly one list, in its order; effects are tentative

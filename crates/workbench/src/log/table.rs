@@ -2,7 +2,7 @@
 //! which identification and plotting want measurements.
 use crate::error::{Result, SimError};
 
-/// How far one step of `t` may stray from the mean step of a uniformly sampled table, as a
+/// How far one step of `t` may stray from the median step of a uniformly sampled table, as a
 /// fraction of that step (timestamps printed to a few digits stay well inside it; a missing or
 /// repeated sample is a whole step off).
 pub const UNIFORM_TOLERANCE: f64 = 0.01;
@@ -117,7 +117,7 @@ impl Table {
     }
 
     /// The sample rate of a uniformly sampled table, Hz: a named error unless `t` increases in
-    /// steps that each stay within [`UNIFORM_TOLERANCE`] of their mean, and, when `declared`
+    /// steps that each stay within [`UNIFORM_TOLERANCE`] of their median, and, when `declared`
     /// (the `sample_rate_hz` of the experiment record), unless that rate agrees with the steps
     /// to the same tolerance. The spectral and time-domain fits assume one known step, so
     /// either problem is an error, not a warning.
@@ -137,21 +137,28 @@ impl Table {
         }
         let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
         for (k, w) in t.windows(2).enumerate() {
-            let step = w[1] - w[0];
-            if step.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            if (w[1] - w[0]).partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                 return Err(SimError::invalid(
                     format!("t of {name} at sample {}", k + 1),
                     w[1],
                     format!("must increase (the sample before is at t = {})", w[0]),
                 ));
             }
-            if (step - dt).abs() > UNIFORM_TOLERANCE * dt {
+        }
+        // Steps are judged against the median step, which a gap does not move (against the
+        // mean, one long gap makes every regular step look uneven and is named at sample 1).
+        let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+        let mid = steps.len() / 2;
+        let typical = *steps.select_nth_unstable_by(mid, f64::total_cmp).1;
+        for (k, w) in t.windows(2).enumerate() {
+            let step = w[1] - w[0];
+            if (step - typical).abs() > UNIFORM_TOLERANCE * typical {
                 return Err(SimError::invalid(
                     format!("t of {name} at sample {}", k + 1),
                     w[1],
                     format!(
-                        "uneven sampling: a step of {step} s where the mean step is {dt} s \
-                         (samples missing, repeated or out of order?)"
+                        "uneven sampling: a step of {step:.6} s where the typical (median) step \
+                         is {typical:.6} s (samples missing, repeated or out of order?)"
                     ),
                 ));
             }

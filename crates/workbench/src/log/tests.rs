@@ -522,6 +522,25 @@ fn uneven_or_mislabelled_sampling_is_named() {
     );
 }
 
+/// 100 samples missing in the middle of a 100 Hz record: the gap is named at its own sample
+/// (judged against the mean step, which the gap raises, sample 1 was named).
+#[test]
+fn a_gap_is_named_where_it_is() {
+    let mut table = Table::new("/demo/x", ["a"]);
+    for k in (0..4000).chain(4100..9000) {
+        table.push(k as f64 * 0.01, &[1.0]).unwrap();
+    }
+    let err = table
+        .sample_rate(None, std::path::Path::new("run.csv"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("at sample 4000")
+            && err.contains("step of 1.010000 s where the typical (median) step is 0.010000 s"),
+        "{err}"
+    );
+}
+
 #[test]
 fn the_same_log_twice_is_refused() {
     let a = temp("once.mcap");
