@@ -289,7 +289,7 @@ pub fn check_name(name: &str) -> Result<(), String> {
         && chars.all(|c| c.is_ascii_alphanumeric() || c == '_');
     if !ok {
         return Err(format!(
-            "{name:?} is not a name (letters, digits and '_', starting with a letter)"
+            "{name:?} is not a name (ASCII letters, digits and '_', not starting with a digit)"
         ));
     }
     if RESERVED.contains(&name) {
@@ -395,5 +395,8 @@ mod tests {
         assert!(check_name("e").is_err());
         assert!(check_name("2x").is_err());
         assert!(check_name("J_p2").is_ok());
+        // Names are ASCII, and the message says so (θ is a letter, but not one of them).
+        let err = check_name("θ").unwrap_err();
+        assert!(err.contains("ASCII letters"), "{err}");
     }
 }
