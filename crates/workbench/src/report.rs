@@ -350,10 +350,6 @@ pub fn json(wb: &Workbench, d: &Discovery) -> Value {
         .map(|(n, v, why)| json!({"name": n, "value": v, "why": why}))
         .collect();
     let mut doc = conclusion_fields(wb.model().structure().system(), steps, &d.conclusion);
-    doc.insert(
-        "verdict_text".to_string(),
-        json!(d.conclusion.verdict_sentence()),
-    );
     for (k, v) in [
         ("estimator", json!(wb.frf().estimator)),
         ("frequencies_hz", json!(wb.frf().freqs_hz())),
