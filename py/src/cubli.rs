@@ -16,7 +16,7 @@ use pyo3::types::{PyComplex, PyDict};
 use sim::scenarios::cubli::{learn_jump as learn_jump_trials, Jump, JumpSetup};
 
 use crate::errors::{to_py_err, Error, IntoPyError};
-use crate::real::Real;
+use crate::real::{real, Real};
 
 impl IntoPyError for CubliError {
     fn into_py_error(self) -> PyErr {
@@ -58,7 +58,7 @@ impl PyParams {
         theta0: Option<Real<Vec<Vec<f64>>>>,
         theta_w: Option<Real<Vec<f64>>>,
         m: Option<Real<Vec<f64>>>,
-        gravity: Option<f64>,
+        gravity: Option<Real<f64>>,
     ) -> PyResult<Self> {
         let r = Params::reference();
         let theta0 = match theta0 {
@@ -75,8 +75,8 @@ impl PyParams {
             .transpose()?
             .unwrap_or(*r.theta_w());
         let m = m.map(|v| vec3("m", v.0)).transpose()?.unwrap_or(*r.m());
-        let inner =
-            Params::new(theta0, theta_w, m, gravity.unwrap_or(r.gravity())).map_err(to_py_err)?;
+        let inner = Params::new(theta0, theta_w, m, gravity.map_or(r.gravity(), |g| g.0))
+            .map_err(to_py_err)?;
         Ok(Self { inner })
     }
 
@@ -203,10 +203,10 @@ impl PyBackstepping {
     #[pyo3(signature = (params=None, alpha=15.0, beta=18.0, gamma=12.0, delta=1e-5))]
     fn new(
         params: Option<&PyParams>,
-        alpha: f64,
-        beta: f64,
-        gamma: f64,
-        delta: f64,
+        #[pyo3(from_py_with = real)] alpha: f64,
+        #[pyo3(from_py_with = real)] beta: f64,
+        #[pyo3(from_py_with = real)] gamma: f64,
+        #[pyo3(from_py_with = real)] delta: f64,
     ) -> PyResult<Self> {
         let gains = Gains::new(alpha, beta, gamma, delta).map_err(to_py_err)?;
         Ok(Self {
@@ -258,7 +258,7 @@ fn poles3(poles: Vec<Bound<'_, PyAny>>) -> PyResult<[Complex<f64>; 3]> {
     for (o, p) in out.iter_mut().zip(&poles) {
         let c: Complex<f64> = match p.cast::<PyComplex>() {
             Ok(c) => Complex::new(c.real(), c.imag()),
-            Err(_) => Complex::new(p.extract::<f64>()?, 0.0),
+            Err(_) => Complex::new(p.extract::<Real<f64>>()?.0, 0.0),
         };
         *o = c;
     }
@@ -268,7 +268,11 @@ fn poles3(poles: Vec<Bound<'_, PyAny>>) -> PyResult<[Complex<f64>; 3]> {
 /// Tuning method (1.34): gains (alpha, beta, gamma, delta) placing the tilt poles at `poles`
 /// (three real or complex numbers) with yaw rate `gamma_hat`, for |m||g| = `mg`.
 #[pyfunction]
-fn tune(poles: Vec<Bound<'_, PyAny>>, gamma_hat: f64, mg: f64) -> PyResult<(f64, f64, f64, f64)> {
+fn tune(
+    poles: Vec<Bound<'_, PyAny>>,
+    #[pyo3(from_py_with = real)] gamma_hat: f64,
+    #[pyo3(from_py_with = real)] mg: f64,
+) -> PyResult<(f64, f64, f64, f64)> {
     let g = TiltPolynomial::from_poles(&poles3(poles)?)
         .and_then(|t| t.gains(gamma_hat, mg))
         .map_err(to_py_err)?;
@@ -374,11 +378,11 @@ fn nominal_wheel_speeds<'py>(
 fn learn_jump<'py>(
     py: Python<'py>,
     trials: usize,
-    start_scale: f64,
-    torque_max: f64,
+    #[pyo3(from_py_with = real)] start_scale: f64,
+    #[pyo3(from_py_with = real)] torque_max: f64,
     guided: bool,
     jump: &str,
-    brake_spread: f64,
+    #[pyo3(from_py_with = real)] brake_spread: f64,
     seed: u64,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
     if torque_max.is_nan() || torque_max <= 0.0 {

@@ -17,6 +17,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::errors::{to_py_err, Error, IntoPyError};
+use crate::real::{real, Real};
 
 impl IntoPyError for EventEstError {
     fn into_py_error(self) -> PyErr {
@@ -125,13 +126,14 @@ fn platoon_model(py: Python<'_>, vehicles: usize) -> PyResult<Bound<'_, PyDict>>
 fn synthesize<'py>(
     py: Python<'py>,
     model: &Bound<'py, PyDict>,
-    j_max: Option<f64>,
+    j_max: Option<Real<f64>>,
     condition: &str,
     objective: &str,
-    relax: Option<f64>,
+    relax: Option<Real<f64>>,
     max_iter: usize,
     solver: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let (j_max, relax) = (j_max.map(|j| j.0), relax.map(|r| r.0));
     let sys = system(model, true)?;
     let stability = Stability::parse(condition).map_err(to_py_err)?;
     let chosen = match solver {
@@ -249,10 +251,10 @@ fn simulate<'py>(
     l: PyReadonlyArrayDyn<'py, f64>,
     delta: Vec<PyReadonlyArrayDyn<'py, f64>>,
     steps: usize,
-    loss: f64,
-    x0: Option<Vec<f64>>,
-    noise_output: Option<Vec<f64>>,
-    noise_input: Option<Vec<f64>>,
+    #[pyo3(from_py_with = real)] loss: f64,
+    x0: Option<Real<Vec<f64>>>,
+    noise_output: Option<Real<Vec<f64>>>,
+    noise_input: Option<Real<Vec<f64>>>,
     seed: u64,
     local_update: bool,
     communicated_inputs: bool,
@@ -267,7 +269,7 @@ fn simulate<'py>(
         l: matrix(&l, "L")?,
         delta,
     };
-    let noise = match (noise_output, noise_input) {
+    let noise = match (noise_output.map(|o| o.0), noise_input.map(|i| i.0)) {
         (None, None) => None,
         (o, i) => Some(event_est::model::UniformNoise {
             output: o.unwrap_or_else(|| vec![0.0; sys.p()]),
@@ -291,7 +293,7 @@ fn simulate<'py>(
     } else {
         InputMode::Reconstructed
     };
-    if let Some(x0) = x0 {
+    if let Some(Real(x0)) = x0 {
         cfg.x0 = DVector::from_vec(x0);
     }
     let r = py

@@ -16,7 +16,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyComplex, PyDict};
 
 use crate::errors::{to_py_err, Error, IntoPyError, SimError};
-use crate::real::Real;
+use crate::real::{real, Real};
 
 impl IntoPyError for fp::Error {
     fn into_py_error(self) -> PyErr {
@@ -141,7 +141,11 @@ impl PyModel {
     }
 
     /// Sets a named effect parameter (bounds checked).
-    fn set_parameter(&mut self, name: &str, value: f64) -> PyResult<()> {
+    fn set_parameter(
+        &mut self,
+        name: &str,
+        #[pyo3(from_py_with = real)] value: f64,
+    ) -> PyResult<()> {
         self.inner.set_parameter(name, value).map_err(to_py_err)
     }
 
@@ -236,7 +240,7 @@ fn effects(py: Python<'_>) -> PyResult<Vec<Bound<'_, PyDict>>> {
 /// {"k" (9, 3), "p" (3, 3), "poles" (rate loop), "trim" (9,)}.
 #[pyfunction]
 #[pyo3(signature = (l3 = 0.079))]
-fn controller(py: Python<'_>, l3: f64) -> PyResult<Bound<'_, PyDict>> {
+fn controller(py: Python<'_>, #[pyo3(from_py_with = real)] l3: f64) -> PyResult<Bound<'_, PyDict>> {
     let mut design = fp::PlatformParams::nominal();
     design.l3 = l3;
     let c = fp::CascadedController::new(
@@ -291,10 +295,10 @@ fn design(seed: u64, lambda: Option<[f64; 3]>, periods: usize) -> PyResult<fp::E
 fn experiment_design(
     py: Python<'_>,
     seed: u64,
-    lambda_: Option<[f64; 3]>,
+    lambda_: Option<Real<[f64; 3]>>,
     periods: usize,
 ) -> PyResult<Bound<'_, PyDict>> {
-    let d = design(seed, lambda_, periods)?;
+    let d = design(seed, lambda_.map(|l| l.0), periods)?;
     let signals: PyResult<Vec<Vec<[f64; 9]>>> = (0..18)
         .map(|e| d.excitation(e).map_err(to_py_err))
         .collect();
@@ -330,7 +334,7 @@ fn config(
     noise_free: bool,
     seed: u64,
     log_delay_samples: usize,
-    set: Option<Vec<(String, f64)>>,
+    set: Option<Vec<(String, Real<f64>)>>,
 ) -> PyResult<fp::SimConfig> {
     let (dynamics, params) = match dynamics {
         "linear" => (fp::Dynamics::Linear, fp::PlatformParams::default()),
@@ -345,7 +349,7 @@ fn config(
     if truth.effects.contains(fp::Effect::InputDelay) {
         truth.set_parameter("td", td).map_err(to_py_err)?;
     }
-    for (name, value) in set.unwrap_or_default() {
+    for (name, Real(value)) in set.unwrap_or_default() {
         truth.set_parameter(&name, value).map_err(to_py_err)?;
     }
     let mut cfg = fp::SimConfig::reference(truth, dynamics, seed).map_err(to_py_err)?;
@@ -381,15 +385,15 @@ fn log_dict<'py>(py: Python<'py>, log: &fp::SimLog) -> PyResult<Bound<'py, PyDic
 fn simulate<'py>(
     py: Python<'py>,
     scenario: &str,
-    duration: f64,
+    #[pyo3(from_py_with = real)] duration: f64,
     effects: &str,
-    td: f64,
+    #[pyo3(from_py_with = real)] td: f64,
     dynamics: &str,
     noise_free: bool,
     seed: u64,
     log_delay_samples: usize,
-    set: Option<Vec<(String, f64)>>,
-    step: Option<[f64; 3]>,
+    set: Option<Vec<(String, Real<f64>)>>,
+    step: Option<Real<[f64; 3]>>,
     excitation: Option<PyReadonlyArray2<'py, f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     if !(duration.is_finite() && duration > 0.0) {
@@ -421,7 +425,7 @@ fn simulate<'py>(
             });
         }
         "step" => {
-            let s = step.unwrap_or([1.0, 0.0, 0.0]);
+            let s = step.map_or([1.0, 0.0, 0.0], |s| s.0);
             sc.setpoints = vec![(
                 0.0,
                 Setpoint {
@@ -462,14 +466,14 @@ fn simulate<'py>(
 fn run_experiments<'py>(
     py: Python<'py>,
     effects: &str,
-    td: f64,
+    #[pyo3(from_py_with = real)] td: f64,
     dynamics: &str,
     noise_free: bool,
     seed: u64,
-    lambda_: Option<[f64; 3]>,
+    lambda_: Option<Real<[f64; 3]>>,
     periods: usize,
     log_delay_samples: usize,
-    set: Option<Vec<(String, f64)>>,
+    set: Option<Vec<(String, Real<f64>)>>,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
     let cfg = config(
         effects,
@@ -480,7 +484,7 @@ fn run_experiments<'py>(
         log_delay_samples,
         set,
     )?;
-    let d = design(seed, lambda_, periods)?;
+    let d = design(seed, lambda_.map(|l| l.0), periods)?;
     let runs = py
         .detach(|| fp::run_experiments(&cfg, &d))
         .map_err(to_py_err)?;
@@ -503,10 +507,10 @@ fn run_experiments<'py>(
 #[pyo3(signature = (mass = 8.0, i1 = 0.07, l3 = 0.17, horizon = 1.0))]
 fn gramian(
     py: Python<'_>,
-    mass: f64,
-    i1: f64,
-    l3: f64,
-    horizon: f64,
+    #[pyo3(from_py_with = real)] mass: f64,
+    #[pyo3(from_py_with = real)] i1: f64,
+    #[pyo3(from_py_with = real)] l3: f64,
+    #[pyo3(from_py_with = real)] horizon: f64,
 ) -> PyResult<Bound<'_, PyDict>> {
     let mut p = fp::PlatformParams::nominal();
     p.mass = mass;
@@ -527,7 +531,13 @@ fn gramian(
 /// Optimal lever arm l3 (m) maximising l3 / I1(l3), with I1 = I0 + 2 l1² m_t + k δ² l3² m_t.
 #[pyfunction]
 #[pyo3(signature = (i0 = 0.014, unit_mass = 1.2, l1 = 0.1, delta = 0.75, vertical_factor = 2.0))]
-fn optimal_l3(i0: f64, unit_mass: f64, l1: f64, delta: f64, vertical_factor: f64) -> PyResult<f64> {
+fn optimal_l3(
+    #[pyo3(from_py_with = real)] i0: f64,
+    #[pyo3(from_py_with = real)] unit_mass: f64,
+    #[pyo3(from_py_with = real)] l1: f64,
+    #[pyo3(from_py_with = real)] delta: f64,
+    #[pyo3(from_py_with = real)] vertical_factor: f64,
+) -> PyResult<f64> {
     LeverArmTradeoff {
         i0,
         unit_mass,

@@ -9,6 +9,7 @@ use pyo3::prelude::*;
 use rigid_body::{matrix_set, s2, so3};
 
 use crate::errors::to_py_err;
+use crate::real::real;
 
 const VECTOR: &[usize] = &[3];
 const MATRIX: &[usize] = &[3, 3];
@@ -178,7 +179,7 @@ vector_to_matrix_fn! {
 fn s2_project<'py>(
     py: Python<'py>,
     x: PyReadonlyArrayDyn<'py, f64>,
-    radius: f64,
+    #[pyo3(from_py_with = real)] radius: f64,
 ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     map_items(py, &x, "x", VECTOR, VECTOR, |d| {
         let p = s2::project(&vector(d), radius).map_err(to_py_err)?;

@@ -12,7 +12,7 @@ use rigid_body::laguerre::Laguerre;
 use rigid_body::siqp::Settings;
 
 use crate::errors::{to_py_err, Error, IntoPyError};
-use crate::real::{check_real, Real};
+use crate::real::{check_real, real, Real};
 
 impl IntoPyError for PmpcError {
     fn into_py_error(self) -> PyErr {
@@ -80,10 +80,10 @@ impl PyController {
         cu: Option<Real<Vec<Vec<f64>>>>,
         lower: Option<Real<Vec<f64>>>,
         upper: Option<Real<Vec<f64>>>,
-        nu: f64,
+        #[pyo3(from_py_with = real)] nu: f64,
         s: usize,
-        td: f64,
-        tolerance: f64,
+        #[pyo3(from_py_with = real)] td: f64,
+        #[pyo3(from_py_with = real)] tolerance: f64,
         max_iter: usize,
         budget: Option<usize>,
         max_check_steps: usize,
@@ -172,7 +172,11 @@ impl PyController {
     }
 
     /// Planned input t >= 0 seconds after the last step (shape (m,)).
-    fn input_at<'py>(&self, py: Python<'py>, t: f64) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    fn input_at<'py>(
+        &self,
+        py: Python<'py>,
+        #[pyo3(from_py_with = real)] t: f64,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let mut out = vec![0.0; self.inner.problem().m()];
         self.inner.input_at(t, &mut out).map_err(to_py_err)?;
         Ok(PyArray1::from_vec(py, out))

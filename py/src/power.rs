@@ -11,6 +11,7 @@ use workbench::model_file::ModelFile;
 use workbench::power::{self, Outcome, Study, StudyOptions, StudySpec};
 
 use crate::errors::to_py_err;
+use crate::real::Real;
 
 fn spec_of(text: &str) -> PyResult<StudySpec> {
     serde_json::from_str(text)
@@ -31,7 +32,7 @@ fn prepare(
     model: PathBuf,
     data: Vec<PathBuf>,
     effect: String,
-    values: Vec<f64>,
+    values: Real<Vec<f64>>,
     campaigns: usize,
     seed: u64,
     estimator: &str,
@@ -48,7 +49,7 @@ fn prepare(
                 logs,
                 &StudyOptions {
                     effect,
-                    values,
+                    values: values.0,
                     campaigns,
                     seed,
                     estimator: estimator.to_string(),

@@ -5,7 +5,11 @@
 //! `ComplexWarning`, and parse an array of strings as numbers.) [`real_array`] converts an
 //! array argument to float64 under this rule; a [`Real`] argument checks it before extracting
 //! a number or a sequence; the Python wrappers call [`real_array`] through
-//! `stabilis._arrays.real_array`.
+//! `stabilis._arrays.real_array`. Number arguments follow the rule too: `Option<Real<f64>>`, or
+//! `#[pyo3(from_py_with = real)] x: f64`, which keeps a default such as `nu=0.7` readable in
+//! the Python signature (a `Real(0.7)` default shows as `...`); the Python wrappers convert a
+//! number with [`real_scalar`] (`stabilis._arrays.real_scalar`) where they called `float()`. A
+//! Python `complex` is refused even with a zero imaginary part, like a complex array.
 use numpy::{PyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -124,7 +128,30 @@ where
     }
 }
 
-/// Adds `real_array` to the native module.
+/// A number argument, `#[pyo3(from_py_with = real)] x: f64`: a [`Real<f64>`] whose default
+/// stays a plain number in the Python signature.
+pub fn real(obj: &Bound<'_, PyAny>) -> PyResult<f64> {
+    Ok(obj.extract::<Real<f64>>()?.0)
+}
+
+/// `stabilis._arrays.real_scalar(x, name="argument")`: `x` as a float by the rule of a
+/// `Real<f64>` argument, for the Python wrappers (`float(x)` keeps the real part of a numpy
+/// complex and parses a string); a `TypeError` names `name`.
+#[pyfunction]
+#[pyo3(signature = (x, name = "argument"))]
+pub fn real_scalar(x: &Bound<'_, PyAny>, name: &str) -> PyResult<f64> {
+    check_real(x, name)?;
+    x.extract().map_err(|e: PyErr| {
+        if e.is_instance_of::<PyTypeError>(x.py()) {
+            PyTypeError::new_err(format!("{name}: {}", e.value(x.py())))
+        } else {
+            e
+        }
+    })
+}
+
+/// Adds `real_array` and `real_scalar` to the native module.
 pub fn register(module: &Bound<'_, PyModule>) -> PyResult<()> {
-    module.add_function(wrap_pyfunction!(py_real_array, module)?)
+    module.add_function(wrap_pyfunction!(py_real_array, module)?)?;
+    module.add_function(wrap_pyfunction!(real_scalar, module)?)
 }

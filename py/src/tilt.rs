@@ -12,7 +12,7 @@ use pyo3::types::PyDict;
 use pyo3::IntoPyObjectExt;
 
 use crate::errors::{to_py_err, Error, IntoPyError};
-use crate::real::Real;
+use crate::real::{real, Real};
 
 impl IntoPyError for TiltError {
     fn into_py_error(self) -> PyErr {
@@ -78,9 +78,9 @@ impl PyEstimator {
     #[pyo3(signature = (positions, q = None, r = None, tol = 1e-8, max_iterations = 10_000, biases = None))]
     fn new(
         positions: PyReadonlyArrayDyn<'_, f64>,
-        q: Option<f64>,
-        r: Option<f64>,
-        tol: f64,
+        q: Option<Real<f64>>,
+        r: Option<Real<f64>>,
+        #[pyo3(from_py_with = real)] tol: f64,
         max_iterations: usize,
         biases: Option<PyReadonlyArrayDyn<'_, f64>>,
     ) -> PyResult<Self> {
@@ -98,7 +98,7 @@ impl PyEstimator {
         };
         match (q, r) {
             (None, None) => {}
-            (Some(q), Some(r)) => options = options.with_step_sizes(&layout, q, r),
+            (Some(Real(q)), Some(Real(r))) => options = options.with_step_sizes(&layout, q, r),
             _ => {
                 return Err(PyValueError::new_err(
                     "give both step sizes q and r, or neither",
@@ -203,7 +203,7 @@ impl PyEstimator {
         omega: Real<[f64; 3]>,
         omega_dot: Real<[f64; 3]>,
         g: Real<[f64; 3]>,
-        sigma: f64,
+        #[pyo3(from_py_with = real)] sigma: f64,
     ) -> PyResult<Bound<'py, PyDict>> {
         let f = ::tilt::fisher_information(
             self.inner.layout(),

@@ -24,7 +24,7 @@ use workbench::{load, Dataset, Discovery, EstimatorChoice, Experiment, ModelFile
 
 use crate::callables::{Callables, PyDynamics};
 use crate::errors::{to_py_err, ModelError};
-use crate::real::real_array;
+use crate::real::{real_array, Real};
 
 fn to_dict<'py>(py: Python<'py>, value: &serde_json::Value) -> PyResult<Bound<'py, PyAny>> {
     py.import("json")?
@@ -57,13 +57,13 @@ impl Effect {
         name: String,
         params: &Bound<'_, PyDict>,
         func: Py<PyAny>,
-        bounds: Option<HashMap<String, (f64, f64)>>,
+        bounds: Option<HashMap<String, Real<(f64, f64)>>>,
         units: Option<HashMap<String, String>>,
         description: &str,
     ) -> PyResult<Self> {
         let params: Vec<(String, f64)> = params
             .iter()
-            .map(|(k, v)| Ok((k.extract::<String>()?, v.extract::<f64>()?)))
+            .map(|(k, v)| Ok((k.extract::<String>()?, v.extract::<Real<f64>>()?.0)))
             .collect::<PyResult<_>>()
             .map_err(|_| {
                 PyTypeError::new_err(format!(
@@ -92,8 +92,7 @@ impl Effect {
             .map(|(p, value)| {
                 let (lower, upper) = bounds
                     .get(&p)
-                    .copied()
-                    .unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
+                    .map_or((f64::NEG_INFINITY, f64::INFINITY), |b| b.0);
                 let unit = units.get(&p).cloned().unwrap_or_default();
                 Parameter::new(p, value, lower, upper, unit)
             })
@@ -474,9 +473,9 @@ fn py_parameter(name: &str, spec: &Bound<'_, PyAny>) -> PyResult<(Parameter, boo
             "parameter {name}: give a number, (value, min, max) or a dict with value, min, max, unit, fixed"
         ))
     };
-    let (value, lower, upper, unit, fixed) = if let Ok(v) = spec.extract::<f64>() {
+    let (value, lower, upper, unit, fixed) = if let Ok(Real(v)) = spec.extract::<Real<f64>>() {
         (v, f64::NEG_INFINITY, f64::INFINITY, String::new(), false)
-    } else if let Ok((v, lo, hi)) = spec.extract::<(f64, f64, f64)>() {
+    } else if let Ok(Real((v, lo, hi))) = spec.extract::<Real<(f64, f64, f64)>>() {
         (v, lo, hi, String::new(), false)
     } else if let Ok(d) = spec.cast::<PyDict>() {
         for key in d.keys() {
@@ -488,14 +487,16 @@ fn py_parameter(name: &str, spec: &Bound<'_, PyAny>) -> PyResult<(Parameter, boo
             }
         }
         let num = |k: &str, default: f64| -> PyResult<f64> {
-            d.get_item(k)?
-                .map_or(Ok(default), |v| v.extract::<f64>().map_err(|_| bad()))
+            d.get_item(k)?.map_or(Ok(default), |v| {
+                Ok(v.extract::<Real<f64>>().map_err(|_| bad())?.0)
+            })
         };
         let value = d
             .get_item("value")?
             .ok_or_else(|| PyValueError::new_err(format!("parameter {name}: missing value")))?
-            .extract::<f64>()
-            .map_err(|_| bad())?;
+            .extract::<Real<f64>>()
+            .map_err(|_| bad())?
+            .0;
         let unit = d
             .get_item("unit")?
             .map_or(Ok(String::new()), |u| u.extract::<String>())?;
@@ -611,7 +612,7 @@ impl Model {
                             "model {name}: operating_point is missing {n:?}"
                         ))
                     })?;
-                    let v: f64 = v.extract().map_err(|_| {
+                    let Real(v) = v.extract::<Real<f64>>().map_err(|_| {
                         PyTypeError::new_err(format!(
                             "model {name}: operating_point[{n:?}] must be a number"
                         ))
@@ -947,9 +948,10 @@ impl Workbench {
         data: Option<&Bound<'_, PyAny>>,
         estimator: &str,
         model: Option<&Bound<'_, PyAny>>,
-        sample_rate_hz: Option<f64>,
+        sample_rate_hz: Option<Real<f64>>,
         criterion: Option<&str>,
     ) -> PyResult<Self> {
+        let sample_rate_hz = sample_rate_hz.map(|fs| fs.0);
         let criterion = match criterion {
             None => None,
             Some("frf") => Some(workbench::Criterion::Frf),
@@ -1100,7 +1102,7 @@ impl Workbench {
         py: Python<'_>,
         effect: &Bound<'_, PyAny>,
         params: Option<&Bound<'_, PyDict>>,
-        bounds: Option<HashMap<String, (f64, f64)>>,
+        bounds: Option<HashMap<String, Real<(f64, f64)>>>,
         units: Option<HashMap<String, String>>,
         name: Option<String>,
     ) -> PyResult<()> {
@@ -1179,7 +1181,7 @@ impl Workbench {
         py: Python<'_>,
         effect: &Bound<'_, PyAny>,
         params: Option<&Bound<'_, PyDict>>,
-        bounds: Option<HashMap<String, (f64, f64)>>,
+        bounds: Option<HashMap<String, Real<(f64, f64)>>>,
         units: Option<HashMap<String, String>>,
         name: Option<String>,
     ) -> PyResult<()> {
@@ -1259,7 +1261,7 @@ fn user_effect<'py>(
     py: Python<'py>,
     effect: &Bound<'py, PyAny>,
     params: Option<&Bound<'py, PyDict>>,
-    bounds: Option<HashMap<String, (f64, f64)>>,
+    bounds: Option<HashMap<String, Real<(f64, f64)>>>,
     units: Option<HashMap<String, String>>,
     name: Option<String>,
 ) -> PyResult<Bound<'py, Effect>> {

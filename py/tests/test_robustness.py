@@ -181,6 +181,46 @@ def test_string_and_object_arrays_are_refused_not_parsed():
         flying_platform.simulate(excitation=np.zeros((10, 9)).astype(object))
 
 
+# One number argument of each module: (call with the value, its name, a valid float and
+# int or None). numpy complex scalars have __float__, which keeps the real part with only a
+# ComplexWarning; a Python complex is refused even with a zero imaginary part, like arrays.
+_A = np.diag(np.ones(3), 1)
+_B = np.array([[0.0], [0.0], [0.0], [1.0]])
+_POSITIONS = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [0.2 / np.sqrt(3)] * 3])
+SCALAR_ARGUMENTS = {
+    "pmpc": (lambda v: stabilis.pmpc.Controller(_A, _B, np.eye(4), np.eye(1), u_bounds=[(-0.5, 0.5)],
+                                                nu=v, s=10, td=0.02), "nu", 0.7, None),
+    "tilt": (lambda v: tilt.Estimator(_POSITIONS, tol=v), "tol", 1e-8, 1),
+    "cubli": (lambda v: cubli.Backstepping(alpha=v), "alpha", 15.0, 15),
+    "event_est": (lambda v: event_est.synthesize(event_est.platoon(2), j_max=v), "j_max", 10.0, 10),
+    "flying_platform": (lambda v: flying_platform.gramian(horizon=v), "horizon", 1.0, 1),
+    "geometry": (lambda v: geometry.s2.project([1.0, 2.0, 3.0], radius=v), "radius", 9.81, 2),
+    "workbench": (lambda v: stabilis.Workbench(sample_rate_hz=v), "sample_rate_hz", 50.0, 50),
+}
+
+
+@pytest.mark.parametrize("module", list(SCALAR_ARGUMENTS))
+@pytest.mark.parametrize("value", [np.complex128(1 + 1j), 1 + 0j, "0.5", np.array(0.5, dtype=object)],
+                         ids=["complex128", "complex", "str", "object"])
+def test_complex_string_and_object_numbers_are_refused_naming_the_argument(module, value):
+    call, name, _, _ = SCALAR_ARGUMENTS[module]
+    with pytest.raises(TypeError) as error:
+        call(value)
+    # The native functions name the argument in a note (pyo3), the wrappers in the message.
+    text = " ".join([str(error.value), *getattr(error.value, "__notes__", [])])
+    assert name in text
+    if isinstance(value, complex):
+        assert "complex" in text
+
+
+@pytest.mark.parametrize("module", [m for m, case in SCALAR_ARGUMENTS.items() if case[2] is not None])
+def test_real_number_arguments_still_work(module):
+    call, _, real, integer = SCALAR_ARGUMENTS[module]
+    call(np.float64(real))
+    if integer is not None:
+        call(integer)
+
+
 def test_huge_rotation_vectors_and_measurements():
     # exp of a vector too large to square is still a rotation (about x by 1e300 rad).
     r = geometry.so3.exp(np.array([1e300, 0.0, 0.0]))

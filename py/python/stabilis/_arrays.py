@@ -3,10 +3,13 @@ of a complex, object, string or other non-numeric dtype, which are refused (Type
 argument and the dtype) instead of silently losing their imaginary part or being parsed.
 
 ``real_array`` is the native conversion (``py/src/real.rs``) that the workbench, the models'
-callables and ``pmpc`` use too: one rule for every array the package takes."""
+callables and ``pmpc`` use too: one rule for every array the package takes. ``real_scalar(x,
+name)`` applies it to a number argument (as the native functions do to theirs) where ``float``
+would keep the real part of a numpy complex or parse a string: a complex number (even
+``1+0j``), a string or an object is a TypeError naming ``name``."""
 import numpy as np
 
-from ._stabilis import real_array
+from ._stabilis import real_array, real_scalar
 
 
 def _complex(value):

@@ -18,7 +18,7 @@ True
 """
 import numpy as np
 
-from ._arrays import real_array
+from ._arrays import real_array, real_scalar
 
 from . import _stabilis
 
@@ -34,6 +34,10 @@ def platoon(vehicles):
 
 def _f64(m):
     return real_array(m, "matrix")
+
+
+def _reals(values, name):
+    return None if values is None else [real_scalar(v, name) for v in values]
 
 
 _MATRICES = ("A", "B", "C", "F", "W", "V_sqrt")
@@ -70,8 +74,9 @@ def synthesize(model, j_max=None, condition="cor12", objective="kalman", relax=N
     Raises ValueError on bad shapes or options and stabilis.Error when the LMIs are infeasible.
     """
     return _native.synthesize(
-        _model(model), None if j_max is None else float(j_max), str(condition), str(objective),
-        None if relax is None else float(relax), int(max_iter), str(solver),
+        _model(model), None if j_max is None else real_scalar(j_max, "j_max"), str(condition),
+        str(objective), None if relax is None else real_scalar(relax, "relax"), int(max_iter),
+        str(solver),
     )
 
 
@@ -87,8 +92,8 @@ def simulate(model, design, steps, loss=0.1, x0=None, seed=0, local_update=False
     ni = model.get("noise_input") if noise else None
     return _native.simulate(
         _model(model), _f64(design["L"]), [_f64(np.atleast_2d(d)) for d in design["delta"]],
-        int(steps), float(loss), None if x0 is None else [float(v) for v in x0],
-        None if no is None else [float(v) for v in no], None if ni is None else [float(v) for v in ni],
+        int(steps), real_scalar(loss, "loss"), _reals(x0, "x0"), _reals(no, "noise_output"),
+        _reals(ni, "noise_input"),
         int(seed), bool(local_update), bool(communicated_inputs), int(window_start),
     )
 

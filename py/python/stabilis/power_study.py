@@ -25,6 +25,7 @@ import time
 from pathlib import Path
 
 from . import _stabilis
+from ._arrays import real_scalar
 
 _native = _stabilis.power
 
@@ -73,7 +74,8 @@ def prepare(model, data, *, effect: str, values, campaigns: int = 100, seed: int
     if isinstance(data, (str, os.PathLike)):
         data = [data]
     return _native.prepare(_model_path(model), [os.fspath(p) for p in data], effect,
-                           [float(v) for v in values], int(campaigns), int(seed), estimator)
+                           [real_scalar(v, "values") for v in values], int(campaigns), int(seed),
+                           estimator)
 
 
 def run_study(spec: str, *, client=None, batch: int | None = None, threads: int | None = None,

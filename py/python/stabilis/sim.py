@@ -9,13 +9,14 @@ True
 import json
 
 from . import _stabilis
+from ._arrays import real_scalar
 from .log import Log
 
 _native = _stabilis.sim
 
 
 def _arguments(duration, out, seed, options):
-    args = [f"--duration={float(duration)!r}", f"--seed={int(seed)}"]
+    args = [f"--duration={real_scalar(duration, 'duration')!r}", f"--seed={int(seed)}"]
     if out is not None:
         args.append(f"--out={out}")
     for name, value in options.items():
@@ -25,7 +26,7 @@ def _arguments(duration, out, seed, options):
         elif value is False or value is None:
             continue
         elif isinstance(value, (list, tuple)):
-            args.append(flag + "=" + ",".join(repr(float(v)) for v in value))
+            args.append(flag + "=" + ",".join(repr(real_scalar(v, name)) for v in value))
         else:
             args.append(f"{flag}={value}")
     return args

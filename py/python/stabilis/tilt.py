@@ -15,7 +15,7 @@ readings in m/s^2 and returns a dict of arrays (``g``, ``omega``, ``omega_dot``,
 >>> bool(np.allclose(e["g"], [0, 0, -G0]))
 True
 """
-from ._arrays import real_array
+from ._arrays import real_array, real_scalar
 
 from . import _stabilis
 
@@ -62,7 +62,7 @@ class Estimator:
             real_array(omega, "omega").tolist(),
             real_array(omega_dot, "omega_dot").tolist(),
             real_array(g, "g").tolist(),
-            float(real_array(sigma, "sigma").item()),
+            real_scalar(sigma, "sigma"),
         )
 
     def d_criterion(self, g=(0.0, 0.0, -G0)):
