@@ -853,6 +853,23 @@ struct Workbench {
 const CUBLI_USER_EFFECT: &str =
     "user-defined effects edit a state-space model; the cubli workbench fits its named candidates only";
 
+/// `ValueError` naming a matrix-form effect when `wb` fits in the time domain: that
+/// criterion integrates the nonlinear model, which a matrix-form effect (terms added to A, B,
+/// C, D) does not describe, so discovery could not try it.
+fn refuse_matrix_form(wb: &workbench::Workbench, name: &str) -> PyResult<()> {
+    if wb.criterion() != workbench::Criterion::Time {
+        return Ok(());
+    }
+    Err(PyValueError::new_err(format!(
+        "effect {name}: its callable returns terms added to the matrices A, B, C, D, which \
+         describe a linear model; the {} model is nonlinear and fitted in the time domain, \
+         where such an effect cannot be tried. Use criterion=\"frf\" (the model's \
+         linearization, to which the matrix terms are added) or declare the effect in a model \
+         file's [effects]",
+        wb.model().structure().system()
+    )))
+}
+
 impl Workbench {
     /// The user's effect for this workbench, evaluated once at its documented values on top
     /// of the current model, so that a broken callable fails when it is given, not in a fit.
@@ -860,6 +877,7 @@ impl Workbench {
         let Inner::Frf { wb, .. } = &self.inner else {
             return Err(PyValueError::new_err(CUBLI_USER_EFFECT));
         };
+        refuse_matrix_form(wb, &user.get().name)?;
         let effect = Arc::new(PyEffect {
             effect: user.unbind(),
             error: Arc::clone(&self.error),
@@ -1054,6 +1072,7 @@ impl Workbench {
                     )
                 })?;
                 for e in effects {
+                    refuse_matrix_form(&wb, &e.get().name)?;
                     wb.offer(Arc::new(PyEffect {
                         effect: e,
                         error: Arc::clone(&error),
