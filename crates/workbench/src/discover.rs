@@ -49,6 +49,9 @@ pub struct CandidateScore {
     /// significant (the time-domain criterion): `cost` is then where it stopped, an upper
     /// bound of the fitted one.
     pub abandoned: bool,
+    /// Standard deviation of the cost under noise alone, in cost units: candidates whose
+    /// costs differ by less fit the data equally well ([`rivals`]).
+    pub noise_spread: f64,
 }
 
 /// The costs a nested-model test compares: a model and the model with one candidate more,
@@ -155,8 +158,50 @@ impl CandidateScore {
                 && delta_bic < 0.0
                 && exceeds_noise,
             abandoned,
+            noise_spread: c.noise_sd,
         }
     }
+}
+
+/// One sentence per added effect that another candidate of its step fits as well: the
+/// other's cost reduction also exceeds the noise, and the two costs differ by less than the
+/// noise-only spread. The data then do not tell the two apart (a lag of a tenth of a sample
+/// and a delay of the same length, say), and the loop's pick between them is a coin toss.
+/// `steps` are each step's added effect and the candidates tried on it, the start first.
+pub fn rivals<'a>(
+    steps: impl IntoIterator<Item = (Option<&'a str>, &'a [CandidateScore])>,
+) -> Vec<String> {
+    let steps: Vec<_> = steps.into_iter().collect();
+    steps
+        .windows(2)
+        .filter_map(|pair| {
+            let added = pair[1].0?;
+            let tried = pair[0].1;
+            let chosen = tried.iter().find(|c| c.effect == added)?;
+            let equal: Vec<&CandidateScore> = tried
+                .iter()
+                .filter(|c| {
+                    c.effect != added
+                        && c.exceeds_noise
+                        && c.cost - chosen.cost < chosen.noise_spread
+                })
+                .collect();
+            (!equal.is_empty()).then(|| {
+                let names: Vec<String> = equal.iter().map(|c| c.effect.clone()).collect();
+                let gaps: Vec<String> = equal
+                    .iter()
+                    .map(|c| format!("{:+.1}", c.cost - chosen.cost))
+                    .collect();
+                format!(
+                    "{} fits these data as well as {added} (cost {} against it, within the \
+                     noise-only spread {:.1}): the data do not tell them apart",
+                    names.join(" and "),
+                    gaps.join(" and "),
+                    chosen.noise_spread,
+                )
+            })
+        })
+        .collect()
 }
 
 /// One step of the discovery: a model, its fit and diagnosis, and the candidates tried on it.
@@ -898,6 +943,11 @@ impl Workbench {
         let verdict = self.verdict(last);
         let mut caveats = self.caveats(&verdict);
         caveats.extend(smoothing);
+        caveats.extend(rivals(
+            steps
+                .iter()
+                .map(|s| (s.added.as_deref(), s.candidates.as_slice())),
+        ));
         let unexplained = matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. });
         let weighting =
             self.weighting_sentence(&steps.last().map(|s| s.effects.clone()).unwrap_or_default());

@@ -26,6 +26,12 @@ pub trait Dynamics: Send + Sync + std::fmt::Debug {
     fn input_delay(&self) -> f64 {
         0.0
     }
+    /// Time constant (s) of a first-order lag on every input whose states are the model's
+    /// last `inputs()` ([`LaggedInputs`]); the predictor integrates them exactly, since a
+    /// lag much shorter than a sample is stiff. `None` without one.
+    fn input_lag(&self) -> Option<f64> {
+        None
+    }
 }
 
 /// A constant offset on every output: `y = h(x, u) + bias`.
@@ -78,6 +84,9 @@ impl Dynamics for OutputBias {
     fn input_delay(&self) -> f64 {
         self.inner.input_delay()
     }
+    fn input_lag(&self) -> Option<f64> {
+        self.inner.input_lag()
+    }
 }
 
 /// A first-order lag on every input: states `(x, x_a)`, `x_a' = (u - x_a) / tau`, the plant
@@ -89,10 +98,18 @@ pub struct LaggedInputs {
 }
 
 impl LaggedInputs {
-    /// `inner` behind a lag of time constant `tau` (s, positive).
+    /// `inner` behind a lag of time constant `tau` (s, positive); `inner` has none (its
+    /// states would no longer be the last).
     pub fn new(inner: Box<dyn Dynamics>, tau: f64) -> Result<Self> {
         if !(tau.is_finite() && tau > 0.0) {
             return Err(SimError::invalid("tau", tau, "must be positive and finite"));
+        }
+        if inner.input_lag().is_some() {
+            return Err(SimError::invalid(
+                "tau",
+                tau,
+                "the model already has an input lag",
+            ));
         }
         Ok(Self {
             inner,
@@ -132,6 +149,9 @@ impl Dynamics for LaggedInputs {
     }
     fn input_delay(&self) -> f64 {
         self.inner.input_delay()
+    }
+    fn input_lag(&self) -> Option<f64> {
+        Some(1.0 / self.rate)
     }
 }
 
@@ -177,5 +197,8 @@ impl Dynamics for DelayedInputs {
     }
     fn input_delay(&self) -> f64 {
         self.inner.input_delay() + self.td
+    }
+    fn input_lag(&self) -> Option<f64> {
+        self.inner.input_lag()
     }
 }

@@ -154,6 +154,7 @@ mod tests {
                 exceeds_noise: significant,
                 significant,
                 abandoned: false,
+                noise_spread: 1.0,
             };
             Ok(((effects, cost, Vec::new()), score))
         }

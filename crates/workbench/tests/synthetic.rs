@@ -426,3 +426,77 @@ fn bad_data_gives_named_errors() {
         .to_string();
     assert!(msg.contains("at least 2 experiments"), "{msg}");
 }
+
+/// The toy with a second name for its coupling: two effects no data can tell apart.
+#[derive(Debug)]
+struct Twins;
+
+impl Twins {
+    /// The toy's effects for `enabled`, the twin read as the coupling.
+    fn toy(enabled: &[String]) -> Vec<String> {
+        enabled
+            .iter()
+            .map(|e| e.replace("coupling_twin", "coupling"))
+            .collect()
+    }
+}
+
+impl ModelStructure for Twins {
+    fn system(&self) -> &str {
+        "toy"
+    }
+    fn inputs(&self) -> Vec<String> {
+        Toy.inputs()
+    }
+    fn outputs(&self) -> Vec<String> {
+        Toy.outputs()
+    }
+    fn effects(&self) -> Vec<String> {
+        vec!["coupling".into(), "coupling_twin".into(), "lag".into()]
+    }
+    fn describe(&self, effect: &str) -> String {
+        format!("toy effect {effect}")
+    }
+    fn parameters(&self, enabled: &[String]) -> Result<Vec<Parameter>> {
+        let mut p = Toy.parameters(&Self::toy(enabled))?;
+        for (e, q) in enabled.iter().zip(p.iter_mut().skip(4)) {
+            if e == "coupling_twin" {
+                q.name = "k_twin".into();
+            }
+        }
+        Ok(p)
+    }
+    fn state_space(&self, enabled: &[String], theta: &[f64]) -> Result<StateSpace> {
+        Toy.state_space(&Self::toy(enabled), theta)
+    }
+}
+
+/// Whichever twin the loop adds, it is tentative, and the reason names the other: their
+/// costs are equal, so the pick is not evidence (3 seeds of 3). The toy's own coupling,
+/// without a twin, is found with no caveat (`discovers_hidden_coupling_and_recovers_it`).
+#[test]
+fn two_effects_the_data_cannot_tell_apart_are_tentative_naming_each_other() {
+    for seed in [4, 5, 6] {
+        let wb = Workbench::new(
+            Arc::new(Twins),
+            simulate(&coupled_truth(), 0.02, seed),
+            EstimatorChoice::Auto,
+        )
+        .unwrap();
+        let c = wb.discover().unwrap().conclusion;
+        assert!(c.found.is_empty(), "seed {seed}: found {:?}", c.found);
+        assert_eq!(c.tentative.len(), 1, "seed {seed}: {:?}", c.tentative);
+        let other = if c.tentative[0] == "coupling" {
+            "coupling_twin"
+        } else {
+            "coupling"
+        };
+        assert!(
+            c.caveats
+                .iter()
+                .any(|w| w.starts_with(other) && w.contains("do not tell them apart")),
+            "seed {seed}: {:?}",
+            c.caveats
+        );
+    }
+}

@@ -44,7 +44,7 @@ use serde_json::{json, Value};
 use workbench::dataset::Dataset;
 use workbench::diagnose::LEVEL;
 use workbench::discover::{
-    CandidateScore, Conclusion, NestedCosts, Robustness, Verdict, MISFIT_CAVEAT,
+    rivals, CandidateScore, Conclusion, NestedCosts, Robustness, Verdict, MISFIT_CAVEAT,
 };
 use workbench::fit::ParamEstimate;
 use workbench::load;
@@ -1064,12 +1064,17 @@ impl CubliBench {
         let misfit_channels = flagged(&channel_p_values);
         let unexplained = !misfit_channels.is_empty();
         let why = unexplained.then(|| MISFIT_CAVEAT.to_string());
+        let rivals = rivals(
+            steps
+                .iter()
+                .map(|s| (s.added.as_deref(), s.candidates.as_slice())),
+        );
         let verdict = verdict_of(&channel_p_values);
         CubliDiscovery {
             steps,
             conclusion: Conclusion::settle(
                 found,
-                why.into_iter().collect(),
+                why.into_iter().chain(rivals).collect(),
                 unexplained,
                 verdict,
                 LEVEL,
