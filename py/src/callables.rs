@@ -1,7 +1,8 @@
 //! A nonlinear model given as Python callables, `f(x, u, params) -> dx` and
 //! `h(x, u, params) -> y` (`x`, `u` numpy arrays, `params` a dict `{name: float}`): the
 //! workbench's [`Dynamics`], and its linearization at the operating point by central
-//! differences. Every call takes the GIL, so the predictor's records and candidates share
+//! differences, with the terms of the model's declared effects (`stabilis.Effect(f=, h=)`)
+//! added. Every call takes the GIL, so the predictor's records and candidates share
 //! one interpreter: a fit costs about one Python call per model evaluation (README, "Your own
 //! system").
 use std::sync::{Arc, Mutex};
@@ -37,60 +38,41 @@ impl Callables {
         }
     }
 
-    /// `f` (`output = false`) or `h` at `(x, u)` into `out`, checking the length and that
-    /// every value is finite.
-    fn eval(
+    /// `f` (`output = false`) or `h` at `(x, u)` into `out`: the model's, plus the terms of
+    /// the `extras` (declared effects) that give one, each call's length and values checked.
+    #[allow(clippy::too_many_arguments)]
+    pub fn eval(
         &self,
         py: Python<'_>,
         model: &str,
         output: bool,
         (x, u): (&[f64], &[f64]),
         params: &Bound<'_, PyDict>,
+        extras: &[Extra],
         out: &mut [f64],
     ) -> PyResult<()> {
         let model = if model.is_empty() { "(unnamed)" } else { model };
-        let (func, label, what) = if output {
-            (&self.h, "h", "outputs")
-        } else {
-            (&self.f, "f", "states")
-        };
-        let value = func.call1(
+        let func = if output { &self.h } else { &self.f };
+        call_checked(
             py,
-            (
-                PyArray1::from_slice(py, x),
-                PyArray1::from_slice(py, u),
-                params,
-            ),
+            &format!("model {model}"),
+            output,
+            func,
+            (x, u),
+            params,
+            out,
         )?;
-        let value = value.bind(py);
-        // A float64 array is read directly; anything else (a list) is converted by the
-        // package's one rule for arrays (a complex result is a TypeError, not its real part).
-        let values: Vec<f64> = match value.cast::<PyArray1<f64>>() {
-            Ok(a) => a.readonly().as_array().to_vec(),
-            Err(_) => real_array(value, &format!("model {model}: {label}(x, u, params)"))?
-                .cast_into::<PyArray1<f64>>()
-                .map_err(|_| {
-                    PyValueError::new_err(format!(
-                        "model {model}: {label}(x, u, params) must return a 1-D sequence of numbers"
-                    ))
-                })?
-                .readonly()
-                .as_array()
-                .to_vec(),
-        };
-        if values.len() != out.len() {
-            return Err(PyValueError::new_err(format!(
-                "model {model}: {label}(x, u, params) returned {} values, expected {} ({what})",
-                values.len(),
-                out.len()
-            )));
+        let mut term = vec![0.0; out.len()];
+        for e in extras {
+            let Some(func) = (if output { &e.h } else { &e.f }) else {
+                continue;
+            };
+            let who = format!("effect {}", e.name);
+            call_checked(py, &who, output, func, (x, u), e.params.bind(py), &mut term)?;
+            for (o, t) in out.iter_mut().zip(&term) {
+                *o += t;
+            }
         }
-        if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-            return Err(PyValueError::new_err(format!(
-                "model {model}: {label}(x, u, params)[{i}] = {v} at x = {x:?}, u = {u:?}"
-            )));
-        }
-        out.copy_from_slice(&values);
         Ok(())
     }
 
@@ -101,6 +83,7 @@ impl Callables {
         py: Python<'_>,
         model: &str,
         params: &Bound<'_, PyDict>,
+        extras: &[Extra],
     ) -> PyResult<StateSpace> {
         let (n, m, p) = (self.x_op.len(), self.u_op.len(), self.outputs);
         let mut z: Vec<f64> = self.x_op.iter().chain(&self.u_op).copied().collect();
@@ -113,8 +96,8 @@ impl Callables {
                 z[j] = z0 + sign * step;
                 let (x, u) = z.split_at(n);
                 let (df, dh) = out.split_at_mut(n);
-                self.eval(py, model, false, (x, u), params, df)?;
-                self.eval(py, model, true, (x, u), params, dh)?;
+                self.eval(py, model, false, (x, u), params, extras, df)?;
+                self.eval(py, model, true, (x, u), params, extras, dh)?;
             }
             z[j] = z0;
             for i in 0..n + p {
@@ -132,12 +115,81 @@ impl Callables {
     }
 }
 
+/// `func(x, u, params)` (the `f` or the `h` of `who`, a model or an effect) into `out`,
+/// checking the length and that every value is finite.
+fn call_checked(
+    py: Python<'_>,
+    who: &str,
+    output: bool,
+    func: &Py<PyAny>,
+    (x, u): (&[f64], &[f64]),
+    params: &Bound<'_, PyDict>,
+    out: &mut [f64],
+) -> PyResult<()> {
+    let (label, what) = if output {
+        ("h", "outputs")
+    } else {
+        ("f", "states")
+    };
+    let value = func.call1(
+        py,
+        (
+            PyArray1::from_slice(py, x),
+            PyArray1::from_slice(py, u),
+            params,
+        ),
+    )?;
+    let value = value.bind(py);
+    // A float64 array is read directly; anything else (a list) is converted by the
+    // package's one rule for arrays (a complex result is a TypeError, not its real part).
+    let values: Vec<f64> = match value.cast::<PyArray1<f64>>() {
+        Ok(a) => a.readonly().as_array().to_vec(),
+        Err(_) => real_array(value, &format!("{who}: {label}(x, u, params)"))?
+            .cast_into::<PyArray1<f64>>()
+            .map_err(|_| {
+                PyValueError::new_err(format!(
+                    "{who}: {label}(x, u, params) must return a 1-D sequence of numbers"
+                ))
+            })?
+            .readonly()
+            .as_array()
+            .to_vec(),
+    };
+    if values.len() != out.len() {
+        return Err(PyValueError::new_err(format!(
+            "{who}: {label}(x, u, params) returned {} values, expected {} ({what})",
+            values.len(),
+            out.len()
+        )));
+    }
+    if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        return Err(PyValueError::new_err(format!(
+            "{who}: {label}(x, u, params)[{i}] = {v} at x = {x:?}, u = {u:?}"
+        )));
+    }
+    out.copy_from_slice(&values);
+    Ok(())
+}
+
+/// A declared effect of a nonlinear Python model at one parameter vector: the terms its
+/// `f(x, u, params)` adds to the state derivative and its `h(x, u, params)` to the outputs,
+/// `params` holding the model's parameters (fitted and fixed) and the effect's own.
+#[derive(Debug)]
+pub struct Extra {
+    pub name: String,
+    pub f: Option<Py<PyAny>>,
+    pub h: Option<Py<PyAny>>,
+    pub params: Py<PyDict>,
+}
+
 /// The callables at one parameter vector: what the time-domain criterion integrates.
 #[derive(Debug)]
 pub struct PyDynamics {
     pub model: String,
     pub callables: Arc<Callables>,
     pub params: Py<PyDict>,
+    /// The enabled declared effects.
+    pub extras: Vec<Extra>,
     /// The first exception of a user's callable, for the caller.
     pub error: Arc<Mutex<Option<PyErr>>>,
 }
@@ -145,8 +197,15 @@ pub struct PyDynamics {
 impl PyDynamics {
     fn eval(&self, output: bool, x: &[f64], u: &[f64], out: &mut [f64]) -> sim::Result<()> {
         Python::attach(|py| {
-            self.callables
-                .eval(py, &self.model, output, (x, u), self.params.bind(py), out)
+            self.callables.eval(
+                py,
+                &self.model,
+                output,
+                (x, u),
+                self.params.bind(py),
+                &self.extras,
+                out,
+            )
         })
         .map_err(|err| {
             let message = err.to_string();

@@ -22,7 +22,7 @@ use workbench::model::{Effect as EffectTrait, Parameter, StateSpace};
 use workbench::report::{json, write_report};
 use workbench::{load, Dataset, Discovery, EstimatorChoice, Experiment, ModelFile, ModelStructure};
 
-use crate::callables::{Callables, PyDynamics};
+use crate::callables::{Callables, Extra, PyDynamics};
 use crate::errors::{to_py_err, ModelError};
 use crate::real::{real_array, Real};
 
@@ -35,31 +35,40 @@ fn checked(value: serde_json::Result<serde_json::Value>) -> PyResult<serde_json:
     value.map_err(|e| PyValueError::new_err(e.to_string()))
 }
 
-/// A user-defined effect: `fn(params, model)` gets the parameter values as a dict
+/// A user-defined effect, in one of two forms. Matrix form (linear models, and any model
+/// under the FRF criterion): `func(params, model)` gets the parameter values as a dict
 /// `{name: float}` and the model's current matrices as a dict `{"A", "B", "C", "D"}` of numpy
 /// arrays, and returns a dict with any of `"A"`, `"B"`, `"C"`, `"D"`: arrays of the same shape
-/// added to the model. The workbench fits its parameters with the model's own.
+/// added to the model. Nonlinear form (a nonlinear Python model, `Model(f=, h=)`): `f(x, u,
+/// params)` returns the terms added to the state derivative, `h(x, u, params)` those added to
+/// the outputs (either may be omitted), `params` holding the model's parameters (fitted and
+/// fixed) and the effect's own. The workbench fits its parameters with the model's own.
 #[pyclass(name = "Effect", module = "stabilis._stabilis.workbench", frozen)]
 #[derive(Debug)]
 struct Effect {
     name: String,
     description: String,
     params: Vec<Parameter>,
-    func: Py<PyAny>,
+    func: Option<Py<PyAny>>,
+    f: Option<Py<PyAny>>,
+    h: Option<Py<PyAny>>,
 }
 
 #[pymethods]
 impl Effect {
     #[new]
-    #[pyo3(signature = (name, params, func, bounds = None, units = None, description = ""))]
+    #[pyo3(signature = (name, params, func = None, bounds = None, units = None, description = "", f = None, h = None))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         name: String,
         params: &Bound<'_, PyDict>,
-        func: Py<PyAny>,
+        func: Option<Py<PyAny>>,
         bounds: Option<HashMap<String, Real<(f64, f64)>>>,
         units: Option<HashMap<String, String>>,
         description: &str,
+        f: Option<Py<PyAny>>,
+        h: Option<Py<PyAny>>,
     ) -> PyResult<Self> {
         let params: Vec<(String, f64)> = params
             .iter()
@@ -98,17 +107,40 @@ impl Effect {
             })
             .collect();
         workbench::model::check_parameters(&params).map_err(to_py_err)?;
-        if !func.bind(py).is_callable() {
-            return Err(PyTypeError::new_err(format!(
-                "effect {name}: func must be callable"
-            )));
+        match (&func, &f, &h) {
+            (Some(_), None, None) | (None, Some(_), _) | (None, None, Some(_)) => {}
+            (None, None, None) => {
+                return Err(PyTypeError::new_err(format!(
+                    "effect {name}: give func (terms added to A, B, C, D) or f= and/or h= (terms added to a nonlinear model's f and h)"
+                )))
+            }
+            _ => {
+                return Err(PyTypeError::new_err(format!(
+                    "effect {name}: give func (terms added to A, B, C, D) or f=/h= (terms added to a nonlinear model's f and h), not both"
+                )))
+            }
+        }
+        for (label, c) in [("func", &func), ("f", &f), ("h", &h)] {
+            if c.as_ref().is_some_and(|c| !c.bind(py).is_callable()) {
+                return Err(PyTypeError::new_err(format!(
+                    "effect {name}: {label} must be callable"
+                )));
+            }
         }
         Ok(Self {
             name,
             description: description.to_string(),
             params,
             func,
+            f,
+            h,
         })
+    }
+
+    /// Whether the effect is in nonlinear form (`f=`/`h=`).
+    #[getter]
+    fn nonlinear(&self) -> bool {
+        self.func.is_none()
     }
 
     /// The effect's name.
@@ -157,7 +189,13 @@ impl PyEffect {
             let a = Array2::from_shape_fn((m.nrows(), m.ncols()), |(i, j)| m[(i, j)]);
             model.set_item(*key, a.into_pyarray(py))?;
         }
-        let out = effect.func.call1(py, (params, model))?;
+        let func = effect.func.as_ref().ok_or_else(|| {
+            PyValueError::new_err(format!(
+                "effect {}: gives f/h (terms of a nonlinear model), not matrix terms",
+                effect.name
+            ))
+        })?;
+        let out = func.call1(py, (params, model))?;
         let out = out.bind(py).cast::<PyDict>().map_err(|_| {
             PyTypeError::new_err(format!(
                 "effect {}: the callable must return a dict with keys among A, B, C, D",
@@ -280,6 +318,10 @@ struct PyStructure {
     params: Vec<Parameter>,
     fixed: Vec<(String, f64)>,
     form: Form,
+    /// Effects in nonlinear form (`Effect(f=, h=)`), declared by `Model(effects=)` or, on a
+    /// workbench's own copy, by `suspect` and `add`: the structure's effects, as a model
+    /// file's `[effects]`.
+    declared: Mutex<Vec<Arc<Py<Effect>>>>,
     error: Arc<Mutex<Option<PyErr>>>,
 }
 
@@ -306,8 +348,115 @@ impl PyStructure {
                 Form::Linear(m) => Form::Linear(m.clone_ref(py)),
                 Form::Nonlinear(c) => Form::Nonlinear(Arc::new(c.clone_ref(py))),
             },
+            declared: Mutex::new(self.declared_effects()),
             error: Arc::clone(&self.error),
         }
+    }
+
+    /// The declared effects (the lock is never held while Python runs).
+    fn declared_effects(&self) -> Vec<Arc<Py<Effect>>> {
+        self.declared.lock().map(|d| d.clone()).unwrap_or_default()
+    }
+
+    /// The `enabled` declared effects, in that order.
+    fn enabled_effects(&self, enabled: &[String]) -> sim::Result<Vec<Arc<Py<Effect>>>> {
+        let all = self.declared_effects();
+        enabled
+            .iter()
+            .map(|n| {
+                all.iter()
+                    .find(|e| e.get().name == *n)
+                    .cloned()
+                    .ok_or_else(|| {
+                        sim::SimError::invalid(
+                            "effect",
+                            n,
+                            format!("not declared in the Python model {}", self.name),
+                        )
+                    })
+            })
+            .collect()
+    }
+
+    /// Declares a nonlinear effect after checking its name against `taken` (the effects the
+    /// model already knows) and its parameters against the model's.
+    fn declare(&self, effect: Arc<Py<Effect>>, taken: &[String]) -> PyResult<()> {
+        let e = effect.get();
+        let Form::Nonlinear(_) = self.form else {
+            return Err(PyValueError::new_err(format!(
+                "effect {}: f=/h= add terms to a nonlinear model's f and h; the model {} is linear (matrices=): give the effect as Effect(name, params, func) returning terms added to A, B, C, D",
+                e.name, self.name
+            )));
+        };
+        let declared = self.declared_effects();
+        if taken.contains(&e.name) || declared.iter().any(|d| d.get().name == e.name) {
+            return Err(PyValueError::new_err(format!(
+                "effect {}: the model already has an effect of that name",
+                e.name
+            )));
+        }
+        let model_params = self
+            .params
+            .iter()
+            .map(|p| &p.name)
+            .chain(self.fixed.iter().map(|(n, _)| n));
+        for name in model_params {
+            if e.params.iter().any(|p| &p.name == name) {
+                return Err(PyValueError::new_err(format!(
+                    "effect {}: parameter {name:?} is also a parameter of the model, and the effect's f and h get both in one dict; rename it",
+                    e.name
+                )));
+            }
+        }
+        if let Ok(mut d) = self.declared.lock() {
+            d.push(effect);
+        }
+        Ok(())
+    }
+
+    /// Withdraws a declared effect (one whose probe failed).
+    fn undeclare(&self, name: &str) {
+        if let Ok(mut d) = self.declared.lock() {
+            d.retain(|e| e.get().name != name);
+        }
+    }
+
+    /// The model's parameter dict and the `enabled` effects' terms at `theta` (the model's
+    /// parameters, then each enabled effect's in `enabled` order).
+    fn at<'py>(
+        &self,
+        py: Python<'py>,
+        enabled: &[String],
+        theta: &[f64],
+    ) -> PyResult<(Bound<'py, PyDict>, Vec<Extra>)> {
+        let effects = self.enabled_effects(enabled).map_err(to_py_err)?;
+        let n = self.params.len();
+        let want = n + effects.iter().map(|e| e.get().params.len()).sum::<usize>();
+        if theta.len() != want {
+            return Err(PyValueError::new_err(format!(
+                "model {}: {} parameter values given, expected {want}",
+                self.name,
+                theta.len()
+            )));
+        }
+        let base = self.params_at(py, &theta[..n])?;
+        let mut at = n;
+        let mut extras = Vec::with_capacity(effects.len());
+        for e in effects {
+            let e = e.get();
+            let params = base.copy()?;
+            for p in &e.params {
+                params.set_item(&p.name, theta[at])?;
+                at += 1;
+            }
+            extras.push(Extra {
+                name: e.name.clone(),
+                f: e.f.as_ref().map(|f| f.clone_ref(py)),
+                h: e.h.as_ref().map(|h| h.clone_ref(py)),
+                params: params.unbind(),
+            });
+        }
+        Ok((base, extras))
     }
 
     /// The parameter values `{name: float}` the callables receive, fixed ones included.
@@ -322,11 +471,11 @@ impl PyStructure {
         Ok(params)
     }
 
-    fn call(&self, py: Python<'_>, theta: &[f64]) -> PyResult<StateSpace> {
-        let params = self.params_at(py, theta)?;
+    fn call(&self, py: Python<'_>, enabled: &[String], theta: &[f64]) -> PyResult<StateSpace> {
+        let (params, extras) = self.at(py, enabled, theta)?;
         let matrices = match &self.form {
             Form::Linear(m) => m,
-            Form::Nonlinear(c) => return c.linearize(py, &self.name, &params),
+            Form::Nonlinear(c) => return c.linearize(py, &self.name, &params, &extras),
         };
         let out = matrices.call1(py, (params,))?;
         let out = out.bind(py);
@@ -402,11 +551,20 @@ impl ModelStructure for PyStructure {
     }
 
     fn effects(&self) -> Vec<String> {
-        Vec::new()
+        self.declared_effects()
+            .iter()
+            .map(|e| e.get().name.clone())
+            .collect()
     }
 
     fn describe(&self, effect: &str) -> String {
-        format!("unknown effect {effect}")
+        self.declared_effects()
+            .iter()
+            .find(|e| e.get().name == effect)
+            .map_or_else(
+                || format!("unknown effect {effect}"),
+                |e| e.get().description.clone(),
+            )
     }
 
     fn fixed(&self) -> Vec<(String, f64, String)> {
@@ -416,12 +574,21 @@ impl ModelStructure for PyStructure {
             .collect()
     }
 
-    fn parameters(&self, _enabled: &[String]) -> sim::Result<Vec<Parameter>> {
-        Ok(self.params.clone())
+    /// The model's parameters, then each enabled effect's as `<effect>.<parameter>`.
+    fn parameters(&self, enabled: &[String]) -> sim::Result<Vec<Parameter>> {
+        let mut params = self.params.clone();
+        for e in self.enabled_effects(enabled)? {
+            let e = e.get();
+            params.extend(e.params.iter().map(|p| Parameter {
+                name: format!("{}.{}", e.name, p.name),
+                ..p.clone()
+            }));
+        }
+        Ok(params)
     }
 
-    fn state_space(&self, _enabled: &[String], theta: &[f64]) -> sim::Result<StateSpace> {
-        Python::attach(|py| self.call(py, theta)).map_err(|err| self.stash(err))
+    fn state_space(&self, enabled: &[String], theta: &[f64]) -> sim::Result<StateSpace> {
+        Python::attach(|py| self.call(py, enabled, theta)).map_err(|err| self.stash(err))
     }
 
     fn parallel(&self) -> bool {
@@ -434,7 +601,7 @@ impl ModelStructure for PyStructure {
 
     fn dynamics(
         &self,
-        _enabled: &[String],
+        enabled: &[String],
         theta: &[f64],
     ) -> Option<sim::Result<Box<dyn Dynamics>>> {
         let Form::Nonlinear(callables) = &self.form else {
@@ -442,10 +609,12 @@ impl ModelStructure for PyStructure {
         };
         Some(
             Python::attach(|py| {
+                let (params, extras) = self.at(py, enabled, theta)?;
                 Ok(Box::new(PyDynamics {
                     model: self.name.clone(),
                     callables: Arc::clone(callables),
-                    params: self.params_at(py, theta)?.unbind(),
+                    params: params.unbind(),
+                    extras,
                     error: Arc::clone(&self.error),
                 }) as Box<dyn Dynamics>)
             })
@@ -532,8 +701,11 @@ fn py_parameter(name: &str, spec: &Bound<'_, PyAny>) -> PyResult<(Parameter, boo
 #[derive(Debug)]
 struct Model {
     structure: Arc<dyn ModelStructure>,
-    /// A Python model given without a name, named later after the logs' topics.
-    unnamed: Option<PyStructure>,
+    /// A Python model, of which every workbench gets its own copy (named after the logs'
+    /// topics when the model has no name), so that effects declared on one workbench stay
+    /// there.
+    python: Option<PyStructure>,
+    /// Matrix-form effects, offered to discovery.
     effects: Vec<Py<Effect>>,
     error: Arc<Mutex<Option<PyErr>>>,
 }
@@ -668,15 +840,30 @@ impl Model {
             params,
             fixed,
             form,
+            declared: Mutex::new(Vec::new()),
             error: Arc::clone(&error),
         };
         let theta: Vec<f64> = structure.params.iter().map(|p| p.value).collect();
-        structure.call(py, &theta)?;
-        let unnamed = name.is_empty().then(|| structure.named(py, String::new()));
+        structure.call(py, &[], &theta)?;
+        // Effects in nonlinear form become the model's declared effects, each evaluated once
+        // at its documented values so that a broken callable fails here.
+        let mut matrix_form = Vec::new();
+        for e in effects.unwrap_or_default() {
+            if !e.get().nonlinear() {
+                matrix_form.push(e);
+                continue;
+            }
+            let name = e.get().name.clone();
+            let mut theta = theta.clone();
+            theta.extend(e.get().params.iter().map(|p| p.value));
+            structure.declare(Arc::new(e), &[])?;
+            structure.call(py, std::slice::from_ref(&name), &theta)?;
+        }
+        let python = Some(structure.named(py, name.to_string()));
         Ok(Self {
             structure: Arc::new(structure),
-            unnamed,
-            effects: effects.unwrap_or_default(),
+            python,
+            effects: matrix_form,
             error,
         })
     }
@@ -700,7 +887,7 @@ impl Model {
             })?;
         Ok(Self {
             structure: Arc::new(file),
-            unnamed: None,
+            python: None,
             effects: Vec::new(),
             error: Arc::new(Mutex::new(None)),
         })
@@ -845,6 +1032,9 @@ enum Inner {
 #[pyclass(name = "Workbench", module = "stabilis._stabilis.workbench")]
 struct Workbench {
     inner: Inner,
+    /// This workbench's copy of a Python model, to which `suspect` and `add` declare effects
+    /// in nonlinear form.
+    python: Option<Arc<PyStructure>>,
     /// First Python exception raised by a user effect during the running call.
     error: Arc<Mutex<Option<PyErr>>>,
 }
@@ -856,16 +1046,21 @@ const CUBLI_USER_EFFECT: &str =
 /// `ValueError` naming a matrix-form effect when `wb` fits in the time domain: that
 /// criterion integrates the nonlinear model, which a matrix-form effect (terms added to A, B,
 /// C, D) does not describe, so discovery could not try it.
-fn refuse_matrix_form(wb: &workbench::Workbench, name: &str) -> PyResult<()> {
+fn refuse_matrix_form(wb: &workbench::Workbench, name: &str, python: bool) -> PyResult<()> {
     if wb.criterion() != workbench::Criterion::Time {
         return Ok(());
     }
+    let instead = if python {
+        "give it as Effect(name, params, f=..., h=...), whose f(x, u, params) and \
+         h(x, u, params) return the terms added to the model's f and h"
+    } else {
+        "declare it in the model file's [effects]"
+    };
     Err(PyValueError::new_err(format!(
         "effect {name}: its callable returns terms added to the matrices A, B, C, D, which \
          describe a linear model; the {} model is nonlinear and fitted in the time domain, \
-         where such an effect cannot be tried. Use criterion=\"frf\" (the model's \
-         linearization, to which the matrix terms are added) or declare the effect in a model \
-         file's [effects]",
+         where such an effect cannot be tried: {instead}, or use criterion=\"frf\" (the \
+         model's linearization, to which the matrix terms are added)",
         wb.model().structure().system()
     )))
 }
@@ -877,7 +1072,7 @@ impl Workbench {
         let Inner::Frf { wb, .. } = &self.inner else {
             return Err(PyValueError::new_err(CUBLI_USER_EFFECT));
         };
-        refuse_matrix_form(wb, &user.get().name)?;
+        refuse_matrix_form(wb, &user.get().name, self.python.is_some())?;
         let effect = Arc::new(PyEffect {
             effect: user.unbind(),
             error: Arc::clone(&self.error),
@@ -891,6 +1086,46 @@ impl Workbench {
             probe.state_space(&theta).map(|_| ())
         })?;
         Ok(effect)
+    }
+
+    /// Declares an effect in nonlinear form on this workbench's copy of a nonlinear Python
+    /// model, evaluates it once at its documented values (a broken callable fails now and is
+    /// withdrawn) and, with `enable`, enables it.
+    fn declare(&mut self, py: Python<'_>, user: Bound<'_, Effect>, enable: bool) -> PyResult<()> {
+        let name = user.get().name.clone();
+        let Inner::Frf { wb, .. } = &mut self.inner else {
+            return Err(PyValueError::new_err(CUBLI_USER_EFFECT));
+        };
+        let Some(own) = self.python.as_ref().filter(|s| s.is_nonlinear()) else {
+            return Err(PyValueError::new_err(format!(
+                "effect {name}: f=/h= add terms to the equations of a nonlinear Python model (Model(f=, h=)); the {} model is {}: {}",
+                wb.model().structure().system(),
+                if self.python.is_some() { "a linear Python model (matrices=)" } else { "not a Python model" },
+                if self.python.is_some() || !wb.model().structure().is_nonlinear() {
+                    "give the effect as Effect(name, params, func) returning terms added to A, B, C, D"
+                } else {
+                    "declare the effect in the model file's [effects]"
+                }
+            )));
+        };
+        let mut taken = wb.model().known();
+        taken.extend(wb.model().enabled());
+        own.declare(Arc::new(user.unbind()), &taken)?;
+        let probe = wb.model().with_effect(&name).map_err(to_py_err);
+        let checked = probe.and_then(|probe| {
+            run_with(&self.error, py, || {
+                let theta: Vec<f64> = probe.parameters()?.iter().map(|p| p.value).collect();
+                probe.state_space(&theta).map(|_| ())
+            })
+        });
+        if let Err(err) = checked {
+            own.undeclare(&name);
+            return Err(err);
+        }
+        if enable {
+            wb.add(&name).map_err(to_py_err)?;
+        }
+        Ok(())
     }
 
     /// [`run_with`] on this workbench's error slot.
@@ -991,6 +1226,7 @@ impl Workbench {
             }
         };
         // `model` is a stabilis.Model or the path of a model file.
+        let mut python = None;
         let (source, effects, error) = match model {
             None => (
                 systems::shipped(system).map_err(to_py_err)?,
@@ -1012,12 +1248,19 @@ impl Workbench {
                 let m = m.get();
                 let effects: Vec<Py<Effect>> = m.effects.iter().map(|e| e.clone_ref(py)).collect();
                 let logs = data.and_then(|d| d.extract::<Vec<PathBuf>>().ok());
-                let structure: Arc<dyn ModelStructure> = match (&m.unnamed, logs) {
-                    (Some(unnamed), Some(paths)) => {
-                        let name = py.detach(|| load::system_of(&paths)).map_err(to_py_err)?;
-                        Arc::new(unnamed.named(py, name))
+                let structure: Arc<dyn ModelStructure> = match (&m.python, logs) {
+                    (Some(own), logs) => {
+                        let name = match logs {
+                            Some(paths) if own.name.is_empty() => {
+                                py.detach(|| load::system_of(&paths)).map_err(to_py_err)?
+                            }
+                            _ => own.name.clone(),
+                        };
+                        let own = Arc::new(own.named(py, name));
+                        python = Some(Arc::clone(&own));
+                        own
                     }
-                    _ => Arc::clone(&m.structure),
+                    (None, _) => Arc::clone(&m.structure),
                 };
                 (Source::Structure(structure), effects, Arc::clone(&m.error))
             }
@@ -1072,7 +1315,7 @@ impl Workbench {
                     )
                 })?;
                 for e in effects {
-                    refuse_matrix_form(&wb, &e.get().name)?;
+                    refuse_matrix_form(&wb, &e.get().name, python.is_some())?;
                     wb.offer(Arc::new(PyEffect {
                         effect: e,
                         error: Arc::clone(&error),
@@ -1101,7 +1344,11 @@ impl Workbench {
                 }
             }
         };
-        Ok(Self { inner, error })
+        Ok(Self {
+            inner,
+            python,
+            error,
+        })
     }
 
     /// The system name.
@@ -1126,6 +1373,9 @@ impl Workbench {
         name: Option<String>,
     ) -> PyResult<()> {
         let user = user_effect(py, effect, params, bounds, units, name)?;
+        if user.get().nonlinear() {
+            return self.declare(py, user, false);
+        }
         let effect = self.checked_effect(py, user)?;
         match &mut self.inner {
             Inner::Frf { wb, .. } => wb.offer(effect).map_err(to_py_err),
@@ -1217,6 +1467,9 @@ impl Workbench {
             .map_err(to_py_err);
         }
         let user = user_effect(py, effect, params, bounds, units, name)?;
+        if user.get().nonlinear() {
+            return self.declare(py, user, true);
+        }
         let effect = self.checked_effect(py, user)?;
         match &mut self.inner {
             Inner::Frf { wb, .. } => wb.add_user_effect(effect).map_err(to_py_err),
@@ -1305,7 +1558,17 @@ fn user_effect<'py>(
         Some(n) => n,
         None => effect.getattr("__name__")?.extract()?,
     };
-    let built = Effect::new(py, name, params, effect.clone().unbind(), bounds, units, "")?;
+    let built = Effect::new(
+        py,
+        name,
+        params,
+        Some(effect.clone().unbind()),
+        bounds,
+        units,
+        "",
+        None,
+        None,
+    )?;
     Bound::new(py, built)
 }
 
