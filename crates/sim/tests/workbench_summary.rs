@@ -65,7 +65,7 @@ fn one_experiment(dir: &Path) {
 }
 
 #[test]
-fn fit_and_compare_print_the_fitted_parameters() {
+fn fit_compare_and_discover_print_the_fitted_parameters() {
     let stdout = ok(&["fit", "--with", "momentum_drag"]);
     let line = |name: &str| {
         stdout
@@ -90,8 +90,25 @@ fn fit_and_compare_print_the_fitted_parameters() {
         stdout.contains("parameters (value ± standard error"),
         "{stdout}"
     );
-    // discover keeps its summary of steps.
-    assert!(!ok(&["discover"]).contains("parameters (value ± standard error"));
+    // discover prints its steps, then the final model's parameters by the same function:
+    // the effects it added bring theirs.
+    let stdout = ok(&["discover"]);
+    let steps = stdout
+        .find("effect added")
+        .unwrap_or_else(|| panic!("{stdout}"));
+    let table = stdout
+        .find("parameters (value ± standard error, unit; documented value) of the final model:")
+        .unwrap_or_else(|| panic!("{stdout}"));
+    assert!(steps < table, "{stdout}");
+    let params = &stdout[table..];
+    for name in ["c_alpha1", "l_alpha1"] {
+        let row = params
+            .lines()
+            .find(|l| l.trim_start().starts_with(&format!("{name} ")))
+            .unwrap_or_else(|| panic!("no row for {name}:\n{stdout}"));
+        assert!(row.contains(" ± ") && row.contains("documented"), "{row}");
+    }
+    assert!(params.contains("fixed ("), "{params}");
 }
 
 #[test]

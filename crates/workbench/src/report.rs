@@ -16,15 +16,10 @@ use crate::output;
 /// Selects parameters for a named list of the summary.
 type Pick = fn(&ParamEstimate) -> bool;
 
-/// The terminal summary of a discovery: one row per step with cost, reduction and fit % per
-/// output.
+/// The terminal summary of `discover`, `compare` and `fit`: one row per step with cost,
+/// reduction and fit % per output, then the fitted parameters of the final model (value ±
+/// standard error, unit, documented value; held and fixed ones marked) and the conclusion.
 pub fn table(wb: &Workbench, d: &Discovery) -> String {
-    summary(wb, d, false)
-}
-
-/// The terminal summary of `compare` and `fit`: [`table`] with the fitted parameters of the
-/// last step (value ± standard error, unit, documented value; held and fixed ones marked).
-pub fn fit_table(wb: &Workbench, d: &Discovery) -> String {
     summary(wb, d, true)
 }
 
@@ -142,8 +137,9 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
     s
 }
 
-/// The parameters of the last step, one per line: value ± standard error and unit, the
-/// documented value, and why a parameter was not estimated (held, fixed) or is doubtful.
+/// The parameters of the last step (the final model), one per line: value ± standard error
+/// and unit, the documented value, and why a parameter was not estimated (held, fixed) or is
+/// doubtful.
 fn parameter_lines(wb: &Workbench, d: &Discovery) -> String {
     let Some(last) = d.steps.last() else {
         return String::new();
@@ -157,7 +153,9 @@ fn parameter_lines(wb: &Workbench, d: &Discovery) -> String {
         .chain(fixed.iter().map(|(n, _, _)| n.len()))
         .max()
         .unwrap_or(0);
-    let mut s = String::from("parameters (value ± standard error, unit; documented value):\n");
+    let mut s = String::from(
+        "parameters (value ± standard error, unit; documented value) of the final model:\n",
+    );
     for p in &last.params {
         // Dimensionless ("1" or none) shows no unit.
         let unit = match p.unit.as_str() {
@@ -764,7 +762,12 @@ fn html(wb: &Workbench, d: &Discovery) -> String {
         count(wb.data().experiments.len(), "experiment"),
         wb.noise().mean()
     );
-    let _ = write!(body, "<h2>Summary</h2><pre>{}</pre>", escape(&table(wb, d)));
+    // The parameters have their own table below.
+    let _ = write!(
+        body,
+        "<h2>Summary</h2><pre>{}</pre>",
+        escape(&summary(wb, d, false))
+    );
     let bars: Vec<(String, f64)> = d
         .steps
         .iter()

@@ -10,7 +10,7 @@ use crate::progress::Progress;
 use crate::systems::cubli::{write_cubli_report, CubliBench, CubliDiscovery};
 use crate::systems::flying_platform::embedded_dataset;
 use crate::systems::{self, Source};
-use workbench::report::{fit_table, json, table, write_report};
+use workbench::report::{json, table, write_report};
 use workbench::{load, Criterion, DataOptions, Discovery, EstimatorChoice, Workbench};
 
 /// Non-parametric estimator.
@@ -145,14 +145,10 @@ impl Common {
         Workbench::with_options(structure, data, choice, DataOptions { band_hz, criterion })
     }
 
-    /// The outputs of a record; `parameters` adds the fitted parameters to the summary
-    /// (`compare`, `fit`).
-    fn finish(&self, wb: &Workbench, d: &Discovery, parameters: bool) -> Result<Output> {
-        let mut human = if parameters {
-            fit_table(wb, d)
-        } else {
-            table(wb, d)
-        };
+    /// The outputs of a record: the summary (steps, the final model's parameters, verdict),
+    /// the JSON and the report.
+    fn finish(&self, wb: &Workbench, d: &Discovery) -> Result<Output> {
+        let mut human = table(wb, d);
         if let Some(dir) = &self.report {
             write_report(dir, wb, d)?;
             human.push_str(&format!("wrote {}\n", dir.join("index.html").display()));
@@ -214,7 +210,7 @@ impl DiscoverArgs {
             progress.set(done);
         })?;
         progress.finish();
-        self.common.finish(&wb, &d, false)
+        self.common.finish(&wb, &d)
     }
 }
 
@@ -245,6 +241,6 @@ impl FitArgs {
             wb.add(e.trim())?;
         }
         let d = wb.compared()?;
-        self.common.finish(&wb, &d, true)
+        self.common.finish(&wb, &d)
     }
 }
