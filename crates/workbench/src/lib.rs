@@ -264,11 +264,16 @@ impl Workbench {
     }
 
     /// Fits the current model with the workbench's criterion and records it with its verdict
-    /// (the "compare" of the workflow).
+    /// (the "compare" of the workflow). No candidate is tried, whatever the criterion, so a
+    /// misfit verdict says so rather than that none explains it.
     pub fn compared(&self) -> Result<Discovery> {
-        match self.criterion {
-            Criterion::Frf => Ok(self.record(self.compare()?)),
-            Criterion::Time => self.compare_time(),
-        }
+        let mut d = match self.criterion {
+            Criterion::Frf => self.record(self.compare()?),
+            Criterion::Time => self.compare_time()?,
+        };
+        d.conclusion = d
+            .conclusion
+            .with_candidates(discover::Candidates::of(&self.model, false));
+        Ok(d)
     }
 }

@@ -11,6 +11,7 @@ use proptest::prelude::*;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
+use workbench::discover::Candidates;
 use workbench::{
     Criterion, DataOptions, Dataset, EstimatorChoice, Experiment, ModelFile, ModelStructure,
     Workbench,
@@ -345,4 +346,26 @@ fn the_documented_example_linearizes_to_the_closed_form() {
     let with = vec!["joint_coulomb".to_string()];
     let ss = m.state_space(&with, &[0.5, 0.4, 0.02, 0.01]).unwrap();
     assert!((ss.a[(1, 1)] + 0.01 / 0.05 / jp).abs() < 1e-12);
+}
+
+/// `compare` and `fit` try no candidate under the time criterion either: a misfit verdict
+/// says so (it read "no candidate effect explains it"), in the conclusion and the JSON.
+#[test]
+fn compare_with_the_time_criterion_claims_no_candidate_test() {
+    // Dry friction hidden and not in the model: a structured misfit remains.
+    let wb = workbench(campaign(0.3, 0.0, 21));
+    let d = wb.compared().unwrap();
+    assert_eq!(d.conclusion.candidates, Candidates::Untried);
+    assert!(
+        d.conclusion.unexplained,
+        "{}",
+        d.conclusion.verdict_sentence()
+    );
+    let verdict = d.conclusion.verdict_sentence();
+    assert!(
+        verdict.contains("no candidate effect was tried") && !verdict.contains("explains it"),
+        "{verdict}"
+    );
+    let json = workbench::report::json(&wb, &d);
+    assert_eq!(json["verdict_text"].as_str(), Some(verdict.as_str()));
 }
