@@ -351,15 +351,34 @@ pub fn json(wb: &Workbench, d: &Discovery) -> Value {
     for (k, v) in [
         ("estimator", json!(wb.frf().estimator)),
         ("frequencies_hz", json!(wb.frf().freqs_hz())),
-        ("noise_expected_cost", json!(wb.noise().mean())),
         ("zero_response_p_value", json!(wb.zero_response_p_value())),
-        ("residuals", json!(wb.noise().n_residuals)),
         ("weighting", json!(d.weighting)),
         ("fixed", json!(fixed)),
     ] {
         doc.insert(k.to_string(), v);
     }
+    let (residuals, noise) = cost_reference(wb, d);
+    doc.insert("residuals".into(), json!(residuals));
+    if let Some(noise) = noise {
+        doc.insert("noise_expected_cost".into(), json!(noise));
+    }
     Value::Object(doc)
+}
+
+/// What the steps' costs are sums of, and what noise alone would make them: the FRF
+/// criterion's real residuals on the lines and its Monte-Carlo noise reference; the time
+/// criterion's whitened one-step prediction errors (scored samples times outputs, the samples
+/// its residual tests pool) and no noise reference (its weighting is estimated from the same
+/// errors, so the cost per residual is about one by construction: the residual tests judge
+/// it).
+fn cost_reference(wb: &Workbench, d: &Discovery) -> (usize, Option<f64>) {
+    match wb.criterion() {
+        crate::Criterion::Frf => (wb.noise().n_residuals, Some(wb.noise().mean())),
+        crate::Criterion::Time => (
+            d.steps.first().map_or(0, |st| st.residual_tests.samples) * wb.data().outputs.len(),
+            None,
+        ),
+    }
 }
 
 /// The JSON fields of a step every criterion writes: what the model holds, its cost, its

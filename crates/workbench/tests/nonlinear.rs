@@ -369,3 +369,49 @@ fn compare_with_the_time_criterion_claims_no_candidate_test() {
     let json = workbench::report::json(&wb, &d);
     assert_eq!(json["verdict_text"].as_str(), Some(verdict.as_str()));
 }
+
+fn workbench_with(text: &str, data: Dataset, criterion: Option<Criterion>) -> Workbench {
+    Workbench::with_options(
+        Arc::new(file(text).unwrap()),
+        data,
+        EstimatorChoice::Auto,
+        DataOptions {
+            criterion,
+            ..DataOptions::default()
+        },
+    )
+    .unwrap()
+}
+
+/// The JSON's `residuals` and `noise_expected_cost` are the criterion's own: under the time
+/// criterion the whitened one-step prediction errors the cost sums (it read the FRF's 324 real
+/// residuals and 218.5 against costs of 32 000) and no noise reference; under the FRF
+/// criterion its lines' real residuals and the Monte-Carlo reference.
+#[test]
+fn the_json_counts_the_criterions_own_residuals() {
+    let wb = workbench(campaign(0.0, 0.0, 11));
+    let d = wb.compared().unwrap();
+    let json = workbench::report::json(&wb, &d);
+    assert!(json.get("noise_expected_cost").is_none(), "{json}");
+    let n = json["residuals"].as_u64().unwrap() as f64;
+    let st = &d.steps[0];
+    // Two experiments of 6000 samples less the predictor's start-up, one output.
+    assert!(n > 11_000.0 && n <= 12_000.0, "{n}");
+    assert!(
+        (st.cost / n - st.normalized_cost).abs() < 1e-12 * st.normalized_cost,
+        "cost {} over {n} residuals against {} per residual",
+        st.cost,
+        st.normalized_cost
+    );
+    let wb = workbench_with(PENDULUM, campaign(0.0, 0.0, 11), Some(Criterion::Frf));
+    let d = wb.compared().unwrap();
+    let json = workbench::report::json(&wb, &d);
+    assert_eq!(
+        json["noise_expected_cost"].as_f64(),
+        Some(wb.noise().mean())
+    );
+    assert_eq!(
+        json["residuals"].as_u64(),
+        Some(wb.noise().n_residuals as u64)
+    );
+}
