@@ -411,11 +411,29 @@ pub fn step_fields(
         ("std", by_name(&|p| json!(p.std)).into()),
         ("held", json!(names(|p| p.held))),
         ("poorly_determined", json!(names(|p| p.poorly_determined))),
-        ("candidates", json!(candidates)),
+        ("candidates", candidates_json(candidates)),
     ] {
         m.insert(k.to_string(), v);
     }
     m
+}
+
+/// The candidates of a step; an abandoned one's `reduction_percent` is null: its fit stopped
+/// where it could no longer become significant, and its cost there is only an upper bound, so
+/// no reduction is known (the terminal summary shows none either). Its `cost` and scores stay.
+fn candidates_json(candidates: &[CandidateScore]) -> Value {
+    Value::Array(
+        candidates
+            .iter()
+            .map(|c| {
+                let mut v = json!(c);
+                if c.abandoned {
+                    v["reduction_percent"] = Value::Null;
+                }
+                v
+            })
+            .collect(),
+    )
 }
 
 /// The JSON document's fields every criterion writes: the system, the steps and the

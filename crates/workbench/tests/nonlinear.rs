@@ -415,3 +415,31 @@ fn the_json_counts_the_criterions_own_residuals() {
         Some(wb.noise().n_residuals as u64)
     );
 }
+
+/// An abandoned candidate's cost is only an upper bound where its fit stopped: its JSON
+/// `reduction_percent` is null (it read -9 %), a fitted one's a number; the scores stay.
+#[test]
+fn an_abandoned_candidate_has_no_reduction_in_the_json() {
+    let wb = workbench(campaign(0.0, 0.0, 12));
+    let d = wb.discover().unwrap();
+    let json = workbench::report::json(&wb, &d);
+    let mut abandoned = 0;
+    for (st, js) in d.steps.iter().zip(json["steps"].as_array().unwrap()) {
+        for (c, jc) in st
+            .candidates
+            .iter()
+            .zip(js["candidates"].as_array().unwrap())
+        {
+            assert_eq!(jc["effect"].as_str(), Some(c.effect.as_str()));
+            if c.abandoned {
+                abandoned += 1;
+                assert!(jc["reduction_percent"].is_null(), "{jc}");
+            } else {
+                assert_eq!(jc["reduction_percent"].as_f64(), Some(c.reduction_percent));
+            }
+            assert_eq!(jc["cost"].as_f64(), Some(c.cost));
+            assert_eq!(jc["p_value"].as_f64(), Some(c.p_value));
+        }
+    }
+    assert!(abandoned > 0, "no candidate was abandoned: nothing tested");
+}
