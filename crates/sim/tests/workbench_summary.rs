@@ -1,6 +1,7 @@
-//! What `compare`, `fit` and `model check` say: the fitted parameters in the summary, a verdict
-//! that claims no candidate test that was not run, `fit` without an effect refused, counts in
-//! the singular, eigenvalues on the imaginary axis, and bounds the wrong way round.
+//! What `compare`, `fit`, `discover` and `model check` say: the fitted parameters in the
+//! summary, a verdict that claims no candidate test that was not run, `fit` without an effect
+//! refused, counts in the singular, eigenvalues on the imaginary axis, the unseen combination
+//! and the parameter a fit holds, and bounds the wrong way round.
 #![allow(clippy::unwrap_used)]
 mod common;
 
@@ -231,6 +232,62 @@ fn model_check_puts_both_zero_eigenvalues_on_the_imaginary_axis() {
     assert_eq!(json["unstable"], serde_json::json!([]));
     assert_eq!(json["marginal"].as_array().unwrap().len(), 2, "{json}");
     assert_eq!(json["eigenvalues"].as_array().unwrap().len(), 4);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A pendulum whose response fixes only `1/Jp` and `m g l/Jp` (`Jp = J + m l^2`).
+const PENDULUM: &str = r#"
+name = "pendulum"
+states = ["theta", "omega"]
+inputs = ["T"]
+outputs = ["theta"]
+[parameters]
+m = { value = 0.5, min = 0.01, max = 5.0 }
+l = { value = 0.4, min = 0.05, max = 2.0 }
+J = { value = 0.02, min = 0.0, max = 1.0 }
+g = { value = 9.81, fixed = true }
+[definitions]
+Jp = "J + m*l^2"
+[linear]
+A = [[0, 1], ["m*g*l/Jp", 0]]
+B = [[0], ["1/Jp"]]
+C = [[1, 0]]
+"#;
+
+/// `model check` names every parameter of the unseen combination with its weight and the one
+/// a fit holds by the fit's rule, which the JSON carries as `holds` (it named a part of the
+/// combination and not the parameter discover then held).
+#[test]
+fn model_check_names_the_combination_and_the_parameter_a_fit_holds() {
+    let dir = scratch("holds");
+    let file = dir.join("pendulum.toml");
+    std::fs::write(&file, PENDULUM).unwrap();
+    let f = file.to_str().unwrap();
+    let stdout = ok(&["model", "check", f]);
+    assert!(
+        stdout.contains(
+            "the outputs cannot separate m, l, J: only combinations of them are identifiable \
+             (the unseen one, on unit-norm Jacobian columns: m "
+        ),
+        "{stdout}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&ok(&["model", "check", f, "--json"])).unwrap();
+    let id = &json["identifiability"];
+    assert_eq!(id["unseparated"], serde_json::json!([["m", "l", "J"]]));
+    assert_eq!(
+        id["combinations"][0]["weights"].as_array().unwrap().len(),
+        3
+    );
+    let holds = id["holds"].as_array().unwrap();
+    assert_eq!(holds.len(), 1, "{id}");
+    let held = holds[0].as_str().unwrap();
+    assert!(
+        stdout.contains(&format!(
+            "a fit holds {held} at its documented value and reports the others given it"
+        )) && stdout.contains("a fit on data weighs by the data's Jacobian"),
+        "{stdout}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -262,6 +262,19 @@ fn weakest(j: &DMatrix<f64>, tol: f64) -> Option<usize> {
     direction.iter().rposition(|v| v.abs() >= 0.25 * most)
 }
 
+/// The parameters (column indices of `j`, in the order held) a fit would hold if its scaled
+/// Jacobian were `j` throughout: [`weakest`] on the columns still free, again until none is
+/// left to hold. The fit itself refits between holds, so on data its Jacobian, and with it the
+/// weights of an unseen combination, may differ; the rule is this one.
+pub fn holds(j: &DMatrix<f64>, tol: f64) -> Vec<usize> {
+    let mut free: Vec<usize> = (0..j.ncols()).collect();
+    let mut held = Vec::new();
+    while let Some(col) = weakest(&j.select_columns(free.iter()), tol) {
+        held.push(free.remove(col));
+    }
+    held
+}
+
 /// Levenberg-Marquardt from `theta` (residuals `r` there) over the free parameters. Leaves
 /// `theta` and `r` at the end point and returns the iterations, the Jacobian there and
 /// whether it gave up ([`FitOptions::give_up_above`]).
@@ -424,5 +437,28 @@ mod tests {
         assert_eq!(weakest(&relabelled(0.05), 1e-8), Some(1));
         // Independent columns: nothing to hold.
         assert_eq!(weakest(&DMatrix::identity(4, 4), 1e-8), None);
+    }
+
+    /// `holds` applies the same rule again on what is left: one parameter per unseen
+    /// combination, a column without influence first.
+    #[test]
+    fn holds_takes_one_parameter_per_unseen_combination() {
+        assert_eq!(holds(&relabelled(0.4), 1e-8), [3]);
+        assert_eq!(holds(&relabelled(0.05), 1e-8), [1]);
+        assert!(holds(&DMatrix::identity(4, 4), 1e-8).is_empty());
+        // Two combinations (c1 = c2, c3 = c4) and a column of zeros.
+        let j = DMatrix::from_column_slice(
+            3,
+            5,
+            &[
+                1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0,
+            ],
+        );
+        // (Which combination comes first is the SVD's choice between two zero values.)
+        let held = holds(&j, 1e-8);
+        assert_eq!(held[0], 4);
+        let mut rest = held[1..].to_vec();
+        rest.sort_unstable();
+        assert_eq!(rest, [1, 3]);
     }
 }

@@ -1,17 +1,30 @@
 //! Which parameters the outputs cannot separate: the directions in parameter space along
 //! which the frequency response does not change (to first order), from the singular values
-//! of its Jacobian over a frequency grid that spans the model's time scales.
+//! of its Jacobian over a frequency grid that spans the model's time scales, and which of them
+//! a fit would hold at its documented value (the fit's own rule, [`crate::fit::holds`]).
 use nalgebra::DMatrix;
 use serde::Serialize;
 
+use super::fit::{holds, FitOptions};
 use super::model::Model;
 use crate::error::Result;
 
 /// Singular values below this fraction of the largest count as zero.
 pub const RELATIVE_RANK_TOLERANCE: f64 = 1e-7;
 
-/// A parameter counts as part of a direction when its component exceeds this.
-const INVOLVED: f64 = 0.05;
+/// A parameter counts as part of a direction when its component exceeds this fraction of the
+/// largest: every parameter the combination moves is named (on a two-wheeled robot the body
+/// inertia weighs 0.045 against the masses' 0.70 on unit-norm columns, and a fit on data may
+/// hold it), while rounding leaves the others near 1e-9.
+const INVOLVED: f64 = 1e-3;
+
+/// One combination of parameters the outputs do not see.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Combination {
+    /// Each parameter that moves in it with its component (unit-norm Jacobian columns, the
+    /// largest positive), model order.
+    pub weights: Vec<(String, f64)>,
+}
 
 /// What the outputs can tell apart.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -25,6 +38,13 @@ pub struct Identifiability {
     /// Groups of parameters of which the outputs see fewer combinations than there are
     /// parameters (each the support of a direction without effect).
     pub unseparated: Vec<Vec<String>>,
+    /// The directions without effect themselves, one per group of `unseparated`.
+    pub combinations: Vec<Combination>,
+    /// The parameters a fit holds at their documented values, in the order it holds them, if
+    /// its Jacobian were this one ([`crate::fit::holds`] at the fit's rank tolerance): one per
+    /// unseen combination, and any without effect. On data a fit weighs the combination by
+    /// the data's Jacobian, so it may hold another parameter of the same combination.
+    pub holds: Vec<String>,
 }
 
 /// A logarithmic grid of 48 frequencies from a tenth of the slowest to ten times the fastest
@@ -80,6 +100,7 @@ pub fn analyse(model: &Model, theta: &[f64]) -> Result<Identifiability> {
         .filter(|&i| norms[i] > RELATIVE_RANK_TOLERANCE * biggest)
         .collect();
     let mut unseparated = Vec::new();
+    let mut combinations = Vec::new();
     let mut singular_values = Vec::new();
     if !acting.is_empty() {
         let mut n = DMatrix::zeros(m.nrows(), acting.len());
@@ -94,22 +115,37 @@ pub fn analyse(model: &Model, theta: &[f64]) -> Result<Identifiability> {
         if let Some(vt) = &svd.v_t {
             for &k in &order {
                 if svd.singular_values[k] <= RELATIVE_RANK_TOLERANCE * top {
-                    let group: Vec<String> = (0..acting.len())
-                        .filter(|&c| vt[(k, c)].abs() > INVOLVED)
-                        .map(|c| params[acting[c]].name.clone())
+                    let row = vt.row(k);
+                    let most = row.amax();
+                    let sign = if row.iter().any(|v| *v >= most) {
+                        1.0
+                    } else {
+                        -1.0
+                    };
+                    let weights: Vec<(String, f64)> = (0..acting.len())
+                        .filter(|&c| vt[(k, c)].abs() > INVOLVED * most)
+                        .map(|c| (params[acting[c]].name.clone(), sign * vt[(k, c)]))
                         .collect();
+                    let group: Vec<String> = weights.iter().map(|(n, _)| n.clone()).collect();
                     if !unseparated.contains(&group) {
                         unseparated.push(group);
+                        combinations.push(Combination { weights });
                     }
                 }
             }
         }
     }
+    let holds = holds(&m, FitOptions::default().rank_tolerance)
+        .into_iter()
+        .map(|i| params[i].name.clone())
+        .collect();
     Ok(Identifiability {
         freqs_hz,
         singular_values,
         no_effect,
         unseparated,
+        combinations,
+        holds,
     })
 }
 
@@ -155,7 +191,59 @@ C = [[1, 0]]
         let id = analyse(&model, &theta).unwrap();
         assert_eq!(id.no_effect, ["unused"]);
         assert_eq!(id.unseparated, vec![vec!["m", "l", "J"]]);
+        // A fit holds the parameter without effect and one of the combination, by the fit's
+        // own rule on this Jacobian.
+        assert_eq!(id.holds.len(), 2);
+        assert_eq!(id.holds[0], "unused");
+        assert!(id.unseparated[0].contains(&id.holds[1]), "{:?}", id.holds);
         assert_eq!(id.singular_values.len(), 3);
         assert!(id.singular_values[1] > 1e-3 * id.singular_values[0]);
+    }
+
+    /// A two-wheeled robot linearized upright: the response sees `Mx + m`, `m l`, `J + m l^2`
+    /// and `r`, so one combination of Mx, m, l and J is unseen. The check names all four (J
+    /// weighs 0.045 against the masses' 0.70: a threshold of 0.05 left it out, while the fit
+    /// on data held it) and the parameter a fit holds by the fit's own rule (m here, of Mx and
+    /// m, which weigh at least a quarter of the most; r takes no part).
+    #[test]
+    fn every_parameter_of_an_unseen_combination_is_named_with_the_one_a_fit_holds() {
+        let text = r#"
+name = "segway"
+states = ["x", "xdot", "theta", "thetadot"]
+inputs = ["T"]
+outputs = ["x", "theta"]
+[parameters]
+Mx = { value = 0.6, min = 0.05, max = 5.0 }
+m = { value = 1.5, min = 0.1, max = 10.0 }
+l = { value = 0.12, min = 0.01, max = 1.0 }
+J = { value = 0.02, min = 0.0, max = 0.5 }
+r = { value = 0.05, min = 0.01, max = 0.5 }
+g = { value = 9.81, fixed = true }
+[definitions]
+a = "Mx + m"
+c = "m*l"
+d = "J + m*l^2"
+Delta = "a*d - c^2"
+[linear]
+A = [[0, 1, 0, 0], [0, 0, "-c^2*g/Delta", 0], [0, 0, 0, 1], [0, 0, "a*c*g/Delta", 0]]
+B = [[0], ["(d/r + c)/Delta"], [0], ["-(a + c/r)/Delta"]]
+C = [[1, 0, 0, 0], [0, 0, 1, 0]]
+"#;
+        let file = ModelFile::parse(text, Path::new("segway.toml")).unwrap();
+        let model = Model::new(Arc::new(file));
+        let theta: Vec<f64> = model
+            .parameters()
+            .unwrap()
+            .iter()
+            .map(|p| p.value)
+            .collect();
+        let id = analyse(&model, &theta).unwrap();
+        assert_eq!(id.unseparated, vec![vec!["Mx", "m", "l", "J"]]);
+        let w = &id.combinations[0].weights;
+        assert_eq!(w.len(), 4);
+        // Along the combination Mx and m move against each other, J with m.
+        assert!(w[0].1 * w[1].1 < 0.0 && w[1].1 * w[3].1 > 0.0, "{w:?}");
+        assert!(w[3].1.abs() < 0.05 && w[3].1.abs() > 0.03, "{w:?}");
+        assert_eq!(id.holds, ["m"]);
     }
 }

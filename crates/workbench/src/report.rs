@@ -16,6 +16,9 @@ use crate::output;
 /// Selects parameters for a named list of the summary.
 type Pick = fn(&ParamEstimate) -> bool;
 
+/// Closes a named list of the summary (its names given).
+type Close = fn(&[&str]) -> String;
+
 /// The terminal summary of `discover`, `compare` and `fit`: one row per step with cost,
 /// reduction and fit % per output, then the fitted parameters of the final model (value ±
 /// standard error, unit, documented value; held and fixed ones marked) and the conclusion.
@@ -107,14 +110,20 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
                 c.effect, c.reduction_percent, c.added_parameters, c.p_value, c.delta_bic,
             );
         }
-        let lists: [(&str, Pick); 2] = [
+        // The held ones fix the unseen combinations: the other values are conditional on them.
+        let lists: [(&str, Pick, Close); 2] = [
             (
                 "held at documented values (not separable by the data)",
                 |p| p.held,
+                given,
             ),
-            ("poorly determined (std > |value|)", |p| p.poorly_determined),
+            (
+                "poorly determined (std > |value|)",
+                |p| p.poorly_determined,
+                |_| String::new(),
+            ),
         ];
-        for (what, pick) in lists {
+        for (what, pick, close) in lists {
             let names: Vec<&str> = st
                 .params
                 .iter()
@@ -122,7 +131,7 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
                 .map(|p| p.name.as_str())
                 .collect();
             if !names.is_empty() {
-                let _ = writeln!(s, "{what}: {}", names.join(", "));
+                let _ = writeln!(s, "{what}: {}{}", names.join(", "), close(&names));
             }
         }
     }
@@ -135,6 +144,22 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
     }
     s.push_str(&d.conclusion.lines());
     s
+}
+
+/// Closes the list of the parameters held at their documented values: the other values and
+/// their standard errors hold given them there (a fit fixes an unseen combination by holding
+/// one of its parameters; another choice would move the others along the combination).
+fn given(held: &[&str]) -> String {
+    match held {
+        [] => String::new(),
+        [one] => format!(
+            "; the other values and their standard errors hold given {one} at its documented value"
+        ),
+        more => format!(
+            "; the other values and their standard errors hold given {} at their documented values",
+            more.join(", ")
+        ),
+    }
 }
 
 /// The parameters of the last step (the final model), one per line: value ± standard error

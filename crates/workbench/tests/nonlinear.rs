@@ -443,3 +443,43 @@ fn an_abandoned_candidate_has_no_reduction_in_the_json() {
     }
     assert!(abandoned > 0, "no candidate was abandoned: nothing tested");
 }
+
+/// A parameter the data cannot separate from another (`c` and a gain `g2` enter only as
+/// their product): the fit holds the one the structural check says it will (the same rule,
+/// `fit::holds`), and the summary says the other values hold given it.
+#[test]
+fn the_check_and_the_fit_name_the_same_held_parameter() {
+    let text = PENDULUM
+        .replace(
+            "c = { value = 10.0, min = 1.0, max = 100.0 }",
+            "c = { value = 10.0, min = 1.0, max = 100.0 }\ng2 = { value = 1.0, min = 0.1, max = 10.0 }",
+        )
+        .replace("c*torque", "c*g2*torque");
+    let wb = workbench_with(&text, campaign(0.0, 0.0, 11), None);
+    let model = wb.model();
+    let theta: Vec<f64> = model
+        .parameters()
+        .unwrap()
+        .iter()
+        .map(|p| p.value)
+        .collect();
+    let id = workbench::identifiability::analyse(model, &theta).unwrap();
+    assert_eq!(id.unseparated, vec![vec!["c", "g2"]]);
+    assert_eq!(id.holds, ["g2"]);
+    let d = wb.compared().unwrap();
+    let held: Vec<&str> = d.steps[0]
+        .params
+        .iter()
+        .filter(|p| p.held)
+        .map(|p| p.name.as_str())
+        .collect();
+    assert_eq!(held, ["g2"]);
+    let summary = workbench::report::table(&wb, &d);
+    assert!(
+        summary.contains(
+            "held at documented values (not separable by the data): g2; the other values and \
+             their standard errors hold given g2 at its documented value"
+        ),
+        "{summary}"
+    );
+}

@@ -140,10 +140,39 @@ impl CheckArgs {
                 id.no_effect.join(", ")
             ));
         }
-        for g in &id.unseparated {
+        for (g, c) in id.unseparated.iter().zip(&id.combinations) {
+            let weights: Vec<String> = c
+                .weights
+                .iter()
+                .map(|(n, w)| format!("{n} {w:+.3}"))
+                .collect();
             human.push_str(&format!(
-                "the outputs cannot separate {}: only combinations of them are identifiable\n",
-                g.join(", ")
+                "the outputs cannot separate {}: only combinations of them are identifiable \
+                 (the unseen one, on unit-norm Jacobian columns: {})\n",
+                g.join(", "),
+                weights.join(", ")
+            ));
+        }
+        let held: Vec<&str> = id
+            .holds
+            .iter()
+            .filter(|h| id.unseparated.iter().any(|g| g.contains(h)))
+            .map(|h| h.as_str())
+            .collect();
+        if !held.is_empty() {
+            // The fit's rule on this Jacobian; on data a fit weighs the combination by the
+            // data's Jacobian and may hold another of its parameters.
+            let (its, value) = if held.len() == 1 {
+                ("its", "value")
+            } else {
+                ("their", "values")
+            };
+            human.push_str(&format!(
+                "a fit holds {} at {its} documented {value} and reports the others given it (of \
+                 the parameters weighing at least a quarter of the most in an unseen combination, \
+                 the last in model order); these weights are the FRF's at the documented values: \
+                 a fit on data weighs by the data's Jacobian and may hold another of them\n",
+                held.join(", ")
             ));
         }
         if id.no_effect.is_empty() && id.unseparated.is_empty() {
