@@ -86,13 +86,19 @@ def test_a_callable_model_on_arrays_explains_its_own_truth():
 
 @pytest.mark.parametrize("seeds", [(1, 2, 3), (4, 5, 6), (7, 8, 9)])
 def test_a_user_effect_that_adds_a_state_is_a_discovery_candidate(seeds):
-    # The generic actuator_lag describes the same physics: offering the user's effect under
-    # its own name must make discovery choose between the two, and the fitted time constant
-    # must be the truth's either way (3 seed sets, all must pass).
+    # The generic actuator_lag describes the same physics: offered under its own name, the
+    # user's effect fits exactly as well, so discovery adds one of the two as tentative and
+    # names the other as its rival; the fitted time constant is the truth's either way (3
+    # seed sets, all must pass).
     data = experiments(plant(42.0, 2.4, 31.0, lag=0.05), seeds=seeds)
     wb = stabilis.Workbench(model=model(effects=[LAG]), data=data, sample_rate_hz=FS)
     result = wb.discover()
-    assert len(result["found"]) == 1 and result["found"][0] in ("slow_drive", "actuator_lag")
+    assert result["found"] == [] and len(result["tentative"]) == 1, result["tentative"]
+    added = result["tentative"][0]
+    assert added in ("slow_drive", "actuator_lag")
+    other = "actuator_lag" if added == "slow_drive" else "slow_drive"
+    assert any(w.startswith(other) and "do not tell them apart" in w
+               for w in result["tentative_why"]), result["tentative_why"]
     params = result["steps"][-1]["params"]
     tau = params.get("slow_drive.tau", params.get("tau"))
     assert abs(tau / 0.05 - 1) < 0.05, params

@@ -11,7 +11,7 @@ use super::frf::Estimator;
 use super::model::Model;
 use super::residual::{residual_tests, ResidualTests, DEFAULT_LAGS};
 use super::search::{forward_selection, Search};
-use super::stats::f_sf;
+use super::stats::{chi2_sf, f_sf};
 use super::timedomain::{time_fit, TimeFit, DEFAULT_HORIZON, DEFAULT_WINDOW};
 use super::Workbench;
 use crate::error::{Result, SimError};
@@ -49,9 +49,10 @@ pub struct CandidateScore {
     /// significant (the time-domain criterion): `cost` is then where it stopped, an upper
     /// bound of the fitted one.
     pub abandoned: bool,
-    /// Standard deviation of the cost under noise alone, in cost units: candidates whose
-    /// costs differ by less fit the data equally well ([`rivals`]).
+    /// Standard deviation of the cost under noise alone, in cost units.
     pub noise_spread: f64,
+    /// Noise variance of one residual in cost units (what [`rivals`] weighs cost gaps by).
+    pub scale: f64,
 }
 
 /// The costs a nested-model test compares: a model and the model with one candidate more,
@@ -159,15 +160,38 @@ impl CandidateScore {
                 && exceeds_noise,
             abandoned,
             noise_spread: c.noise_sd,
+            scale: c.scale,
         }
     }
 }
 
+/// The probability that noise makes a cost gap `gap` between two models (see [`rivals`]);
+/// `scale` is one residual's noise variance in cost units.
+fn rival_p_value(gap: f64, scale: f64) -> f64 {
+    if gap <= 0.0 {
+        1.0
+    } else {
+        chi2_sf(gap / (4.0 * scale), 1.0)
+    }
+}
+
+impl CandidateScore {
+    /// The cost it removed from its step's model (from `reduction_percent`).
+    fn cost_reduction(&self) -> f64 {
+        let before = self.cost / (1.0 - self.reduction_percent / 100.0);
+        before - self.cost
+    }
+}
+
 /// One sentence per added effect that another candidate of its step fits as well: the
-/// other's cost reduction also exceeds the noise, and the two costs differ by less than the
-/// noise-only spread. The data then do not tell the two apart (a lag of a tenth of a sample
-/// and a delay of the same length, say), and the loop's pick between them is a coin toss.
-/// `steps` are each step's added effect and the candidates tried on it, the start first.
+/// other's cost reduction also exceeds the noise, and the gap between the two costs is one
+/// noise could make. Two models whose whitened predictions differ by an energy `D` have costs
+/// `D` apart when one of them is right, and noise moves that gap by `2 sqrt(D)` (in units of
+/// one residual's noise variance), so a gap `dV` is told from zero at z = `sqrt(dV) / 2`: the
+/// two are rivals when `chi2_sf(dV / 4, 1)` is at least the tests' level. The loop's pick
+/// between rivals is a coin toss (a lag of a tenth of a sample and a delay of the same length,
+/// two names for one term). `steps` are each step's added effect and the candidates tried on
+/// it, the start first.
 pub fn rivals<'a>(
     steps: impl IntoIterator<Item = (Option<&'a str>, &'a [CandidateScore])>,
 ) -> Vec<String> {
@@ -183,21 +207,26 @@ pub fn rivals<'a>(
                 .filter(|c| {
                     c.effect != added
                         && c.exceeds_noise
-                        && c.cost - chosen.cost < chosen.noise_spread
+                        && rival_p_value(c.cost - chosen.cost, chosen.scale) >= LEVEL
                 })
                 .collect();
             (!equal.is_empty()).then(|| {
                 let names: Vec<String> = equal.iter().map(|c| c.effect.clone()).collect();
                 let gaps: Vec<String> = equal
                     .iter()
-                    .map(|c| format!("{:+.1}", c.cost - chosen.cost))
+                    .map(|c| {
+                        let gap = c.cost - chosen.cost;
+                        format!(
+                            "{gap:+.1}, a gap noise makes with p = {:.2}",
+                            rival_p_value(gap, chosen.scale)
+                        )
+                    })
                     .collect();
                 format!(
-                    "{} fits these data as well as {added} (cost {} against it, within the \
-                     noise-only spread {:.1}): the data do not tell them apart",
+                    "{} fits these data as well as {added} (cost {}): the data do not tell \
+                     them apart",
                     names.join(" and "),
                     gaps.join(" and "),
-                    chosen.noise_spread,
                 )
             })
         })
@@ -378,6 +407,10 @@ pub struct Conclusion {
     pub level: f64,
     /// Whether the candidates were tried ([`Conclusion::settle`] assumes so).
     pub candidates: Candidates,
+    /// Candidates on the final model that pass the nested-model tests but lower the cost by
+    /// less than noise alone varies it, one sentence each ([`Conclusion::with_near_misses`]):
+    /// with a misfit left, they are what to try first.
+    pub near_misses: Vec<String>,
 }
 
 impl Conclusion {
@@ -403,6 +436,41 @@ impl Conclusion {
             verdict,
             level,
             candidates: Candidates::Tried,
+            near_misses: Vec::new(),
+        }
+    }
+
+    /// The same conclusion naming the candidates tried on the final model (`last`) that the
+    /// effect-size rule alone kept out: significant by the F test, its robustness check and
+    /// BIC, but lowering the cost by less than the noise-only spread. With many residuals that
+    /// rule is strict, and a real effect can stand below it while the verdict sees a misfit.
+    pub fn with_near_misses(self, last: &[CandidateScore]) -> Self {
+        let alpha = self.level / last.len().max(1) as f64;
+        let near_misses = last
+            .iter()
+            .filter(|c| {
+                !c.exceeds_noise
+                    && c.added_parameters > 0
+                    && c.p_value < alpha
+                    && c.robust_p_value < alpha
+                    && c.delta_bic < 0.0
+            })
+            .map(|c| {
+                let by = if c.abandoned { "at least " } else { "" };
+                format!(
+                    "{} passes the tests (p = {:.1e}) but lowers the cost by {by}{:.1}, less than \
+                     noise alone varies it ({:.1}); `fit --with {}` fits it alone",
+                    c.effect,
+                    c.p_value,
+                    c.cost_reduction(),
+                    c.noise_spread,
+                    c.effect
+                )
+            })
+            .collect();
+        Self {
+            near_misses,
+            ..self
         }
     }
 
@@ -413,7 +481,16 @@ impl Conclusion {
 
     /// The verdict's sentence, with the closing words the candidates allow.
     pub fn verdict_sentence(&self) -> String {
-        self.verdict.sentence_given(self.candidates)
+        let sentence = self.verdict.sentence_given(self.candidates);
+        match &self.verdict {
+            Verdict::UnexplainedStructuredMisfit { .. } if !self.near_misses.is_empty() => {
+                format!(
+                    "{sentence} beyond the noise: {}",
+                    self.near_misses.join("; ")
+                )
+            }
+            _ => sentence,
+        }
     }
 
     /// A sentence naming the tentative effects and why; `None` when there are none.
@@ -949,12 +1026,14 @@ impl Workbench {
                 .map(|s| (s.added.as_deref(), s.candidates.as_slice())),
         ));
         let unexplained = matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. });
+        let last_candidates = last.candidates.clone();
         let weighting =
             self.weighting_sentence(&steps.last().map(|s| s.effects.clone()).unwrap_or_default());
         Ok(Discovery {
             steps,
             conclusion: Conclusion::settle(found, caveats, unexplained, verdict, LEVEL)
-                .with_candidates(Candidates::of(&self.model, true)),
+                .with_candidates(Candidates::of(&self.model, true))
+                .with_near_misses(&last_candidates),
             weighting,
         })
     }

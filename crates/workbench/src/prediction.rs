@@ -789,6 +789,7 @@ impl Workbench {
             .last()
             .ok_or_else(|| SimError::invalid("discovery", "no step", "nothing was fitted"))?;
         let verdict = time_verdict(&last.residual_tests);
+        let last_candidates = last.candidates.clone();
         let unexplained = matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. });
         let why = unexplained.then(|| {
             "the final model's innovations still correlate with the excitation, which the tests that added them took for noise".to_string()
@@ -803,7 +804,8 @@ impl Workbench {
             weighting: "time-domain prediction error of the extended Kalman predictor in absolute units; every model under the gain and the inverse innovation covariance of the starting model's fit".to_string(),
             steps,
             conclusion: Conclusion::settle(found, why, unexplained, verdict, LEVEL)
-                .with_candidates(super::discover::Candidates::of(&self.model, true)),
+                .with_candidates(super::discover::Candidates::of(&self.model, true))
+                .with_near_misses(&last_candidates),
         })
     }
 

@@ -155,6 +155,7 @@ mod tests {
                 significant,
                 abandoned: false,
                 noise_spread: 1.0,
+                scale: 1.0,
             };
             Ok(((effects, cost, Vec::new()), score))
         }

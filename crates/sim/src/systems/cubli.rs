@@ -1069,6 +1069,10 @@ impl CubliBench {
                 .iter()
                 .map(|s| (s.added.as_deref(), s.candidates.as_slice())),
         );
+        let last_candidates = steps
+            .last()
+            .map(|s| s.candidates.clone())
+            .unwrap_or_default();
         let verdict = verdict_of(&channel_p_values);
         CubliDiscovery {
             steps,
@@ -1078,7 +1082,8 @@ impl CubliBench {
                 unexplained,
                 verdict,
                 LEVEL,
-            ),
+            )
+            .with_near_misses(&last_candidates),
             misfit_channels,
             channel_p_values,
             noise_std: self.var.iter().map(|v| v.sqrt()).collect(),
