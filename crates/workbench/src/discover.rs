@@ -1123,8 +1123,91 @@ where
 
 #[cfg(test)]
 mod tests {
-    use super::{Candidates, Conclusion, Verdict};
+    use super::{rival_p_value, rivals, CandidateScore, Candidates, Conclusion, Verdict};
     use proptest::prelude::*;
+
+    /// A scored candidate: `cost` from `before`, F-test p-value `p`, the noise-only spread of
+    /// a cost of 129 200 unit-variance residuals (508.3).
+    fn scored(effect: &str, before: f64, cost: f64, p: f64) -> CandidateScore {
+        let spread = (2.0f64 * 129_200.0).sqrt();
+        CandidateScore {
+            effect: effect.into(),
+            cost,
+            reduction_percent: 100.0 * (before - cost) / before,
+            added_parameters: 1,
+            f_statistic: 0.0,
+            p_value: p,
+            robust_p_value: p,
+            delta_aic: -10.0,
+            delta_bic: -5.0,
+            exceeds_noise: before - cost > spread,
+            significant: p < 0.01 && before - cost > spread,
+            abandoned: false,
+            noise_spread: spread,
+            scale: 1.0,
+        }
+    }
+
+    /// A misfit verdict names the candidate that passed every test but the effect size, with
+    /// its cost reduction and the spread, and not one that failed the F test; an explained
+    /// verdict names none.
+    #[test]
+    fn a_misfit_verdict_names_the_candidates_only_the_effect_size_kept_out() {
+        let misfit = Verdict::UnexplainedStructuredMisfit {
+            p_value: 1.1e-3,
+            outputs: vec!["theta".into()],
+            band_hz: None,
+            worst_entries: Vec::new(),
+        };
+        let last = [
+            scored("pendulum_friction", 130_000.0, 129_879.0, 4e-28),
+            scored("sensor_bias", 130_000.0, 129_990.0, 0.2),
+        ];
+        let c =
+            Conclusion::settle(Vec::new(), Vec::new(), true, misfit, 0.01).with_near_misses(&last);
+        let s = c.verdict_sentence();
+        assert!(
+            s.contains("no candidate effect explains it beyond the noise: pendulum_friction passes the tests (p = 4.0e-28) but lowers the cost by 121.0, less than noise alone varies it (508.3)"),
+            "{s}"
+        );
+        assert!(!s.contains("sensor_bias"), "{s}");
+        let explained = Verdict::ExplainedToNoiseLevel { p_value: 0.4 };
+        let c = Conclusion::settle(Vec::new(), Vec::new(), false, explained, 0.01)
+            .with_near_misses(&last);
+        assert!(!c.verdict_sentence().contains("pendulum_friction"));
+    }
+
+    /// Rivals: equal costs are, a gap noise cannot make (z = sqrt(dV)/2 beyond 2.58) is not;
+    /// a candidate whose reduction stays within the noise is never one.
+    #[test]
+    fn rivals_are_candidates_whose_cost_gap_noise_could_make() {
+        assert_eq!(rival_p_value(0.0, 1.0), 1.0);
+        // chi2_sf(z^2, 1) at z = 2.576 is 1 %: dV = 4 z^2 = 26.5.
+        assert!((rival_p_value(4.0 * 2.5758f64.powi(2), 1.0) - 0.01).abs() < 1e-4);
+        assert!((rival_p_value(2.0 * 4.0 * 2.5758f64.powi(2), 2.0) - 0.01).abs() < 1e-4);
+        let tried = vec![
+            scored("lag", 32_331.0, 30_098.8, 1e-30),
+            scored("delay", 32_331.0, 30_102.2, 1e-30),
+            scored("far", 32_331.0, 30_140.0, 1e-30),
+            scored("small", 32_331.0, 32_300.0, 1e-3),
+        ];
+        let start = (None, tried.as_slice());
+        let then = (Some("lag"), &[][..]);
+        let why = rivals([start, then]);
+        assert_eq!(why.len(), 1, "{why:?}");
+        assert!(
+            why[0].starts_with(
+                "delay fits these data as well as lag (cost +3.4, a gap noise makes with p = 0.36)"
+            ),
+            "{why:?}"
+        );
+        assert!(
+            !why[0].contains("far") && !why[0].contains("small"),
+            "{why:?}"
+        );
+        // Nothing added, nothing to rival.
+        assert!(rivals([start]).is_empty());
+    }
 
     /// A misfit no single output carries says so instead of "in outputs []"; the closing words
     /// follow what was tried.
