@@ -135,6 +135,11 @@ fn compare_does_not_claim_that_candidates_were_tried() {
     let json: serde_json::Value = serde_json::from_str(&ok(&["discover", "--json"])).unwrap();
     let verdict = json["verdict_text"].as_str().unwrap();
     assert!(!verdict.contains("was tried"), "{verdict}");
+    // The candidates only the effect size kept out are a list, each named in the verdict.
+    for near in json["near_misses"].as_array().unwrap() {
+        let name = near.as_str().unwrap().split(' ').next().unwrap();
+        assert!(verdict.contains(name), "{verdict}");
+    }
 }
 
 #[test]

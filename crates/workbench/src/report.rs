@@ -463,7 +463,7 @@ fn candidates_json(candidates: &[CandidateScore]) -> Value {
 
 /// The JSON document's fields every criterion writes: the system, the steps and the
 /// conclusion (`found`, `tentative`, `tentative_why`, `unexplained`, `verdict`,
-/// `verdict_text`, `level`).
+/// `verdict_text`, `near_misses`, `level`).
 pub fn conclusion_fields(
     system: &str,
     steps: Vec<Value>,
@@ -479,6 +479,7 @@ pub fn conclusion_fields(
         ("unexplained", json!(c.unexplained)),
         ("verdict", json!(c.verdict)),
         ("verdict_text", json!(c.verdict_sentence())),
+        ("near_misses", json!(c.near_misses)),
         ("level", json!(c.level)),
     ] {
         m.insert(k.to_string(), v);
