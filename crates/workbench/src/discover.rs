@@ -329,9 +329,15 @@ impl Verdict {
 
     /// A sentence for the summary; a misfit's closing words say what `candidates` allows.
     pub fn sentence_given(&self, candidates: Candidates) -> String {
+        self.sentence_of(candidates, COST_TEST)
+    }
+
+    /// [`Verdict::sentence_given`] for a verdict whose p-value is that of `test` (what it
+    /// tested, as "for ...").
+    fn sentence_of(&self, candidates: Candidates, test: &str) -> String {
         match self {
             Self::ExplainedToNoiseLevel { p_value } => {
-                format!("explained to the noise level (p = {p_value:.3} for the remaining cost under noise alone)")
+                format!("explained to the noise level (p = {p_value:.3} {test})")
             }
             Self::UnexplainedStructuredMisfit {
                 p_value,
@@ -411,7 +417,14 @@ pub struct Conclusion {
     /// less than noise alone varies it, one sentence each ([`Conclusion::with_near_misses`]):
     /// with a misfit left, they are what to try first.
     pub near_misses: Vec<String>,
+    /// What the verdict's p-value tested, as "for ..." ([`Conclusion::with_test`]).
+    #[serde(skip)]
+    pub test: &'static str,
 }
+
+/// What the FRF criterion's verdict tests: its remaining cost against the Monte-Carlo
+/// reference of noise alone.
+pub const COST_TEST: &str = "for the remaining cost under noise alone";
 
 impl Conclusion {
     /// Settles the effects a discovery added: all found when nothing speaks against them
@@ -437,7 +450,14 @@ impl Conclusion {
             level,
             candidates: Candidates::Tried,
             near_misses: Vec::new(),
+            test: COST_TEST,
         }
+    }
+
+    /// The same conclusion for a verdict whose p-value is that of `test` (by default the FRF
+    /// criterion's [`COST_TEST`]).
+    pub fn with_test(self, test: &'static str) -> Self {
+        Self { test, ..self }
     }
 
     /// The same conclusion naming the candidates tried on the final model (`last`) that the
@@ -481,7 +501,7 @@ impl Conclusion {
 
     /// The verdict's sentence, with the closing words the candidates allow.
     pub fn verdict_sentence(&self) -> String {
-        let sentence = self.verdict.sentence_given(self.candidates);
+        let sentence = self.verdict.sentence_of(self.candidates, self.test);
         match &self.verdict {
             Verdict::UnexplainedStructuredMisfit { .. } if !self.near_misses.is_empty() => {
                 format!(

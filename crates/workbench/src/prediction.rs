@@ -805,7 +805,8 @@ impl Workbench {
             steps,
             conclusion: Conclusion::settle(found, why, unexplained, verdict, LEVEL)
                 .with_candidates(super::discover::Candidates::of(&self.model, true))
-                .with_near_misses(&last_candidates),
+                .with_near_misses(&last_candidates)
+                .with_test(EXCITATION_TEST),
         })
     }
 
@@ -984,6 +985,10 @@ impl Search for TimeSearch<'_> {
         self.wb.model.parallel()
     }
 }
+
+/// What the time criterion's verdict tests.
+const EXCITATION_TEST: &str =
+    "for the innovations' correlation with the excitation or past inputs, the smallest over the outputs";
 
 /// The verdict of the time-domain criterion: innovations that correlate with the excitation
 /// (or the past inputs) show a model error (whiteness alone tests the noise model, which is

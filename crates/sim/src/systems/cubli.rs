@@ -1083,7 +1083,8 @@ impl CubliBench {
                 verdict,
                 LEVEL,
             )
-            .with_near_misses(&last_candidates),
+            .with_near_misses(&last_candidates)
+            .with_test("for the probes' fit to the residual, the smallest over the channels"),
             misfit_channels,
             channel_p_values,
             noise_std: self.var.iter().map(|v| v.sqrt()).collect(),
