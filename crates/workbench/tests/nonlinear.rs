@@ -251,6 +251,13 @@ fn nothing_hidden_finds_nothing() {
             summary.contains("cost/resid.") && !summary.contains("expected cost"),
             "{summary}"
         );
+        // Its verdict's p-value is the excitation test's, and says so.
+        let verdict = d.conclusion.verdict_sentence();
+        assert!(
+            verdict.contains("for the innovations' correlation with the excitation")
+                && !verdict.contains("remaining cost"),
+            "{verdict}"
+        );
         // A candidate whose fit stopped early shows no reduction: its cost is not a fitted one.
         for c in d
             .steps
