@@ -38,6 +38,7 @@ use super::diagnose::LEVEL;
 use super::kalman::Predictor;
 use super::model::Model;
 use super::model_file::ModelFile;
+use super::report::fmt_num;
 use super::stats::clopper_pearson;
 use super::timedomain::{demeaned, Discrete};
 use super::{DataOptions, EstimatorChoice, Workbench};
@@ -1007,11 +1008,11 @@ impl PowerResult {
             "std",
             "failed"
         ));
-        let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4}"));
+        let opt = |v: Option<f64>| v.map_or("-".to_string(), fmt_num);
         for v in &self.values {
             s.push_str(&format!(
                 "{:>12} {:>8.1}% {:>8.1}-{:>6.1}% {:>6.1}% {:>10.1}% {:>12} {:>10} {:>6}\n",
-                format!("{:.4}", v.value),
+                fmt_num(v.value),
                 100.0 * v.detection_rate,
                 100.0 * v.ci[0],
                 100.0 * v.ci[1],
@@ -1036,11 +1037,12 @@ impl PowerResult {
         let m = &self.min_detectable;
         s.push_str(&match m.value {
             Some(v) => format!(
-                "smallest {} detected with {:.0}% power: {v:.4} (interval {} to {})\n",
+                "smallest {} detected with {:.0}% power: {} (interval {} to {})\n",
                 self.parameter,
                 100.0 * TARGET_POWER,
+                fmt_num(v),
                 opt(m.ci[0]),
-                m.ci[1].map_or("beyond the values studied".into(), |v| format!("{v:.4}"))
+                m.ci[1].map_or("beyond the values studied".into(), fmt_num)
             ),
             None => format!(
                 "{:.0}% power is not reached within the values studied\n",
@@ -1431,6 +1433,50 @@ K = [[4.0, 3.0]]
         out.push(outcome(2, 0, true, None));
         assert!(aggregate(&spec, &out).is_err());
         assert!(aggregate(&spec, &[outcome(5, 0, true, None)]).is_err());
+    }
+
+    #[test]
+    fn the_table_prints_small_values_with_four_significant_digits() {
+        // A Furuta pendulum's joint friction: every value below 1e-4 read 0.0000.
+        let spec = spec_of(vec![0.0, 2e-6, 4e-6, 8e-6, 1.6e-5], 4);
+        let mut out = Vec::new();
+        for (v, found) in [0, 1, 2, 4, 4].into_iter().enumerate() {
+            for c in 0..4 {
+                let value = spec.values[v];
+                out.push(outcome(
+                    v,
+                    c,
+                    c < found,
+                    (c < found).then_some(value * 1.05),
+                ));
+            }
+        }
+        let r = aggregate(&spec, &out).unwrap();
+        let m = r.min_detectable.value.unwrap();
+        assert!(m > 4e-6 && m < 8e-6, "{m}");
+        let table = r.table();
+        assert!(!table.contains("0.0000"), "{table}");
+        for v in ["2.000e-6", "4.000e-6", "8.000e-6", "1.600e-5", "8.400e-6"] {
+            assert!(table.contains(v), "{v} missing from\n{table}");
+        }
+        let line = table
+            .lines()
+            .find(|l| l.starts_with("smallest b detected"))
+            .unwrap();
+        assert!(
+            line.contains(&format!("power: {} (interval", fmt_num(m))),
+            "{line}"
+        );
+        // The interval's ends are printed the same way.
+        let ci = |v: Option<f64>| v.map_or("beyond the values studied".into(), fmt_num);
+        assert!(
+            line.ends_with(&format!(
+                "{} to {})",
+                ci(r.min_detectable.ci[0]),
+                ci(r.min_detectable.ci[1])
+            )),
+            "{line}"
+        );
     }
 
     #[test]

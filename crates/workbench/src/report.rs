@@ -767,8 +767,9 @@ fn fmt_tick(v: f64, step: f64) -> String {
     format!("{v:.decimals$}")
 }
 
-/// Four significant digits.
-fn fmt_num(v: f64) -> String {
+/// Four significant digits (exponent form below 1e-3 and from 1e5 on): the one number
+/// format of the summaries and reports.
+pub(crate) fn fmt_num(v: f64) -> String {
     if v == 0.0 {
         return "0".into();
     }
