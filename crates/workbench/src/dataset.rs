@@ -173,6 +173,91 @@ impl Dataset {
             _ => Some((layouts, detected)),
         }
     }
+
+    /// Why the experiments, some of them periodic, are not periodic as a whole (so they all
+    /// go through Welch), naming the experiments at fault; `None` when every experiment is
+    /// periodic (see [`Dataset::periodic_layouts`]) or none is.
+    pub fn why_not_periodic(&self) -> Option<String> {
+        if self.periodic_layouts().is_some() {
+            return None;
+        }
+        let layouts: Vec<Option<(usize, &str)>> = self
+            .experiments
+            .iter()
+            .map(|e| match e.periodic {
+                Some(p) => Some((p.period, "period_samples metadata")),
+                None => detect_period(e.r.as_ref()?).map(|p| (p.period, "detected")),
+            })
+            .collect();
+        let n = self.experiments.len();
+        let names = |pick: &dyn Fn(usize) -> bool| -> Vec<&str> {
+            (0..n)
+                .filter(|i| pick(*i))
+                .map(|i| self.experiments[i].name.as_str())
+                .collect()
+        };
+        let without = names(&|i| layouts[i].is_none());
+        if without.len() == n {
+            return None;
+        }
+        if !without.is_empty() {
+            let with = names(&|i| layouts[i].is_some());
+            let cause = |i: usize| {
+                if self.experiments[i].r.is_some() {
+                    "no period_samples metadata, and its logged excitation does not repeat"
+                } else {
+                    "no period_samples metadata, and no logged excitation to find a period in"
+                }
+            };
+            let causes: Vec<String> = (0..n)
+                .filter(|i| layouts[*i].is_none())
+                .map(|i| {
+                    if without.len() == 1 {
+                        cause(i).to_string()
+                    } else {
+                        format!("{}: {}", self.experiments[i].name, cause(i))
+                    }
+                })
+                .collect();
+            let (subject, verb, pronoun) = if without.len() == 1 {
+                ("experiment", "is", "it")
+            } else {
+                ("experiments", "are", "them")
+            };
+            return Some(format!(
+                "{subject} {} {verb} not periodic ({}), while {} {}: the periodic estimate needs \
+                 every experiment periodic, so all {n} went through Welch; leave {pronoun} out, \
+                 or give {pronoun} in a run of {} own, to use the periodic estimate on the others",
+                without.join(", "),
+                causes.join("; "),
+                with.join(", "),
+                if with.len() == 1 { "is" } else { "are" },
+                if without.len() == 1 { "its" } else { "their" },
+            ));
+        }
+        // Every experiment has a period, but a detected one differs from the others.
+        let mut groups: Vec<((usize, &str), Vec<&str>)> = Vec::new();
+        for (e, l) in self.experiments.iter().zip(&layouts) {
+            let l = l.expect("every experiment has a period here");
+            match groups.iter_mut().find(|(k, _)| *k == l) {
+                Some((_, names)) => names.push(&e.name),
+                None => groups.push((l, vec![&e.name])),
+            }
+        }
+        Some(format!(
+            "the experiments' periods differ ({}): the periodic estimate needs one period over \
+             all experiments, so all {n} went through Welch; give the experiments of each period \
+             in a run of their own to use the periodic estimate",
+            groups
+                .iter()
+                .map(|((period, how), names)| format!(
+                    "{} {period} samples, {how}",
+                    names.join(", ")
+                ))
+                .collect::<Vec<_>>()
+                .join("; ")
+        ))
+    }
 }
 
 /// Largest deviation between repetitions that still counts as exact repetition, relative to
@@ -385,6 +470,53 @@ mod tests {
                 transient: 4
             }]
         );
+    }
+
+    #[test]
+    fn why_not_periodic_names_the_experiments_at_fault() {
+        let mut d = small();
+        d.experiments[0].periodic = None;
+        d.experiments[0].r = Some(repeated(&[1.0, -1.0, 2.0, 0.5], 0, 20).columns(0, 1).into());
+        // All periodic, or none: nothing to explain.
+        assert_eq!(d.why_not_periodic(), None);
+        let mut random = d.experiments[0].clone();
+        random.name = "e2".into();
+        random.u = DMatrix::from_fn(20, 1, |i, _| ((i * i) as f64).sin());
+        random.r = Some(random.u.clone());
+        let mut blind = random.clone();
+        blind.name = "e3".into();
+        blind.r = None;
+        d.experiments.push(random);
+        let why = d.why_not_periodic().unwrap();
+        assert!(why.starts_with("experiment e2 is not periodic (no period_samples metadata, and its logged excitation does not repeat), while e1 is:"), "{why}");
+        assert!(why.contains("so all 2 went through Welch"), "{why}");
+        d.experiments.push(blind);
+        let why = d.why_not_periodic().unwrap();
+        assert!(
+            why.starts_with("experiments e2, e3 are not periodic"),
+            "{why}"
+        );
+        assert!(
+            why.contains("e3: no period_samples metadata, and no logged excitation"),
+            "{why}"
+        );
+        // Detected periods that differ from the metadata's.
+        d.experiments.truncate(1);
+        let mut other = d.experiments[0].clone();
+        other.name = "e4".into();
+        other.periodic = Some(Periodic {
+            period: 8,
+            periods: 2,
+            transient: 4,
+        });
+        d.experiments.push(other);
+        let why = d.why_not_periodic().unwrap();
+        assert!(why.starts_with("the experiments' periods differ (e1 4 samples, detected; e4 8 samples, period_samples metadata)"), "{why}");
+        // No experiment periodic: Welch needs no reason.
+        for e in &mut d.experiments {
+            (e.r, e.periodic) = (None, None);
+        }
+        assert_eq!(d.why_not_periodic(), None);
     }
 
     fn small() -> Dataset {

@@ -217,6 +217,15 @@ impl Workbench {
         &self.frf
     }
 
+    /// Why the FRF is a Welch estimate although some experiments are periodic (an
+    /// experiment without a period among periodic ones, or periods that differ), naming the
+    /// experiments ([`Dataset::why_not_periodic`]); `None` for a periodic estimate or logs
+    /// none of which is periodic.
+    pub fn welch_reason(&self) -> Option<String> {
+        self.frf.welch.as_ref()?;
+        self.data.why_not_periodic()
+    }
+
     /// The weighted cost.
     pub fn cost(&self) -> &WeightedCost {
         &self.cost

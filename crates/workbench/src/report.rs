@@ -47,6 +47,9 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
         count(wb.data().experiments.len(), "experiment"),
         wb.frf().describe()
     );
+    if let Some(why) = wb.welch_reason() {
+        let _ = writeln!(s, "Welch estimate: {why}");
+    }
     // The FRF criterion's cost is judged against the FRF's noise reference; the time
     // criterion's (a prediction error in absolute units) by its innovations' tests.
     let normalized = if wb.criterion() == crate::Criterion::Time {
@@ -375,6 +378,7 @@ pub fn json(wb: &Workbench, d: &Discovery) -> Value {
     let mut doc = conclusion_fields(wb.model().structure().system(), steps, &d.conclusion);
     for (k, v) in [
         ("estimator", json!(wb.frf().estimator)),
+        ("welch_reason", json!(wb.welch_reason())),
         ("frequencies_hz", json!(wb.frf().freqs_hz())),
         ("zero_response_p_value", json!(wb.zero_response_p_value())),
         ("weighting", json!(d.weighting)),
