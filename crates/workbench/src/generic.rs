@@ -38,11 +38,11 @@ impl ActuatorLag {
     }
 
     /// For the time-domain criterion at sample period `t`: `tau` from 1/40 sample. The
-    /// predictor integrates the lag exactly with steps of at most two time constants (20 per
-    /// sample here), and a lag this short turns the response by under 0.02 rad up to a tenth
-    /// of the sample rate, so the lagged model all but nests the one without: a lag of a tenth
-    /// of a sample, which a quarter-sample bound could not fit, then competes with a delay of
-    /// the same length on equal terms.
+    /// predictor integrates the lag exactly whatever its step (not as a stiff state), and a
+    /// lag this short turns the response by under 0.02 rad up to a tenth of the sample rate,
+    /// so the lagged model all but nests the one without: a lag of a tenth of a sample, which
+    /// a quarter-sample bound could not fit, then competes with a delay of the same length
+    /// on equal terms.
     pub fn for_sample_period(t: f64) -> Self {
         Self { min_tau: t / 40.0 }
     }
