@@ -1024,21 +1024,27 @@ mod tests {
     use crate::ModelFile;
     use std::sync::Arc;
 
+    /// `examples/models/pendulum_nonlinear.toml` and its documented parameter values.
+    fn pendulum() -> (Model, Vec<f64>) {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../examples/models/pendulum_nonlinear.toml");
+        let model = Model::new(Arc::new(ModelFile::from_path(&path).unwrap()));
+        let theta = model
+            .parameters()
+            .unwrap()
+            .iter()
+            .map(|p| p.value)
+            .collect();
+        (model, theta)
+    }
+
     /// On outputs the model itself produced (zero gain, so the one-step predicted states are
     /// its free run), a k-step prediction from those states retraces the same integration:
     /// it reproduces the outputs to the bit for every horizon (1 being the one-step
     /// prediction).
     #[test]
     fn k_step_prediction_retraces_the_model() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../examples/models/pendulum_nonlinear.toml");
-        let model = Model::new(Arc::new(ModelFile::from_path(&path).unwrap()));
-        let theta: Vec<f64> = model
-            .parameters()
-            .unwrap()
-            .iter()
-            .map(|p| p.value)
-            .collect();
+        let (model, theta) = pendulum();
         let t = 0.01;
         let predictor = ExtendedPredictor::new(&model, &theta, t, &DMatrix::zeros(2, 1)).unwrap();
         let samples = 100;
@@ -1088,15 +1094,7 @@ mod tests {
     /// shorter lags tend to the model without one, the gap shrinking with tau.
     #[test]
     fn a_lag_is_integrated_exactly_and_vanishes_as_it_shortens() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../examples/models/pendulum_nonlinear.toml");
-        let model = Model::new(Arc::new(ModelFile::from_path(&path).unwrap()));
-        let base: Vec<f64> = model
-            .parameters()
-            .unwrap()
-            .iter()
-            .map(|p| p.value)
-            .collect();
+        let (model, base) = pendulum();
         let t = 0.01;
         let lagged = model
             .with_user_effect(Arc::new(crate::generic::ActuatorLag::for_sample_period(t)))
