@@ -127,10 +127,16 @@ def test_paper_like_truth_finds_drag_delay_and_paper_size_gyroscopic(tmp_path):
 
 
 def test_delay_alone_is_found_as_input_delay(tmp_path):
+    # One sample of delay over this band is also nearly a one-sample lag: the delay is added
+    # and fits best (the lag +6.4, a gap noise makes with p = 0.09), but not beyond doubt, so
+    # it is tentative with the lag named as its rival (discover::rivals).
     campaign(tmp_path / "data", delay_s=0.01, periods=4, seed=21)
     code, err, doc = discover(tmp_path / "data", tmp=tmp_path)
     assert code == 0, err
-    assert doc["found"] == ["input_delay"]
+    assert doc["found"] + doc["tentative"] == ["input_delay"]
+    if doc["tentative"]:
+        assert any(w.startswith("actuator_lag fits these data as well as input_delay")
+                   for w in doc["tentative_why"]), doc["tentative_why"]
     assert doc["steps"][-1]["params"]["td"] == pytest.approx(0.01, abs=0.002)
 
 
