@@ -344,7 +344,17 @@ pub fn write_atomically(
 /// The names listed in the marker of `dir`, if it is a directory this module wrote.
 fn marked_entries(dir: &Path) -> Option<Vec<String>> {
     let text = std::fs::read_to_string(dir.join(MARKER)).ok()?;
-    Some(text.lines().map(String::from).collect())
+    // Only plain names of entries of `dir` count: a line that is empty, `.`, `..` or holds a
+    // separator (a marker edited by hand or damaged) would name `dir` itself or something
+    // outside it, which removing the old output must never touch.
+    let plain = |name: &&str| {
+        let mut parts = Path::new(name).components();
+        matches!(
+            (parts.next(), parts.next()),
+            (Some(std::path::Component::Normal(n)), None) if n == std::ffi::OsStr::new(name)
+        )
+    };
+    Some(text.lines().filter(plain).map(String::from).collect())
 }
 
 /// Checks that a directory may be written at `target`: not an input, not containing one, and
@@ -561,6 +571,46 @@ mod tests {
         write_atomically(&target, Kind::Json, &[], write_text("{}")).unwrap();
         assert_eq!(std::fs::read_to_string(&squatter).unwrap(), "user data");
         assert_eq!(std::fs::read_to_string(&target).unwrap(), "{}");
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    /// A marker that names something outside the old output, or the old output itself (an
+    /// empty line, `.`), removes neither: only the listed entries of the old output go.
+    #[test]
+    fn a_damaged_marker_removes_nothing_outside_the_listed_entries() {
+        let root = scratch("damaged_marker");
+        let dir = root.join("report");
+        write_dir_atomically(&dir, &[], |d| write_text("1")(&d.join("index.html"))).unwrap();
+        let outside = root.join("mine.txt");
+        std::fs::write(&outside, "user data").unwrap();
+        let marker = dir.join(MARKER);
+        let listed = std::fs::read_to_string(&marker).unwrap();
+        std::fs::write(
+            &marker,
+            format!("{listed}\n../mine.txt\n\n.\nsub/../../mine.txt\n"),
+        )
+        .unwrap();
+        write_dir_atomically(&dir, &[], |d| {
+            // Added to the old output while the new one is written: it must survive.
+            std::fs::write(dir.join("added.txt"), "also mine").unwrap();
+            write_text("2")(&d.join("index.html"))
+        })
+        .unwrap();
+        assert_eq!(std::fs::read_to_string(&outside).unwrap(), "user data");
+        assert_eq!(
+            std::fs::read_to_string(dir.join("index.html")).unwrap(),
+            "2"
+        );
+        let kept: Vec<PathBuf> = std::fs::read_dir(&root)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p != &dir && p != &outside)
+            .collect();
+        assert_eq!(kept.len(), 1, "{kept:?}");
+        assert_eq!(
+            std::fs::read_to_string(kept[0].join("added.txt")).unwrap(),
+            "also mine"
+        );
         std::fs::remove_dir_all(&root).unwrap();
     }
 
