@@ -42,8 +42,10 @@ pub struct CandidateScore {
     /// Its cost reduction exceeds what noise alone varies the cost by (one standard deviation
     /// of the noise-only cost).
     pub exceeds_noise: bool,
-    /// Passes the F test at the Bonferroni-corrected level, and its robustness check, lowers
-    /// BIC and exceeds the noise.
+    /// Passes the F test at the Bonferroni-corrected level and its robustness check, and
+    /// lowers BIC: every test but the effect size.
+    pub passes_tests: bool,
+    /// Passes the tests and exceeds the noise.
     pub significant: bool,
     /// Its fit stopped once the linear model of its cost showed it could not become
     /// significant (the time-domain criterion): `cost` is then where it stopped, an upper
@@ -142,6 +144,7 @@ impl CandidateScore {
         let delta_bic = -dv / c.scale + q as f64 * n.ln();
         let alpha = LEVEL / n_candidates.max(1) as f64;
         let exceeds_noise = dv > c.noise_sd;
+        let passes_tests = q > 0 && p_value < alpha && robust_p_value < alpha && delta_bic < 0.0;
         Self {
             effect: effect.to_string(),
             cost: c.after,
@@ -153,15 +156,18 @@ impl CandidateScore {
             delta_aic,
             delta_bic,
             exceeds_noise,
-            significant: q > 0
-                && p_value < alpha
-                && robust_p_value < alpha
-                && delta_bic < 0.0
-                && exceeds_noise,
+            passes_tests,
+            significant: passes_tests && exceeds_noise,
             abandoned,
             noise_spread: c.noise_sd,
             scale: c.scale,
         }
+    }
+
+    /// The cost it removed from its step's model (from `reduction_percent`).
+    fn cost_reduction(&self) -> f64 {
+        let before = self.cost / (1.0 - self.reduction_percent / 100.0);
+        before - self.cost
     }
 }
 
@@ -172,14 +178,6 @@ fn rival_p_value(gap: f64, scale: f64) -> f64 {
         1.0
     } else {
         chi2_sf(gap / (4.0 * scale), 1.0)
-    }
-}
-
-impl CandidateScore {
-    /// The cost it removed from its step's model (from `reduction_percent`).
-    fn cost_reduction(&self) -> f64 {
-        let before = self.cost / (1.0 - self.reduction_percent / 100.0);
-        before - self.cost
     }
 }
 
@@ -465,16 +463,9 @@ impl Conclusion {
     /// BIC, but lowering the cost by less than the noise-only spread. With many residuals that
     /// rule is strict, and a real effect can stand below it while the verdict sees a misfit.
     pub fn with_near_misses(self, last: &[CandidateScore]) -> Self {
-        let alpha = self.level / last.len().max(1) as f64;
         let near_misses = last
             .iter()
-            .filter(|c| {
-                !c.exceeds_noise
-                    && c.added_parameters > 0
-                    && c.p_value < alpha
-                    && c.robust_p_value < alpha
-                    && c.delta_bic < 0.0
-            })
+            .filter(|c| c.passes_tests && !c.exceeds_noise)
             .map(|c| {
                 let by = if c.abandoned { "at least " } else { "" };
                 format!(
@@ -1046,14 +1037,13 @@ impl Workbench {
                 .map(|s| (s.added.as_deref(), s.candidates.as_slice())),
         ));
         let unexplained = matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. });
-        let last_candidates = last.candidates.clone();
-        let weighting =
-            self.weighting_sentence(&steps.last().map(|s| s.effects.clone()).unwrap_or_default());
+        let conclusion = Conclusion::settle(found, caveats, unexplained, verdict, LEVEL)
+            .with_candidates(Candidates::of(&self.model, true))
+            .with_near_misses(&last.candidates);
+        let weighting = self.weighting_sentence(&last.effects);
         Ok(Discovery {
             steps,
-            conclusion: Conclusion::settle(found, caveats, unexplained, verdict, LEVEL)
-                .with_candidates(Candidates::of(&self.model, true))
-                .with_near_misses(&last_candidates),
+            conclusion,
             weighting,
         })
     }
@@ -1146,8 +1136,9 @@ mod tests {
     use super::{rival_p_value, rivals, CandidateScore, Candidates, Conclusion, Verdict};
     use proptest::prelude::*;
 
-    /// A scored candidate: `cost` from `before`, F-test p-value `p`, the noise-only spread of
-    /// a cost of 129 200 unit-variance residuals (508.3).
+    /// A scored candidate: `cost` from `before`, F-test p-value `p` (its tests pass below 1 %
+    /// over two candidates), the noise-only spread of a cost of 129 200 unit-variance
+    /// residuals (508.3).
     fn scored(effect: &str, before: f64, cost: f64, p: f64) -> CandidateScore {
         let spread = (2.0f64 * 129_200.0).sqrt();
         CandidateScore {
@@ -1161,7 +1152,8 @@ mod tests {
             delta_aic: -10.0,
             delta_bic: -5.0,
             exceeds_noise: before - cost > spread,
-            significant: p < 0.01 && before - cost > spread,
+            passes_tests: p < 0.01 / 2.0,
+            significant: p < 0.01 / 2.0 && before - cost > spread,
             abandoned: false,
             noise_spread: spread,
             scale: 1.0,

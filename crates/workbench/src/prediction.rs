@@ -790,7 +790,6 @@ impl Workbench {
             .last()
             .ok_or_else(|| SimError::invalid("discovery", "no step", "nothing was fitted"))?;
         let verdict = time_verdict(&last.residual_tests);
-        let last_candidates = last.candidates.clone();
         let unexplained = matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. });
         let why = unexplained.then(|| {
             "the final model's innovations still correlate with the excitation, which the tests that added them took for noise".to_string()
@@ -801,13 +800,14 @@ impl Workbench {
                 .map(|s| (s.added.as_deref(), s.candidates.as_slice())),
         );
         let why: Vec<String> = why.into_iter().chain(rivals).collect();
+        let conclusion = Conclusion::settle(found, why, unexplained, verdict, LEVEL)
+            .with_candidates(super::discover::Candidates::of(&self.model, true))
+            .with_near_misses(&last.candidates)
+            .with_test(EXCITATION_TEST);
         Ok(Discovery {
             weighting: "time-domain prediction error of the extended Kalman predictor in absolute units; every model under the gain and the inverse innovation covariance of the starting model's fit".to_string(),
             steps,
-            conclusion: Conclusion::settle(found, why, unexplained, verdict, LEVEL)
-                .with_candidates(super::discover::Candidates::of(&self.model, true))
-                .with_near_misses(&last_candidates)
-                .with_test(EXCITATION_TEST),
+            conclusion,
         })
     }
 

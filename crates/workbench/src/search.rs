@@ -152,6 +152,7 @@ mod tests {
                 delta_aic: 0.0,
                 delta_bic: 0.0,
                 exceeds_noise: significant,
+                passes_tests: significant,
                 significant,
                 abandoned: false,
                 noise_spread: 1.0,

@@ -1069,22 +1069,18 @@ impl CubliBench {
                 .iter()
                 .map(|s| (s.added.as_deref(), s.candidates.as_slice())),
         );
-        let last_candidates = steps
-            .last()
-            .map(|s| s.candidates.clone())
-            .unwrap_or_default();
-        let verdict = verdict_of(&channel_p_values);
+        let conclusion = Conclusion::settle(
+            found,
+            why.into_iter().chain(rivals).collect(),
+            unexplained,
+            verdict_of(&channel_p_values),
+            LEVEL,
+        )
+        .with_near_misses(steps.last().map_or(&[][..], |s| s.candidates.as_slice()))
+        .with_test("for the probes' fit to the residual, the smallest over the channels");
         CubliDiscovery {
             steps,
-            conclusion: Conclusion::settle(
-                found,
-                why.into_iter().chain(rivals).collect(),
-                unexplained,
-                verdict,
-                LEVEL,
-            )
-            .with_near_misses(&last_candidates)
-            .with_test("for the probes' fit to the residual, the smallest over the channels"),
+            conclusion,
             misfit_channels,
             channel_p_values,
             noise_std: self.var.iter().map(|v| v.sqrt()).collect(),
