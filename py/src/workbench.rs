@@ -1081,10 +1081,7 @@ impl Workbench {
             .model()
             .with_user_effect(effect.clone())
             .map_err(to_py_err)?;
-        self.run(py, || {
-            let theta: Vec<f64> = probe.parameters()?.iter().map(|p| p.value).collect();
-            probe.state_space(&theta).map(|_| ())
-        })?;
+        self.run(py, || probe.state_space(&probe.documented()?).map(|_| ()))?;
         Ok(effect)
     }
 
@@ -1114,8 +1111,7 @@ impl Workbench {
         let probe = wb.model().with_effect(&name).map_err(to_py_err);
         let checked = probe.and_then(|probe| {
             run_with(&self.error, py, || {
-                let theta: Vec<f64> = probe.parameters()?.iter().map(|p| p.value).collect();
-                probe.state_space(&theta).map(|_| ())
+                probe.state_space(&probe.documented()?).map(|_| ())
             })
         });
         if let Err(err) = checked {

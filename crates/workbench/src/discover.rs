@@ -666,10 +666,7 @@ impl Workbench {
         }
         let (theta, again): (Vec<f64>, usize) = match start {
             Some(t) => (t.to_vec(), 0),
-            None => (
-                model.parameters()?.iter().map(|p| p.value).collect(),
-                REWEIGHTINGS,
-            ),
+            None => (model.documented()?, REWEIGHTINGS),
         };
         let g = model.frf(&theta, &self.cost.freqs_hz, opts.hold)?;
         let mut cost = self.noise_weighting(&g)?;

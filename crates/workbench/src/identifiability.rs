@@ -182,13 +182,7 @@ C = [[1, 0]]
 "#;
         let file = ModelFile::parse(text, Path::new("p.toml")).unwrap();
         let model = Model::new(Arc::new(file));
-        let theta: Vec<f64> = model
-            .parameters()
-            .unwrap()
-            .iter()
-            .map(|p| p.value)
-            .collect();
-        let id = analyse(&model, &theta).unwrap();
+        let id = analyse(&model, &model.documented().unwrap()).unwrap();
         assert_eq!(id.no_effect, ["unused"]);
         assert_eq!(id.unseparated, vec![vec!["m", "l", "J"]]);
         // A fit holds the parameter without effect and one of the combination, by the fit's
@@ -231,13 +225,7 @@ C = [[1, 0, 0, 0], [0, 0, 1, 0]]
 "#;
         let file = ModelFile::parse(text, Path::new("segway.toml")).unwrap();
         let model = Model::new(Arc::new(file));
-        let theta: Vec<f64> = model
-            .parameters()
-            .unwrap()
-            .iter()
-            .map(|p| p.value)
-            .collect();
-        let id = analyse(&model, &theta).unwrap();
+        let id = analyse(&model, &model.documented().unwrap()).unwrap();
         assert_eq!(id.unseparated, vec![vec!["Mx", "m", "l", "J"]]);
         let w = &id.combinations[0].weights;
         assert_eq!(w.len(), 4);

@@ -377,6 +377,12 @@ impl Model {
         Ok(params)
     }
 
+    /// The documented value of every parameter, in the order of [`Model::parameters`]: where
+    /// a fit starts and what a check evaluates at.
+    pub fn documented(&self) -> Result<Vec<f64>> {
+        Ok(self.parameters()?.iter().map(|p| p.value).collect())
+    }
+
     /// The state-space model at `theta`.
     pub fn state_space(&self, theta: &[f64]) -> Result<StateSpace> {
         let n_struct = self.check_theta(theta)?;

@@ -1029,12 +1029,7 @@ mod tests {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../examples/models/pendulum_nonlinear.toml");
         let model = Model::new(Arc::new(ModelFile::from_path(&path).unwrap()));
-        let theta = model
-            .parameters()
-            .unwrap()
-            .iter()
-            .map(|p| p.value)
-            .collect();
+        let theta = model.documented().unwrap();
         (model, theta)
     }
 

@@ -464,13 +464,7 @@ fn the_check_and_the_fit_name_the_same_held_parameter() {
         .replace("c*torque", "c*g2*torque");
     let wb = workbench_with(&text, campaign(0.0, 0.0, 11), None);
     let model = wb.model();
-    let theta: Vec<f64> = model
-        .parameters()
-        .unwrap()
-        .iter()
-        .map(|p| p.value)
-        .collect();
-    let id = workbench::identifiability::analyse(model, &theta).unwrap();
+    let id = workbench::identifiability::analyse(model, &model.documented().unwrap()).unwrap();
     assert_eq!(id.unseparated, vec![vec!["c", "g2"]]);
     assert_eq!(id.holds, ["g2"]);
     let d = wb.compared().unwrap();
