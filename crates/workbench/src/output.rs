@@ -484,6 +484,15 @@ mod tests {
         dir
     }
 
+    /// The entries of `root` other than `known` (an old output moved aside, say).
+    fn others(root: &Path, known: &[&PathBuf]) -> Vec<PathBuf> {
+        std::fs::read_dir(root)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| !known.contains(&p))
+            .collect()
+    }
+
     fn write_text(text: &'static str) -> impl FnOnce(&Path) -> Result<()> {
         move |p: &Path| std::fs::write(p, text).map_err(|e| SimError::io(p, e))
     }
@@ -549,11 +558,7 @@ mod tests {
             std::fs::read_to_string(dir.join("index.html")).unwrap(),
             "2"
         );
-        let kept: Vec<PathBuf> = std::fs::read_dir(&root)
-            .unwrap()
-            .map(|e| e.unwrap().path())
-            .filter(|p| p != &dir)
-            .collect();
+        let kept = others(&root, &[&dir]);
         assert_eq!(kept.len(), 1, "{kept:?}");
         assert_eq!(
             std::fs::read_to_string(kept[0].join("added.txt")).unwrap(),
@@ -601,11 +606,7 @@ mod tests {
             std::fs::read_to_string(dir.join("index.html")).unwrap(),
             "2"
         );
-        let kept: Vec<PathBuf> = std::fs::read_dir(&root)
-            .unwrap()
-            .map(|e| e.unwrap().path())
-            .filter(|p| p != &dir && p != &outside)
-            .collect();
+        let kept = others(&root, &[&dir, &outside]);
         assert_eq!(kept.len(), 1, "{kept:?}");
         assert_eq!(
             std::fs::read_to_string(kept[0].join("added.txt")).unwrap(),
