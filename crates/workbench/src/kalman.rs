@@ -30,6 +30,9 @@ pub struct Predictor {
     /// The designed process and sensor noise covariances `(Q, R)`, in the model's own
     /// coordinates when every state is observable (`None` otherwise).
     covariances: Option<(DMatrix<f64>, DMatrix<f64>)>,
+    /// The gain in the model's own coordinates when the modes the outputs do not see decay
+    /// (`None` otherwise).
+    state_gain: Option<DMatrix<f64>>,
     /// Summary for the report.
     pub noise: NoiseEstimate,
 }
@@ -75,8 +78,11 @@ impl Predictor {
     pub fn design(disc: &Discrete, records: &[(&DMatrix<f64>, &DMatrix<f64>)]) -> Result<Self> {
         // Modes the outputs never see (a yaw angle measured only through its rate) cannot be
         // estimated and do not change the outputs: the predictor runs on the observable part.
-        let observable = observable_part(disc);
-        let whole_state = observable.phi.nrows() == disc.phi.nrows();
+        let (observable, split) = observable_part(disc);
+        let whole_state = split.is_none();
+        let hidden_decay = split
+            .as_ref()
+            .map(|s| spectral_radius(&(&s.hidden * &disc.phi * s.hidden.transpose())) < 1.0);
         let disc = &observable;
         let (n, p) = (disc.phi.nrows(), disc.c.nrows());
         let mut r = vec![0.0; p];
@@ -147,6 +153,7 @@ impl Predictor {
             disc: disc.clone(),
             gain: k0,
             covariances: None,
+            state_gain: None,
             noise: Self::estimate(&r, &f, 0.0),
         };
         let mut motion = vec![0.0; n];
@@ -215,16 +222,19 @@ impl Predictor {
                 DMatrix::from_fn(p, p, |i, j| if i == j { r[i] * f.sensor[i] } else { 0.0 }),
             )
         });
-        let closed = &disc.phi - &gain * &disc.c;
-        let rho = closed
-            .complex_eigenvalues()
-            .iter()
-            .map(|l| l.norm())
-            .fold(0.0, f64::max);
+        let rho = spectral_radius(&(&disc.phi - &gain * &disc.c));
+        // The error in modes the outputs do not see evolves by itself: a gain that leaves
+        // them alone is stable when they decay (the pair is detectable).
+        let state_gain = match (&split, hidden_decay) {
+            (None, _) => Some(gain.clone()),
+            (Some(split), Some(true)) => Some(split.observable.transpose() * &gain),
+            _ => None,
+        };
         Ok(Self {
             disc: disc.clone(),
             gain,
             covariances,
+            state_gain,
             noise: Self::estimate(&r, &f, rho),
         })
     }
@@ -232,6 +242,14 @@ impl Predictor {
     /// The designed noise covariances `(Q, R)` when every state is observable.
     pub fn covariances(&self) -> Option<&(DMatrix<f64>, DMatrix<f64>)> {
         self.covariances.as_ref()
+    }
+
+    /// The gain for the model's whole state (states x outputs): the design's when every
+    /// state is observable; otherwise the observable part's, zero on the modes the outputs do
+    /// not see, when those decay (a lag far shorter than the sample period, which one step
+    /// forgets); `None` when one of them does not.
+    pub fn state_gain(&self) -> Option<&DMatrix<f64>> {
+        self.state_gain.as_ref()
     }
 
     fn estimate(r: &[f64], f: &Factors, rho: f64) -> NoiseEstimate {
@@ -260,6 +278,7 @@ impl Predictor {
             disc: disc.clone(),
             gain: k,
             covariances: None,
+            state_gain: None,
             noise: Self::estimate(r, f, 0.0),
         };
         let mut s = DMatrix::zeros(p, p);
@@ -335,10 +354,16 @@ impl Predictor {
 /// unobservable.
 const OBSERVABLE: f64 = 1e-9;
 
+/// Orthonormal bases (rows) of a model's observable subspace and of its complement.
+struct Split {
+    observable: DMatrix<f64>,
+    hidden: DMatrix<f64>,
+}
+
 /// The restriction of `disc` to its observable subspace (exact for the outputs: the
 /// unobservable subspace is invariant under Φ and in the kernel of C). The predicted states
-/// are then coordinates of that subspace.
-fn observable_part(disc: &Discrete) -> Discrete {
+/// are then coordinates of that subspace. With it the split, when some state is unobservable.
+fn observable_part(disc: &Discrete) -> (Discrete, Option<Split>) {
     let (n, p) = (disc.phi.nrows(), disc.c.nrows());
     let mut o = DMatrix::zeros(n * p, n);
     let mut block = disc.c.clone();
@@ -350,17 +375,17 @@ fn observable_part(disc: &Discrete) -> Discrete {
     let scale = o.amax().max(1e-300);
     let svd = (o / scale).svd(false, true);
     let Some(v_t) = svd.v_t else {
-        return disc.clone();
+        return (disc.clone(), None);
     };
     let top = svd.singular_values.max();
-    let keep: Vec<usize> = (0..svd.singular_values.len())
-        .filter(|&i| svd.singular_values[i] > OBSERVABLE * top)
-        .collect();
-    if keep.len() == n {
-        return disc.clone();
+    let (keep, drop): (Vec<usize>, Vec<usize>) = (0..n)
+        .partition(|&i| i < svd.singular_values.len() && svd.singular_values[i] > OBSERVABLE * top);
+    if drop.is_empty() {
+        return (disc.clone(), None);
     }
-    let t = DMatrix::from_fn(keep.len(), n, |r, c| v_t[(keep[r], c)]);
-    Discrete {
+    let rows = |idx: &[usize]| DMatrix::from_fn(idx.len(), n, |r, c| v_t[(idx[r], c)]);
+    let t = rows(&keep);
+    let part = Discrete {
         phi: &t * &disc.phi * t.transpose(),
         gamma0: &t * &disc.gamma0,
         gamma1: &t * &disc.gamma1,
@@ -368,7 +393,23 @@ fn observable_part(disc: &Discrete) -> Discrete {
         d: disc.d.clone(),
         whole: disc.whole,
         d_shift: disc.d_shift,
-    }
+    };
+    let hidden = rows(&drop);
+    (
+        part,
+        Some(Split {
+            observable: t,
+            hidden,
+        }),
+    )
+}
+
+/// The largest modulus of the eigenvalues of `m`.
+fn spectral_radius(m: &DMatrix<f64>) -> f64 {
+    m.complex_eigenvalues()
+        .iter()
+        .map(|l| l.norm())
+        .fold(0.0, f64::max)
 }
 
 /// `m` moved down by `s` rows (row k holds row k - s), zeros above.
@@ -382,7 +423,7 @@ fn shifted(m: &DMatrix<f64>, s: usize) -> DMatrix<f64> {
 }
 
 /// `K = Φ P Cᵀ (C P Cᵀ + R)^-1`, `P` the stabilizing solution of the filter Riccati equation.
-pub(crate) fn gain(disc: &Discrete, q: &DMatrix<f64>, r: &DMatrix<f64>) -> Result<DMatrix<f64>> {
+fn gain(disc: &Discrete, q: &DMatrix<f64>, r: &DMatrix<f64>) -> Result<DMatrix<f64>> {
     let phi_t = disc.phi.transpose();
     let c_t = disc.c.transpose();
     let p = rigid_body::lti::dare(&phi_t, &c_t, q, r).map_err(|e| {
@@ -437,13 +478,8 @@ mod tests {
         }
     }
 
-    /// Simulated from an unstable two-state model with process noise through the input and
-    /// white sensor noise, fed back by a stabilizing gain: the designed predictor's
-    /// innovations are white (lags 1-10 inside the band of a 1 % family-wise test, z = 3.29
-    /// for ten lags as in the residual tests, 5 seeds), its k-step
-    /// predictions equal a per-sample propagation, and it is stable.
-    #[test]
-    fn innovations_of_the_true_model_are_white() {
+    /// An unstable two-state plant sampled at 10 ms, its position measured.
+    fn unstable_plant() -> Discrete {
         let ss = StateSpace {
             a: DMatrix::from_row_slice(2, 2, &[0.0, 1.0, 9.0, -0.2]),
             b: DMatrix::from_row_slice(2, 1, &[0.0, 1.0]),
@@ -451,32 +487,101 @@ mod tests {
             d: DMatrix::zeros(1, 1),
             delay: 0.0,
         };
-        let disc = ss.discretize(0.01).unwrap();
-        for seed in 0..5u64 {
-            let mut rng = StdRng::seed_from_u64(seed);
-            let n = 6000;
-            let (mut u, mut y) = (DMatrix::zeros(n, 1), DMatrix::zeros(n, 1));
-            let mut x = nalgebra::DVector::zeros(2);
-            for k in 0..n {
-                y[(k, 0)] = x[0] + 1e-3 * rng.sample::<f64, _>(StandardNormal);
-                let r = (0.3 * k as f64).sin();
-                u[(k, 0)] = -40.0 * y[(k, 0)] - 8.0 * x[1] + r;
-                let w = 0.5 * rng.sample::<f64, _>(StandardNormal);
-                x = &disc.phi * &x + &disc.gamma0 * (u[(k, 0)] + w);
+        ss.discretize(0.01).unwrap()
+    }
+
+    /// 6000 samples of `disc` (two states first) under a stabilizing feedback and a sine,
+    /// with process noise through the input and sensor noise: `(u, y)`.
+    fn closed_loop(disc: &Discrete, seed: u64) -> (DMatrix<f64>, DMatrix<f64>) {
+        let mut rng = StdRng::seed_from_u64(seed);
+        let n = 6000;
+        let (mut u, mut y) = (DMatrix::zeros(n, 1), DMatrix::zeros(n, 1));
+        let mut x = nalgebra::DVector::zeros(disc.phi.nrows());
+        for k in 0..n {
+            y[(k, 0)] = x[0] + 1e-3 * rng.sample::<f64, _>(StandardNormal);
+            let r = (0.3 * k as f64).sin();
+            u[(k, 0)] = -40.0 * y[(k, 0)] - 8.0 * x[1] + r;
+            let w = 0.5 * rng.sample::<f64, _>(StandardNormal);
+            x = &disc.phi * &x + &disc.gamma0 * (u[(k, 0)] + w);
+        }
+        (u, y)
+    }
+
+    /// A third state the output never sees, driven by the plant: when it decays, the whole
+    /// state's gain leaves it alone (a zero row), and the extended predictor's form, that gain
+    /// on all three states, is stable and has white innovations (the band of the whiteness
+    /// test below, 3 seeds); when it does not (an integrator), there is no gain, and the
+    /// extended predictor, which has no other, must refuse the model.
+    #[test]
+    fn a_hidden_mode_gets_no_gain_and_must_decay() {
+        let plant = unstable_plant();
+        for (pole, decays) in [(0.0, true), (0.6, true), (1.0, false)] {
+            let mut phi = DMatrix::zeros(3, 3);
+            phi.view_mut((0, 0), (2, 2)).copy_from(&plant.phi);
+            phi[(2, 0)] = 0.3;
+            phi[(2, 2)] = pole;
+            let three = Discrete {
+                phi,
+                gamma0: plant.gamma0.clone().insert_row(2, 0.0),
+                gamma1: plant.gamma1.clone().insert_row(2, 0.0),
+                c: plant.c.clone().insert_column(2, 0.0),
+                ..plant.clone()
+            };
+            for seed in 0..3u64 {
+                let (u, y) = closed_loop(&plant, seed);
+                let design = Predictor::design(&three, &[(&u, &y)]).unwrap();
+                assert!(design.covariances().is_none());
+                match design.state_gain() {
+                    Some(k) if decays => {
+                        assert!(k[(2, 0)].abs() < 1e-12, "pole {pole}: {k}");
+                        let whole = Predictor {
+                            disc: three.clone(),
+                            gain: k.clone(),
+                            covariances: None,
+                            state_gain: None,
+                            noise: design.noise.clone(),
+                        };
+                        assert!(spectral_radius(&(&three.phi - k * &three.c)) < 1.0);
+                        let (e, _) = whole.run(&u, &y);
+                        assert_white(&e, &format!("pole {pole} seed {seed}"));
+                    }
+                    None => assert!(!decays, "pole {pole}: no gain"),
+                    Some(k) => panic!("pole {pole}: a gain {k} for a mode that does not decay"),
+                }
             }
+        }
+    }
+
+    /// Lags 1-10 of the first column of `e` (after 100 samples) inside the band of a 1 %
+    /// family-wise test (z = 3.29 for ten lags, as in the residual tests).
+    fn assert_white(e: &DMatrix<f64>, label: &str) {
+        let e: Vec<f64> = e.column(0).iter().skip(100).copied().collect();
+        let mean = e.iter().sum::<f64>() / e.len() as f64;
+        let var: f64 = e.iter().map(|v| (v - mean).powi(2)).sum();
+        let band = 3.29 / (e.len() as f64).sqrt();
+        for lag in 1..=10 {
+            let c: f64 = (lag..e.len())
+                .map(|i| (e[i] - mean) * (e[i - lag] - mean))
+                .sum();
+            assert!((c / var).abs() < band, "{label} lag {lag}: {}", c / var);
+        }
+    }
+
+    /// Simulated from an unstable two-state model with process noise through the input and
+    /// white sensor noise, fed back by a stabilizing gain: the designed predictor's
+    /// innovations are white (lags 1-10 inside the band of a 1 % family-wise test, z = 3.29
+    /// for ten lags as in the residual tests, 5 seeds), its k-step
+    /// predictions equal a per-sample propagation, and it is stable.
+    #[test]
+    fn innovations_of_the_true_model_are_white() {
+        let disc = unstable_plant();
+        for seed in 0..5u64 {
+            let (u, y) = closed_loop(&disc, seed);
+            let n = u.nrows();
             let kp = Predictor::design(&disc, &[(&u, &y)]).unwrap();
             assert!(kp.noise.predictor_spectral_radius < 1.0);
             let (e, xs) = kp.run(&u, &y);
-            let e: Vec<f64> = e.column(0).iter().skip(100).copied().collect();
-            let mean = e.iter().sum::<f64>() / e.len() as f64;
-            let var: f64 = e.iter().map(|v| (v - mean).powi(2)).sum();
-            let band = 3.29 / (e.len() as f64).sqrt();
-            for lag in 1..=10 {
-                let c: f64 = (lag..e.len())
-                    .map(|i| (e[i] - mean) * (e[i - lag] - mean))
-                    .sum();
-                assert!((c / var).abs() < band, "seed {seed} lag {lag}: {}", c / var);
-            }
+            assert_white(&e, &format!("seed {seed}"));
             let k = 5;
             let fast = kp.predict(&u, &xs, k);
             for t in [k - 1, 500, n - 1] {
