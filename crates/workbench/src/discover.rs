@@ -55,6 +55,10 @@ pub struct CandidateScore {
     pub noise_spread: f64,
     /// Noise variance of one residual in cost units (what [`rivals`] weighs cost gaps by).
     pub scale: f64,
+    /// When the loop followed both this candidate and a rival to the end of their own
+    /// searches (see [`crate::search::forward_selection`]): the BIC of the best model through
+    /// this one minus the reported model's (`None`: not followed, or the one reported).
+    pub followed: Option<f64>,
 }
 
 /// The costs a nested-model test compares: a model and the model with one candidate more,
@@ -161,6 +165,7 @@ impl CandidateScore {
             abandoned,
             noise_spread: c.noise_sd,
             scale: c.scale,
+            followed: None,
         }
     }
 
@@ -181,15 +186,30 @@ fn rival_p_value(gap: f64, scale: f64) -> f64 {
     }
 }
 
-/// One sentence per added effect that another candidate of its step fits as well: the
-/// other's cost reduction also exceeds the noise, and the gap between the two costs is one
-/// noise could make. Two models whose whitened predictions differ by an energy `D` have costs
-/// `D` apart when one of them is right, and noise moves that gap by `2 sqrt(D)` (in units of
-/// one residual's noise variance), so a gap `dV` is told from zero at z = `sqrt(dV) / 2`: the
-/// two are rivals when `chi2_sf(dV / 4, 1)` is at least the tests' level. The loop's pick
-/// between rivals is a coin toss (a lag of a tenth of a sample and a delay of the same length,
-/// two names for one term). `steps` are each step's added effect and the candidates tried on
-/// it, the start first.
+/// A BIC gap that settles a choice between two models: the better is `1 / LEVEL` times as
+/// probable (2 ln 100 = 9.2 at the tests' level).
+pub(crate) fn decisive_bic() -> f64 {
+    2.0 * (1.0 / LEVEL).ln()
+}
+
+/// Whether `other` fits the data of a step as well as the `chosen` candidate: its cost
+/// reduction also exceeds the noise, and the gap between the two costs is one noise could
+/// make. Two models whose whitened predictions differ by an energy `D` have costs `D` apart
+/// when one of them is right, and noise moves that gap by `2 sqrt(D)` (in units of one
+/// residual's noise variance), so a gap `dV` is told from zero at z = `sqrt(dV) / 2`: the two
+/// are rivals when `chi2_sf(dV / 4, 1)` is at least the tests' level.
+pub(crate) fn is_rival(chosen: &CandidateScore, other: &CandidateScore) -> bool {
+    other.effect != chosen.effect
+        && other.exceeds_noise
+        && rival_p_value(other.cost - chosen.cost, chosen.scale) >= LEVEL
+}
+
+/// One sentence per added effect that another candidate of its step fits as well
+/// ([`is_rival`]) and that the loop did not rule out by following it to the end of its own
+/// search (a BIC gap of [`decisive_bic`] or more). The loop's pick between rivals is then a
+/// coin toss (a lag of a tenth of a sample and a delay of the same length, two names for one
+/// term). `steps` are each step's added effect and the candidates tried on it, the start
+/// first.
 pub fn rivals<'a>(
     steps: impl IntoIterator<Item = (Option<&'a str>, &'a [CandidateScore])>,
 ) -> Vec<String> {
@@ -202,11 +222,7 @@ pub fn rivals<'a>(
             let chosen = tried.iter().find(|c| c.effect == added)?;
             let equal: Vec<&CandidateScore> = tried
                 .iter()
-                .filter(|c| {
-                    c.effect != added
-                        && c.exceeds_noise
-                        && rival_p_value(c.cost - chosen.cost, chosen.scale) >= LEVEL
-                })
+                .filter(|c| is_rival(chosen, c) && c.followed.is_none_or(|g| g < decisive_bic()))
                 .collect();
             (!equal.is_empty()).then(|| {
                 let names: Vec<String> = equal.iter().map(|c| c.effect.clone()).collect();
@@ -214,8 +230,11 @@ pub fn rivals<'a>(
                     .iter()
                     .map(|c| {
                         let gap = c.cost - chosen.cost;
+                        let followed = c.followed.map_or(String::new(), |g| {
+                            format!("; followed to its end, BIC {g:+.1} against this model")
+                        });
                         format!(
-                            "{gap:+.1}, a gap noise makes with p = {:.2}",
+                            "{gap:+.1}, a gap noise makes with p = {:.2}{followed}",
                             rival_p_value(gap, chosen.scale)
                         )
                     })
@@ -1154,6 +1173,7 @@ mod tests {
             abandoned: false,
             noise_spread: spread,
             scale: 1.0,
+            followed: None,
         }
     }
 
@@ -1187,7 +1207,8 @@ mod tests {
     }
 
     /// Rivals: equal costs are, a gap noise cannot make (z = sqrt(dV)/2 beyond 2.58) is not;
-    /// a candidate whose reduction stays within the noise is never one.
+    /// a candidate whose reduction stays within the noise is never one, nor one whose own
+    /// search ended decisively worse.
     #[test]
     fn rivals_are_candidates_whose_cost_gap_noise_could_make() {
         assert_eq!(rival_p_value(0.0, 1.0), 1.0);
@@ -1216,6 +1237,19 @@ mod tests {
         );
         // Nothing added, nothing to rival.
         assert!(rivals([start]).is_empty());
+        // A rival the loop followed to the end of its own search stays one while its best
+        // model is within 2 ln 100 = 9.2 in BIC of the reported one, and says how far it fell
+        // behind; one that fell further behind is ruled out.
+        let mut followed = tried.clone();
+        followed[1].followed = Some(3.0);
+        let why = rivals([(None, followed.as_slice()), then]);
+        assert_eq!(why.len(), 1, "{why:?}");
+        assert!(
+            why[0].contains("p = 0.36; followed to its end, BIC +3.0 against this model"),
+            "{why:?}"
+        );
+        followed[1].followed = Some(9.3);
+        assert!(rivals([(None, followed.as_slice()), then]).is_empty());
     }
 
     /// A misfit no single output carries says so instead of "in outputs []"; the closing words

@@ -94,6 +94,21 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
     }
     let _ = writeln!(s, "weighting: {}", d.weighting);
     time_domain_table(&mut s, d);
+    // Rivals the loop followed to the end of their own search, and how far they fell behind.
+    for (i, pair) in d.steps.windows(2).enumerate() {
+        let added = pair[1].added.as_deref().unwrap_or("");
+        for c in pair[0].candidates.iter().filter(|c| c.effect != added) {
+            if let Some(gap) = c.followed {
+                let _ = writeln!(
+                    s,
+                    "  followed: {} in place of {added} at step {}: its best model's BIC is \
+                     {gap:+.1} against this one",
+                    c.effect,
+                    i + 1,
+                );
+            }
+        }
+    }
     let last = d.steps.last();
     if let Some(st) = last {
         for c in &st.candidates {

@@ -2,7 +2,7 @@
 //! every remaining candidate effect, add the one the criterion admits, repeat until none is.
 //! The FRF cost, the prediction error and the Cubli's window regression differ in how they fit
 //! and score a candidate ([`Search`]), never in the loop.
-use crate::discover::{in_parallel, CandidateScore};
+use crate::discover::{in_parallel, is_rival, CandidateScore};
 use crate::error::{Result, SimError};
 
 /// What a criterion gives the forward selection.
@@ -56,48 +56,110 @@ pub trait Search: Sync {
 
 /// Runs the forward selection from `start`: the fits of every step (the start first, each
 /// with the scores of the candidates tried on it) and the effects in the order added.
-/// `progress` hears one message per candidate tried and per effect added.
+/// `progress` hears one message per candidate tried, per effect added and per rival followed.
+///
+/// Greedy selection commits to the best candidate of each step, and two rivals (a candidate
+/// that fits a step's data as well as the chosen one, [`is_rival`]) may part only later: a
+/// delay and a lag tell little apart until friction is in the model, where only the true one
+/// explains the data. So when a step's chosen candidate has a significant rival, the rival is
+/// followed too, through a search of its own (which follows no further rivals), and the model
+/// of lower BIC (the step's and the later steps' changes summed) is kept; both candidates'
+/// scores keep the loser's gap ([`CandidateScore::followed`]).
 pub fn forward_selection<S: Search>(
     search: &S,
     start: S::Fit,
     progress: &mut dyn FnMut(&str),
 ) -> Result<(Vec<S::Fit>, Vec<String>)> {
-    let mut current = start;
-    let mut done = Vec::new();
-    let mut added = Vec::new();
-    loop {
-        let names = search.candidates(&current);
-        let n = names.len();
-        let context = search.context(&current)?;
-        let jobs: Vec<_> = names
-            .iter()
-            .map(|name| {
-                let (at, context) = (&current, &context);
-                move || search.try_effect(at, context, name, n)
-            })
-            .collect();
-        let mut tried = in_parallel(search.parallel(), jobs, "candidate fit")?;
-        for (_, score) in &tried {
-            progress(&format!("tried {}", score.effect));
-        }
-        let chosen = search.choose(&mut current, &tried);
-        search.record_scores(&mut current, tried.iter().map(|(_, s)| s.clone()).collect());
-        let Some(i) = chosen else { break };
-        if i >= tried.len() {
-            return Err(SimError::invalid(
-                "discovery",
-                i,
-                format!("chose a candidate of {} tried", tried.len()),
-            ));
-        }
-        let (fit, score) = tried.swap_remove(i);
-        progress(&format!("adding {}", score.effect));
-        let next = search.added(fit, &score.effect)?;
-        added.push(score.effect);
-        done.push(std::mem::replace(&mut current, next));
+    let path = select(search, start, progress, true)?;
+    Ok((path.steps, path.added))
+}
+
+/// The steps of one search, the effects it added and the BIC change they made in all.
+struct Path<F> {
+    steps: Vec<F>,
+    added: Vec<String>,
+    bic: f64,
+}
+
+/// The search from `current`; `follow`: whether it follows rivals.
+fn select<S: Search>(
+    search: &S,
+    mut current: S::Fit,
+    progress: &mut dyn FnMut(&str),
+    follow: bool,
+) -> Result<Path<S::Fit>> {
+    let names = search.candidates(&current);
+    let n = names.len();
+    let context = search.context(&current)?;
+    let jobs: Vec<_> = names
+        .iter()
+        .map(|name| {
+            let (at, context) = (&current, &context);
+            move || search.try_effect(at, context, name, n)
+        })
+        .collect();
+    let tried = in_parallel(search.parallel(), jobs, "candidate fit")?;
+    for (_, score) in &tried {
+        progress(&format!("tried {}", score.effect));
     }
-    done.push(current);
-    Ok((done, added))
+    let chosen = search.choose(&mut current, &tried);
+    let (fits, mut scores): (Vec<_>, Vec<_>) = tried.into_iter().unzip();
+    let Some(i) = chosen else {
+        search.record_scores(&mut current, scores);
+        return Ok(Path {
+            steps: vec![current],
+            added: Vec::new(),
+            bic: 0.0,
+        });
+    };
+    if i >= scores.len() {
+        return Err(SimError::invalid(
+            "discovery",
+            i,
+            format!("chose a candidate of {} tried", scores.len()),
+        ));
+    }
+    // The rival of lowest cost, if the chosen one has a significant one.
+    let rival = follow
+        .then(|| {
+            (0..scores.len())
+                .filter(|&j| scores[j].significant && is_rival(&scores[i], &scores[j]))
+                .min_by(|&a, &b| scores[a].cost.total_cmp(&scores[b].cost))
+        })
+        .flatten();
+    let mut fits: Vec<Option<S::Fit>> = fits.into_iter().map(Some).collect();
+    let mut branch = |k: usize, follow: bool, progress: &mut dyn FnMut(&str)| {
+        let fit = fits[k].take().ok_or_else(|| {
+            SimError::invalid("discovery", k, "a candidate's fit was taken twice")
+        })?;
+        let effect = scores[k].effect.clone();
+        progress(&format!("adding {effect}"));
+        let rest = select(search, search.added(fit, &effect)?, progress, follow)?;
+        Ok::<_, SimError>((k, rest.bic + scores[k].delta_bic, rest))
+    };
+    let mut best = branch(i, follow, progress)?;
+    if let Some(j) = rival {
+        progress(&format!(
+            "following {} in place of {}",
+            scores[j].effect, scores[i].effect
+        ));
+        let other = branch(j, false, progress)?;
+        let (winner, loser) = if other.1 < best.1 {
+            (other, best)
+        } else {
+            (best, other)
+        };
+        scores[loser.0].followed = Some(loser.1 - winner.1);
+        best = winner;
+    }
+    let (k, bic, rest) = best;
+    let effect = scores[k].effect.clone();
+    search.record_scores(&mut current, scores);
+    let mut steps = vec![current];
+    steps.extend(rest.steps);
+    let mut added = vec![effect];
+    added.extend(rest.added);
+    Ok(Path { steps, added, bic })
 }
 
 #[cfg(test)]
@@ -157,6 +219,7 @@ mod tests {
                 abandoned: false,
                 noise_spread: 1.0,
                 scale: 1.0,
+                followed: None,
             };
             Ok(((effects, cost, Vec::new()), score))
         }
@@ -195,5 +258,144 @@ mod tests {
         let (_, added) =
             forward_selection(&table, (Vec::new(), 100.0, Vec::new()), &mut |_: &str| {}).unwrap();
         assert!(added.is_empty());
+    }
+
+    /// Costs by the set of effects in the model: effects interact, as a lag and a delay do
+    /// with friction. A candidate is significant when it removes more than 20, each added one
+    /// costs 5 in BIC, and one residual's noise variance is 1 (rivals are within 26.5).
+    struct Sets {
+        costs: Vec<(&'static [&'static str], f64)>,
+    }
+
+    impl Sets {
+        fn cost(&self, effects: &[String]) -> f64 {
+            let mut key: Vec<&str> = effects.iter().map(String::as_str).collect();
+            key.sort_unstable();
+            self.costs
+                .iter()
+                .find(|(set, _)| {
+                    let mut set = set.to_vec();
+                    set.sort_unstable();
+                    set == key
+                })
+                .map_or(f64::NAN, |(_, c)| *c)
+        }
+    }
+
+    impl Search for Sets {
+        type Fit = (Vec<String>, f64, Vec<CandidateScore>);
+        type Context = ();
+
+        fn candidates(&self, at: &Self::Fit) -> Vec<String> {
+            ["delay", "lag", "friction"]
+                .iter()
+                .filter(|n| !at.0.iter().any(|e| e == *n))
+                .map(|n| n.to_string())
+                .collect()
+        }
+
+        fn context(&self, _: &Self::Fit) -> Result<()> {
+            Ok(())
+        }
+
+        fn try_effect(
+            &self,
+            at: &Self::Fit,
+            _: &(),
+            effect: &str,
+            _: usize,
+        ) -> Result<(Self::Fit, CandidateScore)> {
+            let mut effects = at.0.clone();
+            effects.push(effect.to_string());
+            let cost = self.cost(&effects);
+            let gain = at.1 - cost;
+            let score = CandidateScore {
+                effect: effect.to_string(),
+                cost,
+                reduction_percent: 100.0 * gain / at.1,
+                added_parameters: 1,
+                f_statistic: 0.0,
+                p_value: 1.0,
+                robust_p_value: 1.0,
+                delta_aic: 0.0,
+                delta_bic: 5.0 - gain,
+                exceeds_noise: gain > 20.0,
+                passes_tests: gain > 20.0,
+                significant: gain > 20.0,
+                abandoned: false,
+                noise_spread: 1.0,
+                scale: 1.0,
+                followed: None,
+            };
+            Ok(((effects, cost, Vec::new()), score))
+        }
+
+        fn record_scores(&self, at: &mut Self::Fit, scores: Vec<CandidateScore>) {
+            at.2 = scores;
+        }
+
+        fn parallel(&self) -> bool {
+            false
+        }
+    }
+
+    /// The greedy pick (delay, by 1) and its rival (lag) part once friction is in: the lag's
+    /// search stops at lag and friction (cost 400, BIC -590), the delay's adds the lag too
+    /// (398, BIC -587), so the lag's is kept and the delay's score keeps the gap, 3. A rival
+    /// that loses keeps its gap on the kept search; a runner-up outside the rival band is not
+    /// followed.
+    #[test]
+    fn a_rival_is_followed_and_the_search_of_lower_bic_kept() {
+        let costs = |delay_friction: f64, gap: f64| Sets {
+            costs: vec![
+                (&[], 1000.0),
+                (&["delay"], 700.0),
+                (&["lag"], 700.0 + gap),
+                (&["friction"], 950.0),
+                (&["delay", "lag"], 690.0),
+                (&["delay", "friction"], delay_friction),
+                (&["lag", "friction"], 400.0),
+                (&["delay", "lag", "friction"], 398.0),
+            ],
+        };
+        let start = || (Vec::new(), 1000.0, Vec::new());
+        let mut heard = Vec::new();
+        let (steps, added) = forward_selection(&costs(650.0, 1.0), start(), &mut |m: &str| {
+            heard.push(m.to_string())
+        })
+        .unwrap();
+        assert_eq!(added, ["lag", "friction"]);
+        assert_eq!(steps.len(), 3);
+        assert_eq!(steps[2].1, 400.0);
+        let delay = steps[0].2.iter().find(|c| c.effect == "delay").unwrap();
+        assert_eq!(delay.followed, Some(3.0));
+        assert!(steps[0]
+            .2
+            .iter()
+            .all(|c| c.effect == "delay" || c.followed.is_none()));
+        assert!(heard.contains(&"following lag in place of delay".to_string()));
+        // Friction explains as much after the delay: the delay's search is kept, and the lag
+        // keeps its gap (its search added friction, then nothing: 1 worse in cost).
+        let (steps, added) =
+            forward_selection(&costs(399.0, 1.0), start(), &mut |_: &str| {}).unwrap();
+        assert_eq!(added, ["delay", "friction"]);
+        let lag = steps[0].2.iter().find(|c| c.effect == "lag").unwrap();
+        assert_eq!(lag.followed, Some(1.0));
+        // The lag 30 behind the delay is no rival: not followed, the greedy search stands
+        // with its superfluous delay.
+        let mut heard = Vec::new();
+        let (steps, added) = forward_selection(&costs(650.0, 30.0), start(), &mut |m: &str| {
+            heard.push(m.to_string())
+        })
+        .unwrap();
+        assert_eq!(added, ["delay", "friction", "lag"]);
+        assert!(steps
+            .iter()
+            .flat_map(|s| &s.2)
+            .all(|c| c.followed.is_none()));
+        assert!(
+            !heard.iter().any(|m| m.starts_with("following")),
+            "{heard:?}"
+        );
     }
 }
