@@ -55,10 +55,35 @@ pub struct CandidateScore {
     pub noise_spread: f64,
     /// Noise variance of one residual in cost units (what [`rivals`] weighs cost gaps by).
     pub scale: f64,
-    /// When the loop followed both this candidate and a rival to the end of their own
-    /// searches (see [`crate::search::forward_selection`]): the BIC of the best model through
-    /// this one minus the reported model's (`None`: not followed, or the one reported).
-    pub followed: Option<f64>,
+    /// When the loop followed this candidate through a search of its own beside the one
+    /// reported (see [`crate::search::forward_selection`]) and did not keep it: what that
+    /// search found.
+    pub followed: Option<Followed>,
+}
+
+/// The search a runner-up led to, against the search kept.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Followed {
+    /// The effects it added, the runner-up first.
+    pub added: Vec<String>,
+    /// Its model's BIC minus the kept model's (the changes of the steps summed).
+    pub bic: f64,
+    /// It needed more effects than the kept search, or as many at a BIC worse by
+    /// [`decisive_bic`] or more: the data do choose between the two.
+    pub ruled_out: bool,
+}
+
+impl Followed {
+    /// The search that added `added` with BIC change `bic`, against the kept one that added
+    /// `kept` effects with BIC change `kept_bic` from the same step.
+    pub(crate) fn against(added: Vec<String>, bic: f64, kept: usize, kept_bic: f64) -> Self {
+        let gap = bic - kept_bic;
+        Self {
+            ruled_out: added.len() > kept || gap >= decisive_bic(),
+            added,
+            bic: gap,
+        }
+    }
 }
 
 /// The costs a nested-model test compares: a model and the model with one candidate more,
@@ -204,9 +229,20 @@ pub(crate) fn is_rival(chosen: &CandidateScore, other: &CandidateScore) -> bool 
         && rival_p_value(other.cost - chosen.cost, chosen.scale) >= LEVEL
 }
 
+/// Whether the loop follows `other` through a search of its own besides the `chosen` one
+/// ([`crate::search::forward_selection`]): it is significant, and a rival or within a tenth
+/// of the chosen one's cost reduction. Two candidates that remove nearly the same misfit may
+/// part only once a later effect is in (a lag 58 behind a delay on a reduction of 9042, which
+/// explained the data with friction where the delay did not).
+pub(crate) fn worth_following(chosen: &CandidateScore, other: &CandidateScore) -> bool {
+    other.effect != chosen.effect
+        && other.significant
+        && (is_rival(chosen, other) || other.cost - chosen.cost <= 0.1 * chosen.cost_reduction())
+}
+
 /// One sentence per added effect that another candidate of its step fits as well
-/// ([`is_rival`]) and that the loop did not rule out by following it to the end of its own
-/// search (a BIC gap of [`decisive_bic`] or more). The loop's pick between rivals is then a
+/// ([`is_rival`]) and that the loop did not rule out by following it through a search of its
+/// own ([`Followed::ruled_out`]). The loop's pick between rivals is then a
 /// coin toss (a lag of a tenth of a sample and a delay of the same length, two names for one
 /// term). `steps` are each step's added effect and the candidates tried on it, the start
 /// first.
@@ -222,7 +258,7 @@ pub fn rivals<'a>(
             let chosen = tried.iter().find(|c| c.effect == added)?;
             let equal: Vec<&CandidateScore> = tried
                 .iter()
-                .filter(|c| is_rival(chosen, c) && c.followed.is_none_or(|g| g < decisive_bic()))
+                .filter(|c| is_rival(chosen, c) && c.followed.as_ref().is_none_or(|f| !f.ruled_out))
                 .collect();
             (!equal.is_empty()).then(|| {
                 let names: Vec<String> = equal.iter().map(|c| c.effect.clone()).collect();
@@ -230,8 +266,12 @@ pub fn rivals<'a>(
                     .iter()
                     .map(|c| {
                         let gap = c.cost - chosen.cost;
-                        let followed = c.followed.map_or(String::new(), |g| {
-                            format!("; followed to its end, BIC {g:+.1} against this model")
+                        let followed = c.followed.as_ref().map_or(String::new(), |f| {
+                            format!(
+                                "; its own search added [{}], BIC {:+.1} against this model",
+                                f.added.join(", "),
+                                f.bic
+                            )
                         });
                         format!(
                             "{gap:+.1}, a gap noise makes with p = {:.2}{followed}",
@@ -1237,18 +1277,25 @@ mod tests {
         );
         // Nothing added, nothing to rival.
         assert!(rivals([start]).is_empty());
-        // A rival the loop followed to the end of its own search stays one while its best
-        // model is within 2 ln 100 = 9.2 in BIC of the reported one, and says how far it fell
-        // behind; one that fell further behind is ruled out.
+        // A rival the loop followed through a search of its own stays one while that search
+        // added as many effects and ended within 2 ln 100 = 9.2 in BIC of the reported one,
+        // and says what it found; one that needed more effects, or fell further behind, is
+        // ruled out.
+        let delay = |added: &[&str], bic: f64, kept: usize| {
+            let added = added.iter().map(|e| e.to_string()).collect();
+            Some(super::Followed::against(added, bic, kept, 0.0))
+        };
         let mut followed = tried.clone();
-        followed[1].followed = Some(3.0);
+        followed[1].followed = delay(&["delay"], 3.0, 1);
         let why = rivals([(None, followed.as_slice()), then]);
         assert_eq!(why.len(), 1, "{why:?}");
         assert!(
-            why[0].contains("p = 0.36; followed to its end, BIC +3.0 against this model"),
+            why[0].contains("p = 0.36; its own search added [delay], BIC +3.0 against this model"),
             "{why:?}"
         );
-        followed[1].followed = Some(9.3);
+        followed[1].followed = delay(&["delay"], 9.3, 1);
+        assert!(rivals([(None, followed.as_slice()), then]).is_empty());
+        followed[1].followed = delay(&["delay", "lag"], -4.0, 1);
         assert!(rivals([(None, followed.as_slice()), then]).is_empty());
     }
 

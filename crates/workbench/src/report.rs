@@ -94,17 +94,24 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
     }
     let _ = writeln!(s, "weighting: {}", d.weighting);
     time_domain_table(&mut s, d);
-    // Rivals the loop followed to the end of their own search, and how far they fell behind.
+    // Runners-up the loop followed through a search of their own, and what those found.
     for (i, pair) in d.steps.windows(2).enumerate() {
         let added = pair[1].added.as_deref().unwrap_or("");
-        for c in pair[0].candidates.iter().filter(|c| c.effect != added) {
-            if let Some(gap) = c.followed {
+        for c in &pair[0].candidates {
+            if let Some(f) = &c.followed {
                 let _ = writeln!(
                     s,
-                    "  followed: {} in place of {added} at step {}: its best model's BIC is \
-                     {gap:+.1} against this one",
+                    "  followed: {} in place of {added} at step {}: its search added [{}], BIC \
+                     {:+.1} against this one; {}",
                     c.effect,
                     i + 1,
+                    f.added.join(", "),
+                    f.bic,
+                    if f.ruled_out {
+                        "ruled out"
+                    } else {
+                        "the data do not choose"
+                    },
                 );
             }
         }

@@ -2,7 +2,7 @@
 //! every remaining candidate effect, add the one the criterion admits, repeat until none is.
 //! The FRF cost, the prediction error and the Cubli's window regression differ in how they fit
 //! and score a candidate ([`Search`]), never in the loop.
-use crate::discover::{in_parallel, is_rival, CandidateScore};
+use crate::discover::{in_parallel, worth_following, CandidateScore, Followed};
 use crate::error::{Result, SimError};
 
 /// What a criterion gives the forward selection.
@@ -58,13 +58,16 @@ pub trait Search: Sync {
 /// with the scores of the candidates tried on it) and the effects in the order added.
 /// `progress` hears one message per candidate tried, per effect added and per rival followed.
 ///
-/// Greedy selection commits to the best candidate of each step, and two rivals (a candidate
-/// that fits a step's data as well as the chosen one, [`is_rival`]) may part only later: a
-/// delay and a lag tell little apart until friction is in the model, where only the true one
-/// explains the data. So when a step's chosen candidate has a significant rival, the rival is
-/// followed too, through a search of its own (which follows no further rivals), and the model
-/// of lower BIC (the step's and the later steps' changes summed) is kept; both candidates'
-/// scores keep the loser's gap ([`CandidateScore::followed`]).
+/// Greedy selection commits to the best candidate of each step, and two that remove nearly
+/// the same misfit may part only later: a delay and a lag tell little apart until friction is
+/// in the model, where only the true one explains the data. So when a step's chosen candidate
+/// has a runner-up worth following ([`worth_following`]: significant, and a rival or within a
+/// tenth of its cost reduction), the runner-up is followed too, through a search of its own
+/// (which follows no further ones). The search that added fewer effects is kept, of two
+/// that added as many the one of lower BIC (the step's and the later steps' changes summed):
+/// each search admits an effect only by the criterion's tests, and BIC alone would let one
+/// through that the effect-size rule kept out. The loser's score keeps what its search found
+/// ([`CandidateScore::followed`]).
 pub fn forward_selection<S: Search>(
     search: &S,
     start: S::Fit,
@@ -119,11 +122,11 @@ fn select<S: Search>(
             format!("chose a candidate of {} tried", scores.len()),
         ));
     }
-    // The rival of lowest cost, if the chosen one has a significant one.
+    // The runner-up of lowest cost, if one is worth following.
     let rival = follow
         .then(|| {
             (0..scores.len())
-                .filter(|&j| scores[j].significant && is_rival(&scores[i], &scores[j]))
+                .filter(|&j| worth_following(&scores[i], &scores[j]))
                 .min_by(|&a, &b| scores[a].cost.total_cmp(&scores[b].cost))
         })
         .flatten();
@@ -144,12 +147,20 @@ fn select<S: Search>(
             scores[j].effect, scores[i].effect
         ));
         let other = branch(j, false, progress)?;
-        let (winner, loser) = if other.1 < best.1 {
+        // Fewer effects first, then the lower BIC.
+        let (winner, loser) = if (other.2.added.len(), other.1) < (best.2.added.len(), best.1) {
             (other, best)
         } else {
             (best, other)
         };
-        scores[loser.0].followed = Some(loser.1 - winner.1);
+        let mut found = vec![scores[loser.0].effect.clone()];
+        found.extend(loser.2.added);
+        scores[loser.0].followed = Some(Followed::against(
+            found,
+            loser.1,
+            winner.2.added.len() + 1,
+            winner.1,
+        ));
         best = winner;
     }
     let (k, bic, rest) = best;
@@ -340,12 +351,13 @@ mod tests {
     }
 
     /// The greedy pick (delay, by 1) and its rival (lag) part once friction is in: the lag's
-    /// search stops at lag and friction (cost 400, BIC -590), the delay's adds the lag too
-    /// (398, BIC -587), so the lag's is kept and the delay's score keeps the gap, 3. A rival
-    /// that loses keeps its gap on the kept search; a runner-up outside the rival band is not
-    /// followed.
+    /// search stops at lag and friction (cost 400), the delay's needs the lag too (398), so
+    /// the lag's is kept and the delay is ruled out. Of two searches that add as many
+    /// effects, the lower BIC is kept, and the loser stays a rival within 9.2; a search with
+    /// more effects loses even at a lower BIC; a runner-up that is neither a rival nor within
+    /// a tenth of the chosen one's reduction is not followed.
     #[test]
-    fn a_rival_is_followed_and_the_search_of_lower_bic_kept() {
+    fn a_runner_up_is_followed_and_the_search_of_fewer_effects_then_lower_bic_kept() {
         let costs = |delay_friction: f64, gap: f64| Sets {
             costs: vec![
                 (&[], 1000.0),
@@ -367,24 +379,39 @@ mod tests {
         assert_eq!(added, ["lag", "friction"]);
         assert_eq!(steps.len(), 3);
         assert_eq!(steps[2].1, 400.0);
-        let delay = steps[0].2.iter().find(|c| c.effect == "delay").unwrap();
-        assert_eq!(delay.followed, Some(3.0));
+        let followed = |steps: &[(Vec<String>, f64, Vec<CandidateScore>)], effect: &str| {
+            let c = steps[0].2.iter().find(|c| c.effect == effect).unwrap();
+            let f = c.followed.clone().unwrap();
+            (f.added, f.bic, f.ruled_out)
+        };
+        let names = |n: &[&str]| n.iter().map(|e| e.to_string()).collect::<Vec<_>>();
+        assert_eq!(
+            followed(&steps, "delay"),
+            (names(&["delay", "friction", "lag"]), 3.0, true)
+        );
         assert!(steps[0]
             .2
             .iter()
             .all(|c| c.effect == "delay" || c.followed.is_none()));
         assert!(heard.contains(&"following lag in place of delay".to_string()));
-        // Friction explains as much after the delay: the delay's search is kept, and the lag
-        // keeps its gap (its search added friction, then nothing: 1 worse in cost).
+        // Friction explains as much after the delay: two effects each, the delay's search
+        // 1 lower in BIC is kept, and the lag stays a rival.
         let (steps, added) =
             forward_selection(&costs(399.0, 1.0), start(), &mut |_: &str| {}).unwrap();
         assert_eq!(added, ["delay", "friction"]);
-        let lag = steps[0].2.iter().find(|c| c.effect == "lag").unwrap();
-        assert_eq!(lag.followed, Some(1.0));
-        // The lag 30 behind the delay is no rival: not followed, the greedy search stands
-        // with its superfluous delay.
+        assert_eq!(
+            followed(&steps, "lag"),
+            (names(&["lag", "friction"]), 1.0, false)
+        );
+        // 28 behind, the lag is no rival (26.5) but within a tenth of the delay's reduction
+        // (30): followed, and kept.
+        let (_, added) =
+            forward_selection(&costs(650.0, 28.0), start(), &mut |_: &str| {}).unwrap();
+        assert_eq!(added, ["lag", "friction"]);
+        // 40 behind, neither: not followed, the greedy search stands with its superfluous
+        // delay.
         let mut heard = Vec::new();
-        let (steps, added) = forward_selection(&costs(650.0, 30.0), start(), &mut |m: &str| {
+        let (steps, added) = forward_selection(&costs(650.0, 40.0), start(), &mut |m: &str| {
             heard.push(m.to_string())
         })
         .unwrap();
@@ -396,6 +423,27 @@ mod tests {
         assert!(
             !heard.iter().any(|m| m.starts_with("following")),
             "{heard:?}"
+        );
+        // The lag alone, then the delay 15 below it is not significant (20); after the
+        // delay, the lag 25 below is: the delay's search reaches a BIC 10 lower with two
+        // effects, and the lag's one effect is kept.
+        let one = Sets {
+            costs: vec![
+                (&[], 1000.0),
+                (&["lag"], 700.0),
+                (&["delay"], 710.0),
+                (&["friction"], 990.0),
+                (&["delay", "lag"], 685.0),
+                (&["lag", "friction"], 699.0),
+                (&["delay", "friction"], 709.0),
+                (&["delay", "lag", "friction"], 684.0),
+            ],
+        };
+        let (steps, added) = forward_selection(&one, start(), &mut |_: &str| {}).unwrap();
+        assert_eq!(added, ["lag"]);
+        assert_eq!(
+            followed(&steps, "delay"),
+            (names(&["delay", "lag"]), -10.0, true)
         );
     }
 }
