@@ -177,21 +177,71 @@ fn select<S: Search>(
 mod tests {
     use super::*;
 
-    /// Effects with fixed cost reductions: each step adds the best remaining one while its
-    /// reduction is significant.
-    struct Table {
-        gains: Vec<(&'static str, f64, bool)>,
+    /// A criterion scripted by the effects in the model: its cost, and whether adding an
+    /// effect that lowers it by a gain is significant. Each added effect costs 5 in BIC and one
+    /// residual's noise variance is 1 (so rivals are within 26.5).
+    struct Scripted {
+        effects: Vec<&'static str>,
+        cost: Box<CostOf>,
+        significant: Box<SignificantAt>,
     }
 
-    impl Search for Table {
+    /// The cost of a model with these effects.
+    type CostOf = dyn Fn(&[String]) -> f64 + Sync;
+    /// Whether adding an effect that lowers the cost by a gain is significant.
+    type SignificantAt = dyn Fn(&str, f64) -> bool + Sync;
+
+    impl Scripted {
+        /// Effects with fixed cost reductions from 100, each significant or not.
+        fn gains(gains: Vec<(&'static str, f64, bool)>) -> Self {
+            let table = gains.clone();
+            Self {
+                effects: gains.iter().map(|g| g.0).collect(),
+                cost: Box::new(move |effects: &[String]| {
+                    100.0
+                        - effects
+                            .iter()
+                            .filter_map(|e| table.iter().find(|g| g.0 == e))
+                            .map(|g| g.1)
+                            .sum::<f64>()
+                }),
+                significant: Box::new(move |effect: &str, _| {
+                    gains.iter().any(|g| g.0 == effect && g.2)
+                }),
+            }
+        }
+
+        /// Costs by the set of effects, which interact (as a lag and a delay do with
+        /// friction); an effect is significant when it removes more than 20.
+        fn sets(costs: Vec<(&'static [&'static str], f64)>) -> Self {
+            Self {
+                effects: vec!["delay", "lag", "friction"],
+                cost: Box::new(move |effects: &[String]| {
+                    let mut key: Vec<&str> = effects.iter().map(String::as_str).collect();
+                    key.sort_unstable();
+                    costs
+                        .iter()
+                        .find(|(set, _)| {
+                            let mut set = set.to_vec();
+                            set.sort_unstable();
+                            set == key
+                        })
+                        .map_or(f64::NAN, |(_, c)| *c)
+                }),
+                significant: Box::new(|_, gain| gain > 20.0),
+            }
+        }
+    }
+
+    impl Search for Scripted {
         type Fit = (Vec<String>, f64, Vec<CandidateScore>);
         type Context = ();
 
         fn candidates(&self, at: &Self::Fit) -> Vec<String> {
-            self.gains
+            self.effects
                 .iter()
-                .filter(|(n, _, _)| !at.0.iter().any(|e| e == n))
-                .map(|(n, _, _)| n.to_string())
+                .filter(|n| !at.0.iter().any(|e| e == *n))
+                .map(|n| n.to_string())
                 .collect()
         }
 
@@ -206,14 +256,11 @@ mod tests {
             effect: &str,
             _: usize,
         ) -> Result<(Self::Fit, CandidateScore)> {
-            let &(_, gain, significant) = self
-                .gains
-                .iter()
-                .find(|(n, _, _)| *n == effect)
-                .ok_or_else(|| SimError::invalid("effect", effect, "unknown"))?;
             let mut effects = at.0.clone();
             effects.push(effect.to_string());
-            let cost = at.1 - gain;
+            let cost = (self.cost)(&effects);
+            let gain = at.1 - cost;
+            let significant = (self.significant)(effect, gain);
             let score = CandidateScore {
                 effect: effect.to_string(),
                 cost,
@@ -223,7 +270,7 @@ mod tests {
                 p_value: 1.0,
                 robust_p_value: 1.0,
                 delta_aic: 0.0,
-                delta_bic: 0.0,
+                delta_bic: 5.0 - gain,
                 exceeds_noise: significant,
                 passes_tests: significant,
                 significant,
@@ -246,9 +293,11 @@ mod tests {
 
     #[test]
     fn adds_the_best_significant_candidates_in_order_and_stops_at_an_insignificant_best() {
-        let table = Table {
-            gains: vec![("a", 10.0, true), ("b", 30.0, true), ("c", 1.0, false)],
-        };
+        let table = Scripted::gains(vec![
+            ("a", 10.0, true),
+            ("b", 30.0, true),
+            ("c", 1.0, false),
+        ]);
         let mut heard = Vec::new();
         let (steps, added) =
             forward_selection(&table, (Vec::new(), 100.0, Vec::new()), &mut |m: &str| {
@@ -263,91 +312,10 @@ mod tests {
         assert_eq!(tried, [3, 2, 1]);
         assert!(heard.contains(&"adding b".to_string()));
         // The lowest cost decides, not the test: an insignificant best stops the loop.
-        let table = Table {
-            gains: vec![("a", 10.0, true), ("b", 30.0, false)],
-        };
+        let table = Scripted::gains(vec![("a", 10.0, true), ("b", 30.0, false)]);
         let (_, added) =
             forward_selection(&table, (Vec::new(), 100.0, Vec::new()), &mut |_: &str| {}).unwrap();
         assert!(added.is_empty());
-    }
-
-    /// Costs by the set of effects in the model: effects interact, as a lag and a delay do
-    /// with friction. A candidate is significant when it removes more than 20, each added one
-    /// costs 5 in BIC, and one residual's noise variance is 1 (rivals are within 26.5).
-    struct Sets {
-        costs: Vec<(&'static [&'static str], f64)>,
-    }
-
-    impl Sets {
-        fn cost(&self, effects: &[String]) -> f64 {
-            let mut key: Vec<&str> = effects.iter().map(String::as_str).collect();
-            key.sort_unstable();
-            self.costs
-                .iter()
-                .find(|(set, _)| {
-                    let mut set = set.to_vec();
-                    set.sort_unstable();
-                    set == key
-                })
-                .map_or(f64::NAN, |(_, c)| *c)
-        }
-    }
-
-    impl Search for Sets {
-        type Fit = (Vec<String>, f64, Vec<CandidateScore>);
-        type Context = ();
-
-        fn candidates(&self, at: &Self::Fit) -> Vec<String> {
-            ["delay", "lag", "friction"]
-                .iter()
-                .filter(|n| !at.0.iter().any(|e| e == *n))
-                .map(|n| n.to_string())
-                .collect()
-        }
-
-        fn context(&self, _: &Self::Fit) -> Result<()> {
-            Ok(())
-        }
-
-        fn try_effect(
-            &self,
-            at: &Self::Fit,
-            _: &(),
-            effect: &str,
-            _: usize,
-        ) -> Result<(Self::Fit, CandidateScore)> {
-            let mut effects = at.0.clone();
-            effects.push(effect.to_string());
-            let cost = self.cost(&effects);
-            let gain = at.1 - cost;
-            let score = CandidateScore {
-                effect: effect.to_string(),
-                cost,
-                reduction_percent: 100.0 * gain / at.1,
-                added_parameters: 1,
-                f_statistic: 0.0,
-                p_value: 1.0,
-                robust_p_value: 1.0,
-                delta_aic: 0.0,
-                delta_bic: 5.0 - gain,
-                exceeds_noise: gain > 20.0,
-                passes_tests: gain > 20.0,
-                significant: gain > 20.0,
-                abandoned: false,
-                noise_spread: 1.0,
-                scale: 1.0,
-                followed: None,
-            };
-            Ok(((effects, cost, Vec::new()), score))
-        }
-
-        fn record_scores(&self, at: &mut Self::Fit, scores: Vec<CandidateScore>) {
-            at.2 = scores;
-        }
-
-        fn parallel(&self) -> bool {
-            false
-        }
     }
 
     /// The greedy pick (delay, by 1) and its rival (lag) part once friction is in: the lag's
@@ -358,8 +326,8 @@ mod tests {
     /// a tenth of the chosen one's reduction is not followed.
     #[test]
     fn a_runner_up_is_followed_and_the_search_of_fewer_effects_then_lower_bic_kept() {
-        let costs = |delay_friction: f64, gap: f64| Sets {
-            costs: vec![
+        let costs = |delay_friction: f64, gap: f64| {
+            Scripted::sets(vec![
                 (&[], 1000.0),
                 (&["delay"], 700.0),
                 (&["lag"], 700.0 + gap),
@@ -368,7 +336,7 @@ mod tests {
                 (&["delay", "friction"], delay_friction),
                 (&["lag", "friction"], 400.0),
                 (&["delay", "lag", "friction"], 398.0),
-            ],
+            ])
         };
         let start = || (Vec::new(), 1000.0, Vec::new());
         let mut heard = Vec::new();
@@ -427,18 +395,16 @@ mod tests {
         // The lag alone, then the delay 15 below it is not significant (20); after the
         // delay, the lag 25 below is: the delay's search reaches a BIC 10 lower with two
         // effects, and the lag's one effect is kept.
-        let one = Sets {
-            costs: vec![
-                (&[], 1000.0),
-                (&["lag"], 700.0),
-                (&["delay"], 710.0),
-                (&["friction"], 990.0),
-                (&["delay", "lag"], 685.0),
-                (&["lag", "friction"], 699.0),
-                (&["delay", "friction"], 709.0),
-                (&["delay", "lag", "friction"], 684.0),
-            ],
-        };
+        let one = Scripted::sets(vec![
+            (&[], 1000.0),
+            (&["lag"], 700.0),
+            (&["delay"], 710.0),
+            (&["friction"], 990.0),
+            (&["delay", "lag"], 685.0),
+            (&["lag", "friction"], 699.0),
+            (&["delay", "friction"], 709.0),
+            (&["delay", "lag", "friction"], 684.0),
+        ]);
         let (steps, added) = forward_selection(&one, start(), &mut |_: &str| {}).unwrap();
         assert_eq!(added, ["lag"]);
         assert_eq!(
