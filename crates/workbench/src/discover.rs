@@ -402,8 +402,9 @@ impl Verdict {
                 band_hz,
                 worst_entries,
             } => {
-                // Frequency-domain criteria name the band and the worst FRF entries; the
-                // time-domain ones give neither.
+                // The FRF criteria name the band of flagged lines and the worst FRF entries;
+                // the prediction-error criterion the band where the innovations cohere with
+                // the excitation and the (output, excitation) pairs of most coherence.
                 let entries: Vec<String> = worst_entries
                     .iter()
                     .map(|(o, i, r)| format!("{i}->{o} ({r:.1}x)"))

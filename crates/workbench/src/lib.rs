@@ -17,6 +17,7 @@
 //! lie the data it reads and writes: [`log`] (MCAP and CSV logs), [`output`] (never over an
 //! input, temporary file + rename), [`limits`] (memory budgets) and the one [`error`] type.
 pub mod closed_loop;
+pub mod coherence;
 pub mod cost;
 pub mod dataset;
 pub mod diagnose;

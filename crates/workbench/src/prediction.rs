@@ -21,6 +21,7 @@
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
+use super::coherence::locate;
 use super::diagnose::{diagnose, LEVEL};
 use super::discover::{
     in_parallel, CandidateScore, Conclusion, Discovery, NestedCosts, Robustness, Step, Verdict,
@@ -923,6 +924,18 @@ impl Workbench {
         );
         tests.residual =
             format!("innovations of the extended Kalman predictor, tested against {against}");
+        // Feedback carries past noise into closed-loop inputs at every lag, so only an
+        // excitation, or open-loop inputs, can locate the misfit in frequency.
+        if first_lag == 0 {
+            tests.coherence = locate(
+                &residuals.iter().collect::<Vec<_>>(),
+                &regressors.iter().collect::<Vec<_>>(),
+                &self.data.outputs,
+                &names,
+                self.data.sample_rate_hz,
+                against,
+            );
+        }
         let diagnosis = diagnose(&self.frf, &self.cost, &self.noise, &f.r.model_frf, f.r.free);
         Ok(Step {
             added: f.added,
@@ -1009,11 +1022,16 @@ fn time_verdict(tests: &ResidualTests) -> Verdict {
     if flagged.is_empty() {
         Verdict::ExplainedToNoiseLevel { p_value }
     } else {
+        // The band and the pairs from the innovations' coherence with the excitation.
+        let (band_hz, worst_entries) = tests
+            .coherence
+            .as_ref()
+            .map_or((None, Vec::new()), |c| (c.band_hz, c.worst_entries.clone()));
         Verdict::UnexplainedStructuredMisfit {
             p_value,
             outputs: flagged,
-            band_hz: None,
-            worst_entries: Vec::new(),
+            band_hz,
+            worst_entries,
         }
     }
 }

@@ -353,6 +353,32 @@ fn time_domain_table(s: &mut String, d: &Discovery) {
                 c.state_correlation.map_or(0.0, |(_, v)| v),
             );
         }
+        if let Some(c) = &r.coherence {
+            let _ = writeln!(
+                s,
+                "coherence with {} ({} segments of {} samples, {} Hz bins, {} tested):",
+                c.against,
+                c.segments,
+                c.segment,
+                fmt_num(c.resolution_hz),
+                c.bins_tested
+            );
+            for o in &c.outputs {
+                let flagged = match (o.flagged_hz.first(), o.flagged_hz.last()) {
+                    (Some(a), Some(b)) => format!(
+                        "flagged on {} bin(s), {}-{} Hz",
+                        o.flagged_hz.len(),
+                        fmt_num(*a),
+                        fmt_num(*b)
+                    ),
+                    _ => "no bin flagged".into(),
+                };
+                let peak = o.peak.map_or(String::new(), |(hz, c, p)| {
+                    format!("; largest {c:.3} at {} Hz (p = {p:.1e})", fmt_num(hz))
+                });
+                let _ = writeln!(s, "  {:<4} {flagged}{peak}", o.output);
+            }
+        }
     }
 }
 
@@ -843,14 +869,18 @@ fn html(wb: &Workbench, d: &Discovery) -> String {
     let frf = wb.frf();
     let f = frf.freqs_hz();
     let mut body = String::new();
+    let (residuals, noise) = cost_reference(wb, d);
+    let reference = match noise {
+        Some(n) => format!("Expected cost of the true model from noise alone: {n:.0}."),
+        None => format!("Costs are sums of {residuals} whitened one-step prediction errors; the residual tests below judge the noise level."),
+    };
     let _ = write!(
         body,
-        "<h1>stabilis workbench: {}</h1><p>Estimator: {}. {} excited lines, {}. Expected cost of the true model from noise alone: {:.0}.</p>",
+        "<h1>stabilis workbench: {}</h1><p>Estimator: {}. {} excited lines, {}. {reference}</p>",
         escape(wb.model().structure().system()),
         frf.describe(),
         f.len(),
         count(wb.data().experiments.len(), "experiment"),
-        wb.noise().mean()
     );
     // The parameters have their own table below.
     let _ = write!(
@@ -863,7 +893,7 @@ fn html(wb: &Workbench, d: &Discovery) -> String {
         .iter()
         .map(|s| (s.added.clone().unwrap_or_else(|| "start".into()), s.cost))
         .collect();
-    body.push_str(&cost_bars(&bars, wb.noise().mean()));
+    body.push_str(&cost_bars(&bars, noise));
     body.push_str(&parameter_table(wb, d));
     body.push_str(&time_series(wb, d));
     body.push_str(&autocorrelation(d));
@@ -1166,6 +1196,39 @@ fn autocorrelation(d: &Discovery) -> String {
             &series,
         ));
     }
+    if let Some(c) = &r.coherence {
+        let _ = write!(
+            out,
+            "<h2>Where the residual follows the excitation</h2><p>Squared coherence of the last model's residual with {} per frequency ({} segments of {} samples); dashed: the level above which a bin is flagged (1% over all bins and outputs).</p>",
+            escape(&c.against),
+            c.segments,
+            c.segment
+        );
+        for o in &c.outputs {
+            let series = [
+                Series {
+                    name: o.output.clone(),
+                    color: COLORS[0],
+                    points: o.bins.clone(),
+                    markers: true,
+                    band: None,
+                },
+                Series {
+                    name: "flagged above".into(),
+                    color: "#999999",
+                    points: c.flag_above.clone(),
+                    markers: false,
+                    band: None,
+                },
+            ];
+            out.push_str(&chart(
+                &format!("{}: coherence", o.output),
+                XAxis::linear("frequency (Hz)"),
+                "squared coherence",
+                &series,
+            ));
+        }
+    }
     out
 }
 
@@ -1175,12 +1238,16 @@ pub fn page(body: &str) -> String {
 }
 
 /// "Error per step": one bar per step, height log10 of the weighted cost, with the level
-/// noise alone gives as a dashed line.
-pub fn cost_bars(steps: &[(String, f64)], noise: f64) -> String {
+/// noise alone gives as a dashed line when the criterion has one (the time criterion has not).
+pub fn cost_bars(steps: &[(String, f64)], noise: Option<f64>) -> String {
     let mut body = String::from("<h2>Error per step</h2><svg xmlns=\"http://www.w3.org/2000/svg\" width=\"520\" height=\"220\" font-family=\"sans-serif\" font-size=\"11\">");
     let logs: Vec<f64> = steps.iter().map(|(_, c)| c.max(1e-300).log10()).collect();
-    let noise = noise.max(1e-300).log10();
-    let max = logs.iter().copied().fold(noise.max(1.0), f64::max).ceil();
+    let noise = noise.map(|n| n.max(1e-300).log10());
+    let max = logs
+        .iter()
+        .copied()
+        .fold(noise.unwrap_or(1.0).max(1.0), f64::max)
+        .ceil();
     let width = (440.0 / steps.len().max(1) as f64).min(90.0);
     for (i, ((label, cost), c)) in steps.iter().zip(&logs).enumerate() {
         let bh = 170.0 * c.max(0.0) / max;
@@ -1197,12 +1264,15 @@ pub fn cost_bars(steps: &[(String, f64)], noise: f64) -> String {
             fmt_num(*cost)
         );
     }
-    let ny = 190.0 - 170.0 * noise.max(0.0) / max;
-    let _ = write!(
-        body,
-        r##"<line x1="50" x2="510" y1="{ny:.1}" y2="{ny:.1}" stroke="#d62728" stroke-dasharray="4"/><text x="510" y="{:.1}" text-anchor="end" fill="#d62728">noise level</text></svg><p>Bar height: log10 of the weighted cost.</p>"##,
-        ny - 4.0
-    );
+    if let Some(noise) = noise {
+        let ny = 190.0 - 170.0 * noise.max(0.0) / max;
+        let _ = write!(
+            body,
+            r##"<line x1="50" x2="510" y1="{ny:.1}" y2="{ny:.1}" stroke="#d62728" stroke-dasharray="4"/><text x="510" y="{:.1}" text-anchor="end" fill="#d62728">noise level</text>"##,
+            ny - 4.0
+        );
+    }
+    body.push_str("</svg><p>Bar height: log10 of the weighted cost.</p>");
     body
 }
 

@@ -9,6 +9,7 @@
 use nalgebra::DMatrix;
 use serde::Serialize;
 
+use super::coherence::Coherence;
 use super::diagnose::LEVEL;
 use super::stats::chi2_sf;
 
@@ -160,6 +161,10 @@ pub struct ResidualTests {
     pub samples: usize,
     /// Per output channel.
     pub channels: Vec<ChannelResidual>,
+    /// Where in frequency the residuals follow the excitation; set by the prediction-error
+    /// criterion when the regressors are independent of the noise (a logged excitation, or
+    /// open-loop inputs).
+    pub coherence: Option<Coherence>,
 }
 
 /// Column `j` of every record, each centred on its own mean.
@@ -245,6 +250,7 @@ pub fn residual_tests(
         lags,
         samples,
         channels,
+        coherence: None,
     }
 }
 

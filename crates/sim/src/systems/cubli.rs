@@ -1320,7 +1320,7 @@ fn cubli_html(d: &CubliDiscovery) -> String {
         .map(|s| (s.added.clone().unwrap_or_else(|| "start".into()), s.cost))
         .collect();
     // The weighted cost of noise alone is about the number of residual rows.
-    body.push_str(&cost_bars(&bars, (d.windows * CHANNELS.len()) as f64));
+    body.push_str(&cost_bars(&bars, Some((d.windows * CHANNELS.len()) as f64)));
     let steps: Vec<(Option<&str>, &[ParamEstimate])> = d
         .steps
         .iter()
