@@ -49,6 +49,7 @@ FC_TRUE = 0.3  # cart dry friction, N (the file documents 0.5)
 EPS = 0.05  # the file's smoothing speed of the dry friction, m/s
 OFFSET_THETA = 0.01  # pole angle sensor offset, rad (the issue's case)
 OFFSET_X = 0.02  # cart position sensor offset, m
+FLEX_HZ = 4.0  # a flexible appendage on the cart that no effect describes, Hz
 CASES = {
     "nothing": {},
     "viscous": {"b": B_TRUE},
@@ -56,10 +57,11 @@ CASES = {
     "dry_sharp": {"coulomb": FC_TRUE, "coulomb_v": 0.0},  # unsmoothed: a sign
     "offset_theta": {"offset_theta": OFFSET_THETA},
     "offset_x": {"offset_x": OFFSET_X},
+    "flex": {"flex_hz": FLEX_HZ},
 }
 SEEDS = {"nothing": (101, 102, 103), "viscous": (111, 112, 113), "dry": (121, 122, 123),
          "dry_sharp": (151, 152, 153), "offset_theta": (131, 132, 133),
-         "offset_x": (141, 142, 143)}
+         "offset_x": (141, 142, 143), "flex": (161, 162, 163)}
 
 
 # --- the nonlinear model file, read independently -----------------------------------------
@@ -315,6 +317,23 @@ def test_nothing_hidden_finds_nothing(campaigns, tmp_path, case, seed):
     # test_an_offset_on_x_is_exactly_a_start_elsewhere), so nothing is hidden in them either.
     doc = discover(MODEL, campaigns(case, seed), tmp_path)
     assert doc["found"] == [] and doc["tentative"] == [], why(doc)
+    # Nor does the innovations' coherence with the excitation flag a band.
+    assert doc["steps"][-1]["residual_tests"]["coherence"]["band_hz"] is None, why(doc)
+
+
+@pytest.mark.parametrize("case, seed", cases("flex"))
+def test_a_missing_mode_is_located_at_its_frequency(campaigns, tmp_path, case, seed):
+    # The appendage's resonance is in no effect of the file: the verdict is a misfit, and it
+    # says where: the band where the innovations cohere with the excitation holds FLEX_HZ, and
+    # on each output the coherence peaks within the Hann window's main lobe (two bins) of it.
+    doc = discover(MODEL, campaigns(case, seed), tmp_path)
+    assert doc["unexplained"], why(doc)
+    c = doc["steps"][-1]["residual_tests"]["coherence"]
+    lo, hi = c["band_hz"]
+    assert lo <= FLEX_HZ <= hi, c["band_hz"]
+    assert f"{lo:.2f}-{hi:.2f} Hz" in doc["verdict_text"], doc["verdict_text"]
+    for out in c["outputs"]:
+        assert abs(out["peak"][0] - FLEX_HZ) <= 2 * c["resolution_hz"], (out, c["resolution_hz"])
 
 
 # The hidden effect, the effect the discovery must name (and no other), its parameter, level.
