@@ -684,7 +684,7 @@ impl Workbench {
 
     /// Names the weighting every step's cost is computed under: the noise re-estimated from
     /// the residual of the model with `effects` (instrumental variables), or the estimate's
-    /// own period-to-period (segment-to-segment) variation.
+    /// own noise estimate (the record's bins beside the lines, or the segments' residual).
     fn weighting_sentence(&self, effects: &[String]) -> String {
         if self.reweights() {
             format!(

@@ -620,13 +620,15 @@ impl Study {
         let det = aa * bb - ab * ab;
         // One factor for both keeps the estimate's split between process and sensor noise; a
         // split of its own replaces it only where it halves the misfit (with one output the
-        // split is not identifiable from the period-to-period noise).
+        // split is not identifiable from the period-to-period noise: the common factor fits
+        // exactly, and rounding alone must not pick another split).
         let both: Vec<f64> = a.iter().zip(&b).map(|(x, y)| x + y).collect();
         let c = dot(&both, &ones) / dot(&both, &both).max(f64::MIN_POSITIVE);
         let mut best = (misfit(c, c), c, c);
         let common = best.0;
+        let exact = common <= 1e-12 * a.len() as f64;
         let mut consider = |cq: f64, cr: f64| {
-            if cq >= 0.0 && cr >= 0.0 && cq.is_finite() && cr.is_finite() {
+            if !exact && cq >= 0.0 && cr >= 0.0 && cq.is_finite() && cr.is_finite() {
                 let m = misfit(cq, cr);
                 if m < best.0 && m < 0.5 * common {
                     best = (m, cq, cr);

@@ -445,7 +445,7 @@ pub fn welch_frf(
             y_mean: y[b].clone(),
             coherence: Some(coherence),
             kronecker: Some((m, s)),
-            period_spectra: Vec::new(),
+            noise_spectra: Vec::new(),
         });
         rho.push(rk);
     }
