@@ -197,7 +197,12 @@ impl PyModel {
     fn poles<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyComplex>>> {
         Ok(complex_list(
             py,
-            &self.inner.state_space().map_err(to_py_err)?.poles(),
+            &self
+                .inner
+                .state_space()
+                .map_err(to_py_err)?
+                .poles()
+                .map_err(to_py_err)?,
         ))
     }
 

@@ -83,7 +83,7 @@ fn parameter_vector_follows_enabled_effects_and_checks_bounds() {
 fn low_complexity_model_has_all_poles_at_zero() {
     let ss = Model::low_complexity().state_space().unwrap();
     assert_eq!(ss.a.nrows(), 9);
-    assert!(ss.poles().iter().all(|p| p.norm() < 1e-9));
+    assert!(ss.poles().unwrap().iter().all(|p| p.norm() < 1e-9));
     assert_eq!(ss.delay, 0.0);
 }
 

@@ -170,11 +170,11 @@ fn modes_of_printed_and_built_a() {
         );
     }
     let ss = Model::augmented().state_space().unwrap();
-    assert!(ss.poles().iter().any(|p| p.re > 4.5));
+    assert!(ss.poles().unwrap().iter().any(|p| p.re > 4.5));
     let mut no_drag = Model::augmented();
     no_drag.set_parameter("c_alpha1", 0.0).unwrap();
     no_drag.set_parameter("c_alpha2", 0.0).unwrap();
-    let poles = no_drag.state_space().unwrap().poles();
+    let poles = no_drag.state_space().unwrap().poles().unwrap();
     assert!(poles.iter().all(|p| p.re.abs() < 1e-6), "{poles:?}");
     // Gyro only: poles at 0 plus +-0.771j.
     assert!(poles.iter().any(|p| (p.im.abs() - 0.7714).abs() < 1e-3));

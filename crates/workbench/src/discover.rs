@@ -975,7 +975,7 @@ impl Workbench {
         };
         let tau = 2.0 * std::f64::consts::PI;
         let mut worst: Option<(f64, f64, f64, f64)> = None; // (ratio, freq, width, bias)
-        for p in last.model.state_space(&last.r.theta)?.poles() {
+        for p in last.model.state_space(&last.r.theta)?.poles()? {
             let (freq, width) = (p.im / tau, p.re.abs() / std::f64::consts::PI);
             if p.im <= 0.0 || !(lo..=hi).contains(&freq) || width <= 0.0 {
                 continue;

@@ -51,8 +51,7 @@ pub struct Identifiability {
 /// eigenvalue of the documented model (0.01-100 rad/s for a model of integrators only).
 fn grid(model: &Model, theta: &[f64]) -> Result<Vec<f64>> {
     let a = model.state_space(theta)?.a;
-    let mags: Vec<f64> = a
-        .complex_eigenvalues()
+    let mags: Vec<f64> = rigid_body::lti::eigenvalues(&a)?
         .iter()
         .map(|l| l.norm())
         .filter(|m| *m > 1e-9)

@@ -13,6 +13,7 @@
 //! predictor `x̂_{k+1} = Φ x̂_k + Γ0 u_{k-w} + Γ1 u_{k-w-1} + K (y_k - C x̂_k - D u_{k-d})` is
 //! stable whenever `(Φ, C)` is detectable; otherwise the design is refused by name.
 use nalgebra::DMatrix;
+use rigid_body::lti::spectral_radius;
 use serde::Serialize;
 
 use super::timedomain::Discrete;
@@ -80,9 +81,12 @@ impl Predictor {
         // estimated and do not change the outputs: the predictor runs on the observable part.
         let (observable, split) = observable_part(disc);
         let whole_state = split.is_none();
-        let hidden_decay = split
-            .as_ref()
-            .map(|s| spectral_radius(&(&s.hidden * &disc.phi * s.hidden.transpose())) < 1.0);
+        let hidden_decay = match &split {
+            Some(s) => {
+                Some(spectral_radius(&(&s.hidden * &disc.phi * s.hidden.transpose()))? < 1.0)
+            }
+            None => None,
+        };
         let disc = &observable;
         let (n, p) = (disc.phi.nrows(), disc.c.nrows());
         let mut r = vec![0.0; p];
@@ -222,7 +226,7 @@ impl Predictor {
                 DMatrix::from_fn(p, p, |i, j| if i == j { r[i] * f.sensor[i] } else { 0.0 }),
             )
         });
-        let rho = spectral_radius(&(&disc.phi - &gain * &disc.c));
+        let rho = spectral_radius(&(&disc.phi - &gain * &disc.c))?;
         // The error in modes the outputs do not see evolves by itself: a gain that leaves
         // them alone is stable when they decay (the pair is detectable).
         let state_gain = match (&split, hidden_decay) {
@@ -404,14 +408,6 @@ fn observable_part(disc: &Discrete) -> (Discrete, Option<Split>) {
     )
 }
 
-/// The largest modulus of the eigenvalues of `m`.
-fn spectral_radius(m: &DMatrix<f64>) -> f64 {
-    m.complex_eigenvalues()
-        .iter()
-        .map(|l| l.norm())
-        .fold(0.0, f64::max)
-}
-
 /// `m` moved down by `s` rows (row k holds row k - s), zeros above.
 fn shifted(m: &DMatrix<f64>, s: usize) -> DMatrix<f64> {
     let mut out = DMatrix::zeros(m.nrows(), m.ncols());
@@ -541,7 +537,7 @@ mod tests {
                             state_gain: None,
                             noise: design.noise.clone(),
                         };
-                        assert!(spectral_radius(&(&three.phi - k * &three.c)) < 1.0);
+                        assert!(spectral_radius(&(&three.phi - k * &three.c)).unwrap() < 1.0);
                         let (e, _) = whole.run(&u, &y);
                         assert_white(&e, &format!("pole {pole} seed {seed}"));
                     }

@@ -114,11 +114,7 @@ impl ExtendedPredictor {
             0
         };
         let plant = ss.a.view((0, 0), (n - lagged, n - lagged)).clone_owned();
-        let fastest = plant
-            .complex_eigenvalues()
-            .iter()
-            .map(|l| l.norm())
-            .fold(0.0, f64::max);
+        let fastest = rigid_body::lti::spectral_radius(&plant)?;
         let substeps = ((fastest * t / STEP_RATE).ceil() as usize).clamp(1, MAX_SUBSTEPS);
         if gain.nrows() > n || gain.ncols() != dynamics.outputs() {
             return Err(SimError::LengthMismatch {

@@ -2,6 +2,7 @@
 
 use crate::{Error, Result};
 use nalgebra::{Complex, DMatrix};
+use std::vec::Vec;
 
 use super::CMatrix;
 
@@ -14,6 +15,30 @@ pub(super) struct ComplexSchur {
 
 pub(super) fn complexify(m: &DMatrix<f64>) -> CMatrix {
     m.map(|x| Complex::new(x, 0.0))
+}
+
+/// Eigenvalues of `a` from its complex Schur form, in a bounded number of QR iterations
+/// (an error when they do not converge). nalgebra's `complex_eigenvalues` iterates without a
+/// bound and never returned on a matrix met in a fitted flying-platform model: nearly rank
+/// one, with a cluster of eigenvalues at rounding level. The iteration's deflation test is
+/// relative to the neighbouring diagonal entries, which such a cluster keeps at rounding
+/// level too; when it does not converge, the eigenvalues of `a + |a| I` less `|a|` are taken,
+/// for which the test is relative to the matrix's norm, as LAPACK's is.
+pub fn eigenvalues(a: &DMatrix<f64>) -> Result<Vec<Complex<f64>>> {
+    match ComplexSchur::new(a) {
+        Ok(schur) => Ok(schur.eigenvalues().collect()),
+        Err(e) => {
+            let shift = a.norm();
+            let shifted = a + DMatrix::identity(a.nrows(), a.ncols()) * shift;
+            let schur = ComplexSchur::new(&shifted).map_err(|_| e)?;
+            Ok(schur.eigenvalues().map(|z| z - shift).collect())
+        }
+    }
+}
+
+/// The largest modulus of the eigenvalues of `a` (see [`eigenvalues`]).
+pub fn spectral_radius(a: &DMatrix<f64>) -> Result<f64> {
+    Ok(eigenvalues(a)?.iter().map(|l| l.norm()).fold(0.0, f64::max))
 }
 
 impl ComplexSchur {

@@ -27,7 +27,7 @@ pub type CMatrix = DMatrix<Complex<f64>>;
 /// let g = ss.frequency_response_at(1.0)?[(0, 0)];
 /// assert!((g.norm() - 0.5f64.sqrt()).abs() < 1e-12);
 /// assert!((g.arg() + std::f64::consts::FRAC_PI_4 + 0.1).abs() < 1e-12);
-/// assert_eq!(ss.poles()[0].re, -1.0);
+/// assert_eq!(ss.poles()?[0].re, -1.0);
 /// # Ok::<(), rigid_body::Error>(())
 /// ```
 #[derive(Debug, Clone, PartialEq)]
@@ -81,9 +81,9 @@ impl StateSpace {
         sized("D", &self.d, p, m)
     }
 
-    /// Eigenvalues of `A`.
-    pub fn poles(&self) -> Vec<Complex<f64>> {
-        self.a.complex_eigenvalues().iter().copied().collect()
+    /// Eigenvalues of `A` (see [`super::eigenvalues`]).
+    pub fn poles(&self) -> Result<Vec<Complex<f64>>> {
+        super::eigenvalues(&self.a)
     }
 
     /// `(C (jwI - A)^-1 B + D) e^{-jw delay}` at one angular frequency `omega` (rad/s).
@@ -224,12 +224,8 @@ impl StateSpace {
 
 impl Discrete {
     /// Spectral radius of Φ (above one: the free-run simulation diverges).
-    pub fn spectral_radius(&self) -> f64 {
-        self.phi
-            .complex_eigenvalues()
-            .iter()
-            .map(|l| l.norm())
-            .fold(0.0, f64::max)
+    pub fn spectral_radius(&self) -> Result<f64> {
+        super::spectral_radius(&self.phi)
     }
 }
 
