@@ -9,7 +9,7 @@
 use nalgebra::DMatrix;
 use serde::Serialize;
 
-use super::dataset::Dataset;
+use super::dataset::{Dataset, Periodic};
 use super::spectra::{excited_bins, period_mean, Dft, C64};
 use crate::error::{Result, SimError};
 
@@ -256,29 +256,15 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
         })
         .collect();
 
-    // Per experiment and line, the whole record's transforms at bins k P - floor((P-1)/2) ..
-    // k P + floor(P/2) but k P itself, scaled by sqrt(P) to per-period noise.
+    // Per experiment and line, the whole record's transforms beside the line.
     let beside: Vec<Vec<(CMatrix, CMatrix)>> = data
         .experiments
         .iter()
         .zip(&layouts)
         .map(|(e, l)| {
-            let p = l.periods;
-            let whole = Dft::new(n * p);
-            let scale = (p as f64).sqrt();
-            let below = (p - 1) / 2;
-            let offsets: Vec<isize> = (1..=below as isize)
-                .map(|d| -d)
-                .chain(1..=(p / 2) as isize)
-                .collect();
-            let range = l.transient..l.transient + n * p;
-            let at = |m: &DMatrix<f64>, k: usize| -> CMatrix {
-                CMatrix::from_fn(m.ncols(), offsets.len(), |c, i| {
-                    let bin = ((k * p) as isize + offsets[i]) as usize;
-                    whole.bin(range.clone().map(|t| m[(t, c)]), bin) * scale
-                })
-            };
-            bins.iter().map(|&k| (at(&e.u, k), at(&e.y, k))).collect()
+            let u = beside_lines(&e.u, l, &bins);
+            let y = beside_lines(&e.y, l, &bins);
+            u.into_iter().zip(y).collect()
         })
         .collect();
     let periods: Vec<usize> = layouts.iter().map(|l| l.periods).collect();
@@ -338,6 +324,61 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
         welch: None,
         detected_period,
     })
+}
+
+/// Offsets from a line's bin `k P` of the whole record's bins beside it, `-⌊(P-1)/2⌋ ..
+/// ⌊P/2⌋` without 0: `P - 1` bins, none a period harmonic, each line's own.
+fn offsets(periods: usize) -> Vec<isize> {
+    let below = ((periods - 1) / 2) as isize;
+    (1..=below)
+        .map(|d| -d)
+        .chain(1..=(periods / 2) as isize)
+        .collect()
+}
+
+/// The whole record's transforms of the columns of `m` after `layout.transient`, normalised by
+/// the record's length and scaled by `sqrt(P)` (to per-period noise), at the bins beside each
+/// line of `bins` (see [`offsets`]): one matrix channels x `P - 1` per line.
+///
+/// Bin `k P + j` of the record is `Σ_t e^(-2πi (kP + j) t / (nP)) z_j[t]` with the
+/// demodulated period sum `z_j[t] = Σ_p x[pn + t] e^(-2πi j p / P)`, so each offset costs one
+/// pass over the record and then `n` per line, not `nP` per line.
+fn beside_lines(m: &DMatrix<f64>, layout: &Periodic, bins: &[usize]) -> Vec<CMatrix> {
+    let (n, p) = (layout.period, layout.periods);
+    let whole = n * p;
+    let twiddle =
+        |i: usize| C64::from_polar(1.0, -2.0 * std::f64::consts::PI * i as f64 / whole as f64);
+    let table: Vec<C64> = (0..whole).map(twiddle).collect();
+    let offsets = offsets(p);
+    let scale = (p as f64).sqrt() / whole as f64;
+    let mut out: Vec<CMatrix> = bins
+        .iter()
+        .map(|_| CMatrix::zeros(m.ncols(), offsets.len()))
+        .collect();
+    for c in 0..m.ncols() {
+        let x = m.column(c);
+        for (i, &j) in offsets.iter().enumerate() {
+            // e^(-2πi j p / P) is the table's entry j p n (mod nP).
+            let shift = j.rem_euclid(p as isize) as usize;
+            let z: Vec<C64> = (0..n)
+                .map(|t| {
+                    (0..p)
+                        .map(|q| table[(shift * q * n) % whole] * x[layout.transient + q * n + t])
+                        .sum()
+                })
+                .collect();
+            for (line, &k) in out.iter_mut().zip(bins) {
+                let bin = ((k * p) as isize + j) as usize;
+                let v: C64 = z
+                    .iter()
+                    .enumerate()
+                    .map(|(t, zt)| table[(bin * t) % whole] * zt)
+                    .sum();
+                line[(c, i)] = v * scale;
+            }
+        }
+    }
+    out
 }
 
 /// Whether `choice` resolves to the instrumental-variable estimate on `data` (`Auto` picks it
@@ -419,4 +460,40 @@ pub(crate) fn invert(a: &CMatrix, what: &str, freq_hz: f64) -> Result<CMatrix> {
             "cannot invert",
         )
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The demodulated transforms beside the lines are the record's DFT at those bins,
+        /// computed directly, to 1e-12; there are `P - 1` per line, none a period harmonic.
+        #[test]
+        fn bins_beside_the_lines_are_the_records_dft(
+            n in 4usize..12,
+            p in 2usize..7,
+            transient in 0usize..5,
+            seed in 0u64..1000,
+        ) {
+            let len = transient + n * p;
+            let m = DMatrix::from_fn(len, 2, |i, c| ((i * 7 + c * 3 + seed as usize) % 11) as f64 - 5.0 + (i as f64 * 0.37).sin());
+            let layout = Periodic { period: n, periods: p, transient };
+            let bins: Vec<usize> = (1..n.div_ceil(2)).collect();
+            let got = beside_lines(&m, &layout, &bins);
+            let dft = Dft::new(n * p);
+            for (line, &k) in got.iter().zip(&bins) {
+                prop_assert_eq!(line.ncols(), p - 1);
+                for (i, &j) in offsets(p).iter().enumerate() {
+                    let bin = ((k * p) as isize + j) as usize;
+                    prop_assert!(bin % p != 0);
+                    for c in 0..2 {
+                        let want = dft.bin((transient..len).map(|t| m[(t, c)]), bin) * (p as f64).sqrt();
+                        prop_assert!((line[(c, i)] - want).norm() < 1e-12, "{} against {}", line[(c, i)], want);
+                    }
+                }
+            }
+        }
+    }
 }

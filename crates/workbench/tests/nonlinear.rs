@@ -430,6 +430,11 @@ fn the_time_criterion_locates_a_missing_mode_in_frequency() {
         );
         let dir =
             std::env::temp_dir().join(format!("stabilis-coherence-{}-{seed}", std::process::id()));
+        assert!(
+            !dir.exists(),
+            "{} is not this test's to remove",
+            dir.display()
+        );
         workbench::report::write_report(&dir, &wb, &d).unwrap();
         let html = std::fs::read_to_string(dir.join("index.html")).unwrap();
         std::fs::remove_dir_all(&dir).unwrap();
