@@ -436,15 +436,16 @@ pub fn write_dir_atomically(
     Ok(())
 }
 
-/// Removes from `dir` (an output this module wrote, moved aside) the entries its marker lists,
+/// Removes from `dir` (an output this module wrote, moved aside) the files its marker lists,
 /// then the marker and `dir`. Anything else (added while the run lasted) stays, with `dir`,
-/// and is named on stderr.
+/// and is named on stderr. The writers put only files in an output, so a listed name that is
+/// now a directory was put there by someone else, and stays too.
 fn remove_marked(dir: &Path) -> Result<()> {
     let listed = marked_entries(dir).unwrap_or_default();
     for name in &listed {
         let entry = dir.join(name);
         let removed = match std::fs::symlink_metadata(&entry) {
-            Ok(meta) if meta.is_dir() => std::fs::remove_dir_all(&entry),
+            Ok(meta) if meta.is_dir() => Ok(()),
             Ok(_) => std::fs::remove_file(&entry),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
             Err(e) => Err(e),
@@ -611,6 +612,31 @@ mod tests {
         assert_eq!(
             std::fs::read_to_string(kept[0].join("added.txt")).unwrap(),
             "also mine"
+        );
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    /// A listed file that a user replaced by a directory of their own is not removed with the
+    /// old output: the writers put only files there, so the directory and what it holds are
+    /// the user's, and they stay in the moved-aside directory.
+    #[test]
+    fn a_directory_under_a_listed_name_is_kept() {
+        let root = scratch("listed_dir");
+        let dir = root.join("report");
+        write_dir_atomically(&dir, &[], |d| write_text("1")(&d.join("index.html"))).unwrap();
+        std::fs::remove_file(dir.join("index.html")).unwrap();
+        std::fs::create_dir(dir.join("index.html")).unwrap();
+        std::fs::write(dir.join("index.html").join("notes.txt"), "mine").unwrap();
+        write_dir_atomically(&dir, &[], |d| write_text("2")(&d.join("index.html"))).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(dir.join("index.html")).unwrap(),
+            "2"
+        );
+        let kept = others(&root, &[&dir]);
+        assert_eq!(kept.len(), 1, "{kept:?}");
+        assert_eq!(
+            std::fs::read_to_string(kept[0].join("index.html").join("notes.txt")).unwrap(),
+            "mine"
         );
         std::fs::remove_dir_all(&root).unwrap();
     }
