@@ -14,7 +14,7 @@ use serde::Serialize;
 
 use super::diagnose::LEVEL;
 use super::frf::CMatrix;
-use super::spectra::C64;
+use super::spectra::{Dft, C64};
 use super::stats::beta_i;
 use super::welch::hann;
 
@@ -84,28 +84,19 @@ fn segment_for(lengths: &[usize], q: usize) -> Option<usize> {
 }
 
 /// Windowed transforms at bins `1..L/2` of every segment of column `j` of every record:
-/// one matrix bins x segments.
+/// one matrix bins x segments (normalised by 1/L, which no coherence sees).
 fn transforms(records: &[&DMatrix<f64>], j: usize, window: &[f64]) -> CMatrix {
     let l = window.len();
-    let bins = l / 2 - 1;
+    let dft = Dft::new(l);
     let segments: usize = records.iter().map(|m| m.nrows() / l).sum();
-    // Twiddles: exp(-j 2 pi k n / L) for k = 1..L/2-1, indexed k n mod L.
-    let twiddle: Vec<C64> = (0..l)
-        .map(|i| C64::from_polar(1.0, -2.0 * std::f64::consts::PI * i as f64 / l as f64))
-        .collect();
-    let mut out = CMatrix::zeros(bins, segments);
+    let mut out = CMatrix::zeros(l / 2 - 1, segments);
     let mut s = 0;
     for m in records {
         let column = m.column(j);
         for seg in 0..m.nrows() / l {
             let x: Vec<f64> = (0..l).map(|n| window[n] * column[seg * l + n]).collect();
-            for b in 0..bins {
-                let k = b + 1;
-                out[(b, s)] = x
-                    .iter()
-                    .enumerate()
-                    .map(|(n, v)| twiddle[(k * n) % l] * *v)
-                    .sum();
+            for b in 0..out.nrows() {
+                out[(b, s)] = dft.bin(x.iter().copied(), b + 1);
             }
             s += 1;
         }

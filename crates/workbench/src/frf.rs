@@ -346,9 +346,7 @@ fn offsets(periods: usize) -> Vec<isize> {
 fn beside_lines(m: &DMatrix<f64>, layout: &Periodic, bins: &[usize]) -> Vec<CMatrix> {
     let (n, p) = (layout.period, layout.periods);
     let whole = n * p;
-    let twiddle =
-        |i: usize| C64::from_polar(1.0, -2.0 * std::f64::consts::PI * i as f64 / whole as f64);
-    let table: Vec<C64> = (0..whole).map(twiddle).collect();
+    let table = Dft::new(whole);
     let offsets = offsets(p);
     let scale = (p as f64).sqrt() / whole as f64;
     let mut out: Vec<CMatrix> = bins
@@ -358,12 +356,12 @@ fn beside_lines(m: &DMatrix<f64>, layout: &Periodic, bins: &[usize]) -> Vec<CMat
     for c in 0..m.ncols() {
         let x = m.column(c);
         for (i, &j) in offsets.iter().enumerate() {
-            // e^(-2πi j p / P) is the table's entry j p n (mod nP).
+            // e^(-2πi j q / P) is the twiddle j q n of the whole record.
             let shift = j.rem_euclid(p as isize) as usize;
             let z: Vec<C64> = (0..n)
                 .map(|t| {
                     (0..p)
-                        .map(|q| table[(shift * q * n) % whole] * x[layout.transient + q * n + t])
+                        .map(|q| table.twiddle(shift * q * n) * x[layout.transient + q * n + t])
                         .sum()
                 })
                 .collect();
@@ -372,7 +370,7 @@ fn beside_lines(m: &DMatrix<f64>, layout: &Periodic, bins: &[usize]) -> Vec<CMat
                 let v: C64 = z
                     .iter()
                     .enumerate()
-                    .map(|(t, zt)| table[(bin * t) % whole] * zt)
+                    .map(|(t, zt)| table.twiddle(bin * t) * zt)
                     .sum();
                 line[(c, i)] = v * scale;
             }

@@ -36,6 +36,11 @@ impl Dft {
         self.twiddle.is_empty()
     }
 
+    /// The twiddle factor `exp(-j 2 pi i / N)`, `i` taken modulo N.
+    pub fn twiddle(&self, i: usize) -> C64 {
+        self.twiddle[i % self.twiddle.len()]
+    }
+
     /// DFT bin `k` of `x` (length N), normalised by 1/N so that a sine of amplitude a gives a/2.
     pub fn bin(&self, x: impl Iterator<Item = f64>, k: usize) -> C64 {
         let n = self.twiddle.len();
