@@ -156,11 +156,11 @@ impl FrfEstimate {
     }
 }
 
-/// Spectra of one experiment at the excited bins: per bin, channels x periods.
+/// Spectra of one experiment's period mean at the excited bins: per bin, one per channel.
 struct ExperimentSpectra {
-    u: Vec<CMatrix>,
-    y: Vec<CMatrix>,
-    r: Option<Vec<CMatrix>>,
+    u: Vec<Vec<C64>>,
+    y: Vec<Vec<C64>>,
+    r: Option<Vec<Vec<C64>>>,
 }
 
 /// Estimates the FRF from periodic experiments (all with the same period).
@@ -234,13 +234,17 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
         .iter()
         .zip(&layouts)
         .map(|(e, l)| {
-            let block = |m: &DMatrix<f64>| -> Vec<CMatrix> {
+            // The transform of the period mean is the mean of the periods' transforms.
+            let block = |m: &DMatrix<f64>| -> Vec<Vec<C64>> {
+                let means: Vec<Vec<f64>> = (0..m.ncols())
+                    .map(|c| period_mean(m, c, l.transient, n, l.periods))
+                    .collect();
                 bins.iter()
                     .map(|&k| {
-                        CMatrix::from_fn(m.ncols(), l.periods, |c, p| {
-                            let start = l.transient + p * n;
-                            dft.bin((start..start + n).map(|i| m[(i, c)]), k)
-                        })
+                        means
+                            .iter()
+                            .map(|x| dft.bin(x.iter().copied(), k))
+                            .collect()
                     })
                     .collect()
             };
@@ -272,11 +276,8 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
     let mut lines = Vec::with_capacity(bins.len());
     for (bi, &k) in bins.iter().enumerate() {
         let freq_hz = k as f64 * data.sample_rate_hz / n as f64;
-        let mean = |pick: &dyn Fn(&ExperimentSpectra) -> &CMatrix, rows: usize| {
-            CMatrix::from_fn(rows, ne, |c, e| {
-                let m = pick(&spectra[e]);
-                m.row(c).iter().sum::<C64>() / m.ncols() as f64
-            })
+        let mean = |pick: &dyn Fn(&ExperimentSpectra) -> &Vec<C64>, rows: usize| {
+            CMatrix::from_fn(rows, ne, |c, e| pick(&spectra[e])[c])
         };
         let u = mean(&|s| &s.u[bi], nu);
         let y = mean(&|s| &s.y[bi], ny);
