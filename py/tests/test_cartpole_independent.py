@@ -391,6 +391,34 @@ def test_coulomb_friction_is_no_lag_or_delay_and_stays_unexplained(tmp_path, see
     assert doc["unexplained"] is True, doc.get("verdict_text")
 
 
+@pytest.mark.parametrize("seed", [73, 74])
+def test_a_random_odd_multisine_shows_dry_friction_as_distortion(tmp_path, seed):
+    # The even lines and every fourth odd line left out of the multisine: 0.2 N of Coulomb
+    # friction puts its harmonics there, so the distortion test flags them, sizes them within
+    # the band in units of the FRF's noise reference, and the viscous friction that absorbs
+    # them is at most tentative, naming the distortion. The same campaign without friction
+    # flags nothing and names no distortion.
+    for coulomb in (0.2, 0.0):
+        data = tmp_path / f"coulomb_{coulomb}"
+        ic.campaign(data, plant=replace(ic.Plant(), coulomb=coulomb), seed=seed,
+                    random_odd=True, **ic.FRICTION_EXCITATION)
+        doc = discover_cli(data, tmp_path)
+        test = doc["distortion"]
+        # Lines 1..70 of a 1000-sample period: 27 excited, 42 left out between them.
+        assert test["lines_within_band"] == 42, test["lines_within_band"]
+        flagged = {o["output"]: o["flagged_hz"] for o in test["outputs"]}
+        why = " ".join(doc["tentative_why"] or [])
+        if coulomb:
+            assert flagged["theta"] and flagged["x"], flagged
+            sizes = {o["output"]: o["within_band"] for o in test["outputs"]}
+            assert sizes["theta"] > 2.0, sizes
+            assert "cart_friction" not in doc["found"], doc["found"]
+            assert "nonlinear distortion" in why, why
+        else:
+            assert not any(flagged.values()), flagged
+            assert "nonlinear distortion" not in why, why
+
+
 @pytest.mark.parametrize("case", list(CASES))
 def test_python_discover_with_the_model_file(campaigns, tmp_path, case):
     # The first seed's data: Python must accept and conclude as the CLI does.

@@ -954,6 +954,19 @@ impl Workbench {
         if matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. }) {
             why.push(MISFIT_CAVEAT.to_string());
         }
+        // The FRF criterion compares a linear(ized) model with the excited lines, where
+        // distortion adds to the error but not to the noise reference.
+        if let Some((output, size)) = self
+            .frf
+            .distortion
+            .as_ref()
+            .and_then(|d| d.worst_within_band())
+            .filter(|&(_, size)| size > super::distortion::UNDERSTATED)
+        {
+            why.push(format!(
+                "the loop responds at lines the excitation leaves out (nonlinear distortion, {size:.2}x the FRF's noise reference within the band in {output}): the reference understates the FRF's error there, so the tests were too lenient and an added effect may be absorbing the nonlinearity; model it (a [nonlinear] section under the prediction-error criterion) or lower the excitation's amplitude"
+            ));
+        }
         why
     }
 

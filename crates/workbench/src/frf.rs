@@ -10,6 +10,7 @@ use nalgebra::DMatrix;
 use serde::Serialize;
 
 use super::dataset::{Dataset, Periodic};
+use super::distortion::Distortion;
 use super::spectra::{excited_bins, period_mean, Dft, C64};
 use crate::error::{Result, SimError};
 
@@ -120,6 +121,9 @@ pub struct FrfEstimate {
     pub welch: Option<super::welch::WelchLayout>,
     /// Period found in the logged excitation of records without period metadata.
     pub detected_period: Option<usize>,
+    /// The test for nonlinear distortion at the lines a periodic excitation leaves out;
+    /// `None` for Welch estimates and where no line is left out.
+    pub distortion: Option<Distortion>,
 }
 
 impl FrfEstimate {
@@ -221,6 +225,7 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
         }
     }
     let bins = excited_bins(&power);
+    let distortion = super::distortion::test(data, &layouts, &power, &bins);
     if bins.is_empty() {
         return Err(SimError::invalid(
             "excitation",
@@ -324,6 +329,7 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
         noise_dof,
         welch: None,
         detected_period,
+        distortion,
     })
 }
 
@@ -344,7 +350,7 @@ fn offsets(periods: usize) -> Vec<isize> {
 /// Bin `k P + j` of the record is `Σ_t e^(-2πi (kP + j) t / (nP)) z_j[t]` with the
 /// demodulated period sum `z_j[t] = Σ_p x[pn + t] e^(-2πi j p / P)`, so each offset costs one
 /// pass over the record and then `n` per line, not `nP` per line.
-fn beside_lines(m: &DMatrix<f64>, layout: &Periodic, bins: &[usize]) -> Vec<CMatrix> {
+pub(crate) fn beside_lines(m: &DMatrix<f64>, layout: &Periodic, bins: &[usize]) -> Vec<CMatrix> {
     let (n, p) = (layout.period, layout.periods);
     let whole = n * p;
     let table = Dft::new(whole);

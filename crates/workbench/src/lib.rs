@@ -22,6 +22,7 @@ pub mod cost;
 pub mod dataset;
 pub mod diagnose;
 pub mod discover;
+pub mod distortion;
 pub mod dynamics;
 pub mod error;
 pub mod expr;

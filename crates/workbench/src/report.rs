@@ -50,6 +50,9 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
     if let Some(why) = wb.welch_reason() {
         let _ = writeln!(s, "Welch estimate: {why}");
     }
+    if let Some(distortion) = &wb.frf().distortion {
+        let _ = writeln!(s, "linearity: {}", distortion.sentence());
+    }
     // The FRF criterion's cost is judged against the FRF's noise reference; the time
     // criterion's (a prediction error in absolute units) by its innovations' tests.
     let normalized = if wb.criterion() == crate::Criterion::Time {
@@ -428,6 +431,7 @@ pub fn json(wb: &Workbench, d: &Discovery) -> Value {
         ("estimator", json!(wb.frf().estimator)),
         ("welch_reason", json!(wb.welch_reason())),
         ("frequencies_hz", json!(wb.frf().freqs_hz())),
+        ("distortion", json!(wb.frf().distortion)),
         ("zero_response_p_value", json!(wb.zero_response_p_value())),
         ("weighting", json!(d.weighting)),
         ("fixed", json!(fixed)),
@@ -912,6 +916,7 @@ fn html(wb: &Workbench, d: &Discovery) -> String {
         },
     );
     let _ = write!(body, "<h2>Residuals</h2><p>Weighted misfit per line divided by what noise alone gives (log10; 0 = noise level).</p>{}", chart("misfit / noise per line", FREQUENCY, "log10 ratio", &series));
+    body.push_str(&distortion_plot(wb));
     // FRF per channel and step.
     body.push_str("<h2>Frequency response, measured and model</h2><p>Dots: measured FRF; shaded: one standard deviation; lines: model after each step.</p>");
     for (o, i) in channels(d, wb) {
@@ -984,6 +989,48 @@ fn html(wb: &Workbench, d: &Discovery) -> String {
         );
     }
     page(&body)
+}
+
+/// The detection lines' ratios per output with the flag threshold, when the test ran.
+fn distortion_plot(wb: &Workbench) -> String {
+    let Some(d) = &wb.frf().distortion else {
+        return String::new();
+    };
+    let mut series: Vec<Series<'_>> = d
+        .outputs
+        .iter()
+        .enumerate()
+        .map(|(k, o)| Series {
+            name: o.output.clone(),
+            color: COLORS[k % COLORS.len()],
+            points: o
+                .lines
+                .iter()
+                .map(|l| (l.hz, l.ratio.max(1e-3).log10()))
+                .collect(),
+            markers: true,
+            band: None,
+        })
+        .collect();
+    let span = d.outputs[0].lines.iter().map(|l| l.hz);
+    let (lo, hi) = span.fold((f64::INFINITY, 0.0_f64), |(a, b), x| (a.min(x), b.max(x)));
+    series.push(Series {
+        name: "flag threshold".into(),
+        color: "#000000",
+        points: vec![(lo, d.flag_above.log10()), (hi, d.flag_above.log10())],
+        markers: false,
+        band: None,
+    });
+    format!(
+        "<h2>Linearity</h2><p>{}</p>{}",
+        escape(&d.sentence()),
+        chart(
+            "output at the lines the excitation leaves out, over the noise beside them",
+            FREQUENCY,
+            "log10 ratio",
+            &series
+        )
+    )
 }
 
 /// The documented parameters of the last step's model.

@@ -470,6 +470,7 @@ pub fn welch_frf(
             noise_dof: dof,
             welch: Some(layout),
             detected_period: None,
+            distortion: None,
         },
         layout,
         per_experiment,
