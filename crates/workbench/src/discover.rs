@@ -84,6 +84,16 @@ impl Followed {
             bic: gap,
         }
     }
+
+    /// Whether its search added exactly `kept`, the effects the kept search added from the
+    /// same step, in some order: then both reached one model.
+    pub fn same_model(&self, kept: &[&str]) -> bool {
+        let mut theirs: Vec<&str> = self.added.iter().map(String::as_str).collect();
+        let mut kept = kept.to_vec();
+        theirs.sort_unstable();
+        kept.sort_unstable();
+        theirs == kept
+    }
 }
 
 /// The costs a nested-model test compares: a model and the model with one candidate more,
@@ -252,13 +262,22 @@ pub fn rivals<'a>(
     let steps: Vec<_> = steps.into_iter().collect();
     steps
         .windows(2)
-        .filter_map(|pair| {
+        .enumerate()
+        .filter_map(|(i, pair)| {
             let added = pair[1].0?;
             let tried = pair[0].1;
             let chosen = tried.iter().find(|c| c.effect == added)?;
+            // A runner-up whose own search reached the kept model in another order is no
+            // rival.
+            let kept: Vec<&str> = steps[i + 1..].iter().filter_map(|s| s.0).collect();
             let equal: Vec<&CandidateScore> = tried
                 .iter()
-                .filter(|c| is_rival(chosen, c) && c.followed.as_ref().is_none_or(|f| !f.ruled_out))
+                .filter(|c| {
+                    is_rival(chosen, c)
+                        && c.followed
+                            .as_ref()
+                            .is_none_or(|f| !f.ruled_out && !f.same_model(&kept))
+                })
                 .collect();
             (!equal.is_empty()).then(|| {
                 let names: Vec<String> = equal.iter().map(|c| c.effect.clone()).collect();
@@ -1311,6 +1330,18 @@ mod tests {
         assert!(rivals([(None, followed.as_slice()), then]).is_empty());
         followed[1].followed = delay(&["delay", "lag"], -4.0, 1);
         assert!(rivals([(None, followed.as_slice()), then]).is_empty());
+        // A search that reached the kept model's effects in another order is no rival: the
+        // kept search added lag then delay, the followed one delay then lag, at an equal BIC.
+        followed[1].followed = delay(&["delay", "lag"], 0.0, 2);
+        let last = (Some("delay"), &[][..]);
+        let lag_then = (Some("lag"), &[][..]);
+        assert!(rivals([(None, followed.as_slice()), lag_then, last]).is_empty());
+        // Another second effect is still a rival.
+        followed[1].followed = delay(&["delay", "far"], 0.0, 2);
+        assert_eq!(
+            rivals([(None, followed.as_slice()), lag_then, last]).len(),
+            1
+        );
     }
 
     /// A misfit no single output carries says so instead of "in outputs []"; the closing words

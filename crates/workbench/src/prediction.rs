@@ -1004,16 +1004,34 @@ const EXCITATION_TEST: &str =
 /// (or the past inputs) show a model error (whiteness alone tests the noise model, which is
 /// estimated, and the held gain, which is the starting model's).
 fn time_verdict(tests: &ResidualTests) -> Verdict {
+    // An output fails when its innovations correlate with a past input or, where the
+    // coherence was tested, cohere with the excitation in some bin: each test holds its own
+    // family-wise level, and a misfit confined to a band can pass the lag test.
+    let coherent = |output: &str| {
+        tests.coherence.as_ref().is_some_and(|c| {
+            c.outputs
+                .iter()
+                .any(|o| o.output == output && !o.flagged_hz.is_empty())
+        })
+    };
     let flagged: Vec<String> = tests
         .channels
         .iter()
-        .filter(|c| !c.correlated_inputs.is_empty())
+        .filter(|c| !c.correlated_inputs.is_empty() || coherent(&c.output))
         .map(|c| c.output.clone())
         .collect();
+    // The coherence's smallest p-value, Bonferroni over its bins and outputs as its flag.
+    let coherence_p = tests.coherence.iter().flat_map(|c| {
+        let family = (c.bins_tested * c.outputs.len()) as f64;
+        c.outputs
+            .iter()
+            .filter_map(move |o| o.peak.map(|(_, _, p)| (p * family).min(1.0)))
+    });
     let p_value = tests
         .channels
         .iter()
         .flat_map(|c| c.inputs.iter().map(|(_, t)| t.p_value))
+        .chain(coherence_p)
         .fold(1.0, f64::min);
     if flagged.is_empty() {
         Verdict::ExplainedToNoiseLevel { p_value }
@@ -1045,6 +1063,63 @@ mod tests {
         let model = Model::new(Arc::new(ModelFile::from_path(&path).unwrap()));
         let theta = model.documented().unwrap();
         (model, theta)
+    }
+
+    /// Innovations that pass the lag tests but cohere with the excitation in a band fail the
+    /// verdict: on a fit stuck far from the truth the lag test passed (p = 1.000) while one
+    /// bin's coherence had p = 1.8e-20, and the verdict said "explained".
+    #[test]
+    fn a_coherent_band_fails_the_verdict_where_the_lag_tests_pass() {
+        use crate::coherence::{Coherence, OutputCoherence};
+        let n = 4000;
+        let mut state = 12345_u64;
+        let mut noise = || {
+            // A fixed pseudo-random sequence (xorshift), uniform on [-1, 1).
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+        };
+        let e = DMatrix::from_fn(n, 1, |_, _| noise());
+        let u = DMatrix::from_fn(n, 1, |_, _| noise());
+        let names = (vec!["y".to_string()], vec!["u".to_string()]);
+        let mut tests = residual_tests(&[&e], &[&u], &[], &names.0, &names.1, 25, 1);
+        assert!(matches!(
+            time_verdict(&tests),
+            Verdict::ExplainedToNoiseLevel { .. }
+        ));
+        let coherence = |flagged_hz: Vec<f64>, p: f64| Coherence {
+            against: "the excitation".into(),
+            segment: 64,
+            segments: 62,
+            resolution_hz: 1.5625,
+            bins_tested: 20,
+            flag_above: vec![],
+            outputs: vec![OutputCoherence {
+                output: "y".into(),
+                flagged_hz,
+                peak: Some((1.5625, 0.2, p)),
+                bins: vec![],
+            }],
+            band_hz: None,
+            worst_entries: vec![],
+        };
+        tests.coherence = Some(coherence(vec![], 0.02));
+        assert!(matches!(
+            time_verdict(&tests),
+            Verdict::ExplainedToNoiseLevel { .. }
+        ));
+        tests.coherence = Some(coherence(vec![1.5625], 1.8e-20));
+        match time_verdict(&tests) {
+            Verdict::UnexplainedStructuredMisfit {
+                outputs, p_value, ..
+            } => {
+                assert_eq!(outputs, ["y"]);
+                // Bonferroni over 20 bins and one output, as the flag.
+                assert!((p_value - 3.6e-19).abs() < 1e-30, "{p_value}");
+            }
+            other => panic!("{other:?}"),
+        }
     }
 
     /// On outputs the model itself produced (zero gain, so the one-step predicted states are

@@ -100,6 +100,10 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
     // Runners-up the loop followed through a search of their own, and what those found.
     for (i, pair) in d.steps.windows(2).enumerate() {
         let added = pair[1].added.as_deref().unwrap_or("");
+        let kept: Vec<&str> = d.steps[i + 1..]
+            .iter()
+            .filter_map(|s| s.added.as_deref())
+            .collect();
         for c in &pair[0].candidates {
             if let Some(f) = &c.followed {
                 let _ = writeln!(
@@ -110,7 +114,9 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
                     i + 1,
                     f.added.join(", "),
                     f.bic,
-                    if f.ruled_out {
+                    if f.same_model(&kept) {
+                        "the same model in another order"
+                    } else if f.ruled_out {
                         "ruled out"
                     } else {
                         "the data do not choose"
