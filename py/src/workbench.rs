@@ -949,6 +949,17 @@ fn dataset_from_arrays(
     }
     let mut out = Vec::with_capacity(experiments.len());
     for (i, e) in experiments.iter().enumerate() {
+        // A misspelt key would silently drop what it holds (an excitation lost changes the
+        // estimator).
+        for key in e.keys() {
+            let name = key.str()?.to_string();
+            if !["u", "y", "r"].contains(&name.as_str()) {
+                return Err(PyValueError::new_err(format!(
+                    "data[{i}] has the key {key}; an experiment holds \"u\" (inputs), \"y\" (outputs) and optionally \"r\" (the logged excitation)",
+                    key = key.repr()?.to_string()
+                )));
+            }
+        }
         let get = |key: &str, cols: usize| -> PyResult<Option<nalgebra::DMatrix<f64>>> {
             let Some(v) = e.get_item(key)? else {
                 return Ok(None);

@@ -138,6 +138,39 @@ def test_errors_name_the_problem_and_user_exceptions_pass_through():
                            sample_rate_hz=FS)
     with pytest.raises(ValueError, match="sample_rate_hz"):
         stabilis.Workbench(model=model(), data=experiments(plant(42.0, 2.4, 31.0)))
+    # A misspelt key would drop the excitation and change the estimator without a word.
+    e = experiments(plant(42.0, 2.4, 31.0), seeds=(1,))[0]
+    renamed = {"u": e["u"], "y": e["y"], "excitation": e["r"]}
+    with pytest.raises(ValueError, match="data\\[0\\] has the key 'excitation'; an experiment holds"):
+        stabilis.Workbench(model=model(), data=[renamed], sample_rate_hz=FS)
+
+
+def test_a_model_undefined_beside_its_start_is_refused_not_fitted():
+    # The model's f gives NaN for k below its documented 40 and the truth is 38: every step of
+    # the fit towards the truth failed, and compare returned k = 40 with a standard error as
+    # if it had converged. Now the fit names the wall and the user's error reaches the caller.
+    def f(x, u, p):
+        if p["k"] < 40.0:
+            return [float("nan"), float("nan")]
+        return [x[1], -p["k"] * x[0] - p["c"] * x[1] + p["g"] * u[0]]
+
+    m = stabilis.Model(states=["q", "qdot"], inputs=["u"], outputs=["q"], name="oscillator",
+                       parameters={"k": (40.0, 1.0, 400.0), "c": {"value": 2.0, "min": 0.0},
+                                   "g": 30.0},
+                       f=f, h=lambda x, u, p: [x[0]], operating_point={"q": 0.0, "qdot": 0.0, "u": 0.0})
+    wb = stabilis.Workbench(model=m, data=experiments(plant(38.0, 2.4, 31.0)), sample_rate_hz=FS)
+    with pytest.raises(ValueError, match=r"model oscillator: f\(x, u, params\)\[0\] = NaN"):
+        wb.compare()
+    # The same model defined everywhere fits k to the truth.
+    fine = stabilis.Model(states=["q", "qdot"], inputs=["u"], outputs=["q"], name="oscillator",
+                          parameters={"k": (40.0, 1.0, 400.0), "c": {"value": 2.0, "min": 0.0},
+                                      "g": 30.0},
+                          f=lambda x, u, p: [x[1], -p["k"] * x[0] - p["c"] * x[1] + p["g"] * u[0]],
+                          h=lambda x, u, p: [x[0]],
+                          operating_point={"q": 0.0, "qdot": 0.0, "u": 0.0})
+    doc = stabilis.Workbench(model=fine, data=experiments(plant(38.0, 2.4, 31.0)),
+                             sample_rate_hz=FS).compare()
+    assert abs(doc["steps"][-1]["params"]["k"] / 38.0 - 1.0) < 0.01, doc["steps"][-1]["params"]
 
 
 def test_a_bad_model_file_raises_model_error_naming_key_and_position(tmp_path):

@@ -278,6 +278,78 @@ pub fn holds(j: &DMatrix<f64>, tol: f64) -> Vec<usize> {
 /// Levenberg-Marquardt from `theta` (residuals `r` there) over the free parameters. Leaves
 /// `theta` and `r` at the end point and returns the iterations, the Jacobian there and
 /// whether it gave up ([`FitOptions::give_up_above`]).
+/// Err when the fit stopped at a wall of the model's domain, not at a minimum: the
+/// Gauss-Newton step over the parameters free to move would lower the cost by more than one
+/// noise unit (the costs are sums of whitened residuals), yet a thousandth of it cannot be
+/// evaluated. A model function that gives NaN or raises just beside the point (a branch on a
+/// parameter, the square root of a difference) made every step fail or shrink towards the
+/// wall, and the fit ended there with standard errors as if converged.
+fn not_at_a_wall(
+    criterion: &dyn LeastSquares,
+    params: &[Parameter],
+    held: &[bool],
+    theta: &[f64],
+    r: &DVector<f64>,
+    d: &DMatrix<f64>,
+) -> Result<()> {
+    let free = free_indices(held);
+    let j = scaled_free_jacobian(d, params, held);
+    let grad = j.transpose() * r;
+    let moving: Vec<usize> = (0..free.len())
+        .filter(|&k| {
+            let (t, p) = (theta[free[k]], &params[free[k]]);
+            !((t <= p.lower && grad[k] > 0.0) || (t >= p.upper && grad[k] < 0.0))
+        })
+        .collect();
+    if moving.is_empty() {
+        return Ok(());
+    }
+    let jtj = j.transpose() * &j;
+    let mut a = DMatrix::from_fn(moving.len(), moving.len(), |x, y| {
+        jtj[(moving[x], moving[y])]
+    });
+    let dmax = a.diagonal().max().max(1e-300);
+    for i in 0..a.nrows() {
+        a[(i, i)] += 1e-9 * dmax;
+    }
+    let grad_m = DVector::from_fn(moving.len(), |x, _| grad[moving[x]]);
+    let Some(chol) = a.cholesky() else {
+        return Ok(());
+    };
+    let step = -chol.solve(&grad_m);
+    let predicted = -step.dot(&grad_m);
+    if predicted.is_nan() || predicted <= 1.0_f64.max(1e-6 * r.norm_squared()) {
+        return Ok(());
+    }
+    let mut trial = theta.to_vec();
+    for (x, &k) in moving.iter().enumerate() {
+        trial[free[k]] += 1e-3 * step[x] * params[free[k]].scale();
+    }
+    clamp(&mut trial, params);
+    let why = match criterion.residuals(&trial) {
+        Ok(rt) if rt.norm_squared().is_finite() => return Ok(()),
+        Ok(_) => "the residuals are not finite there".to_string(),
+        Err(e) => e.to_string(),
+    };
+    let at: Vec<String> = moving
+        .iter()
+        .map(|&k| free[k])
+        .map(|i| {
+            format!(
+                "{} = {:.6e} (a step to {:.6e})",
+                params[i].name, theta[i], trial[i]
+            )
+        })
+        .collect();
+    Err(SimError::invalid(
+        "fit",
+        at.join(", "),
+        format!(
+            "the fit stopped where the model cannot be evaluated a small step further ({why}), while the cost would still fall by about {predicted:.1} noise units: it stopped at a wall of the model's domain, not at a minimum"
+        ),
+    ))
+}
+
 fn levenberg_marquardt(
     criterion: &dyn LeastSquares,
     params: &[Parameter],
@@ -360,6 +432,7 @@ fn levenberg_marquardt(
             growth *= 2.0;
         }
         let Some((trial, rt)) = accepted else {
+            not_at_a_wall(criterion, params, held, theta, r, &d)?;
             return Ok((it, d, false));
         };
         let vt = rt.norm_squared();
@@ -369,6 +442,7 @@ fn levenberg_marquardt(
         v = vt;
         d = criterion.jacobian(theta, r)?;
         if decrease <= opts.rel_tolerance * vt || decrease <= opts.abs_tolerance {
+            not_at_a_wall(criterion, params, held, theta, r, &d)?;
             return Ok((it + 1, d, false));
         }
         j = scaled_free_jacobian(&d, params, held);

@@ -96,7 +96,7 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
         s.push('\n');
     }
     let _ = writeln!(s, "weighting: {}", d.weighting);
-    time_domain_table(&mut s, d);
+    time_domain_table(&mut s, d, wb.model().structure().is_nonlinear());
     // Runners-up the loop followed through a search of their own, and what those found.
     for (i, pair) in d.steps.windows(2).enumerate() {
         let added = pair[1].added.as_deref().unwrap_or("");
@@ -266,7 +266,7 @@ fn step_label(st: &Step) -> String {
 
 /// Time-domain fit % per step (simulation and k-step prediction) with the stated policy, and
 /// the residual tests of the last step.
-fn time_domain_table(s: &mut String, d: &Discovery) {
+fn time_domain_table(s: &mut String, d: &Discovery, nonlinear: bool) {
     let Some(first) = d.steps.first() else {
         return;
     };
@@ -372,6 +372,12 @@ fn time_domain_table(s: &mut String, d: &Discovery) {
                 fmt_num(c.resolution_hz),
                 c.bins_tested
             );
+            if nonlinear {
+                let _ = writeln!(
+                    s,
+                    "  (a nonlinear model's predictor error also follows the trajectory, so this locates a misfit and does not judge one; the verdict rests on the lag tests)"
+                );
+            }
             for o in &c.outputs {
                 let flagged = match (o.flagged_hz.first(), o.flagged_hz.last()) {
                     (Some(a), Some(b)) => format!(
