@@ -956,7 +956,7 @@ fn dataset_from_arrays(
             if !["u", "y", "r"].contains(&name.as_str()) {
                 return Err(PyValueError::new_err(format!(
                     "data[{i}] has the key {key}; an experiment holds \"u\" (inputs), \"y\" (outputs) and optionally \"r\" (the logged excitation)",
-                    key = key.repr()?.to_string()
+                    key = key.repr()?
                 )));
             }
         }
