@@ -42,6 +42,7 @@ impl Expr {
     /// Parses `text`, whose names must all be in `symbols`.
     pub fn parse(text: &str, symbols: &[String]) -> Result<Self, ExprError> {
         check_characters(text)?;
+        check_functions(text)?;
         let rewritten = conventional_minus(&plain_numbers(text));
         let flat = exmex::parse::<f64>(&rewritten).map_err(|e| ExprError {
             reason: format!("syntax error in {text:?}: {}", e.msg()),
@@ -265,6 +266,45 @@ fn check_characters(text: &str) -> Result<(), ExprError> {
     Ok(())
 }
 
+/// The functions an expression may call (`exmex`'s).
+const FUNCTIONS: [&str; 29] = [
+    "abs", "signum", "sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "asinh",
+    "acosh", "atanh", "floor", "round", "ceil", "trunc", "fract", "exp", "sqrt", "cbrt", "ln",
+    "log2", "log10", "log", "min", "max", "atan2",
+];
+
+/// Refuses a name called as a function that is none (`sinn(x)`, `k(x)`), with its column:
+/// `exmex` reports it in its own words, without a position.
+fn check_functions(text: &str) -> Result<(), ExprError> {
+    let chars: Vec<char> = text.chars().collect();
+    let is_ident = |c: char| c.is_ascii_alphanumeric() || c == '_';
+    let mut i = 0;
+    while i < chars.len() {
+        let starts = (chars[i].is_ascii_alphabetic() || chars[i] == '_')
+            && (i == 0 || !is_ident(chars[i - 1]));
+        if !starts {
+            i += 1;
+            continue;
+        }
+        let end = (i..chars.len())
+            .find(|&k| !is_ident(chars[k]))
+            .unwrap_or(chars.len());
+        let name: String = chars[i..end].iter().collect();
+        let next = chars[end..].iter().find(|c| !c.is_whitespace());
+        if next == Some(&'(') && !FUNCTIONS.contains(&name.as_str()) {
+            return Err(ExprError {
+                reason: format!(
+                    "unknown function {name:?} at position {} in {text:?}; functions: {}",
+                    i + 1,
+                    FUNCTIONS.join(", ")
+                ),
+            });
+        }
+        i = end;
+    }
+    Ok(())
+}
+
 /// 1-based column of the first whole-word occurrence of `name` in `text`.
 fn position_of(text: &str, name: &str) -> Option<usize> {
     let chars: Vec<char> = text.chars().collect();
@@ -398,5 +438,21 @@ mod tests {
         // Names are ASCII, and the message says so (θ is a letter, but not one of them).
         let err = check_name("θ").unwrap_err();
         assert!(err.contains("ASCII letters"), "{err}");
+        // A misspelt function, and a parameter called like one, with the column.
+        let err = Expr::parse(
+            "tau - m*g*sinn (alpha)",
+            &names(&["tau", "m", "g", "alpha"]),
+        )
+        .unwrap_err();
+        assert!(
+            err.reason
+                .contains("unknown function \"sinn\" at position 11"),
+            "{}",
+            err.reason
+        );
+        let err = Expr::parse("m(l)", &names(&["m", "l"])).unwrap_err();
+        assert!(err.reason.contains("\"m\" at position 1"), "{}", err.reason);
+        // Functions, and numbers in scientific notation, still parse.
+        assert!(Expr::parse("atan2(m, l) + 2e-3*sin(l)", &names(&["m", "l"])).is_ok());
     }
 }

@@ -676,7 +676,7 @@ impl ModelFile {
                             })?;
                             let find = |list: &[String], name: &str, what: &str| {
                                 list.iter().position(|s| s == name.trim()).ok_or_else(|| {
-                                    r.err(&tkey, format!("{:?} is not a {what}; {what}s: {}", name.trim(), list.join(", ")))
+                                    r.err(&tkey, format!("{:?} is not one of the {what}s: {}", name.trim(), list.join(", ")))
                                 })
                             };
                             let row_what = if matches!(which, Which::A | Which::B) { "state" } else { "output" };
@@ -823,7 +823,7 @@ impl ModelFile {
                             r.err(
                                 &tkey,
                                 format!(
-                                    "{target:?} is not a {kind}; {kind}s: {}",
+                                    "{target:?} is not one of the {kind}s: {}",
                                     names.join(", ")
                                 ),
                             )
@@ -1271,7 +1271,10 @@ A = { "omega,omega" = "-b/Jp" }        # added terms, keyed "row,column" by stat
             ),
             (
                 PENDULUM.replace("\"omega,omega\"", "\"omega,phi\""),
-                vec!["effects.joint_friction.A", "\"phi\" is not a state"],
+                vec![
+                    "effects.joint_friction.A",
+                    "\"phi\" is not one of the states",
+                ],
             ),
             (
                 PENDULUM.replace("\"-b/Jp\"", "\"-b/Jp +\""),

@@ -404,9 +404,16 @@ pub fn write_dir_atomically(
     write: impl FnOnce(&Path) -> Result<()>,
 ) -> Result<()> {
     check_dir(dir, inputs)?;
-    let parent = resolve(dir).parent().map(Path::to_path_buf);
-    if let Some(parent) = &parent {
-        std::fs::create_dir_all(parent).map_err(|e| SimError::io(parent, e))?;
+    // The directory it goes in must exist, as for a file: a typo in a parent's name is not a
+    // request to create a tree (nor is a path under `/` run as root).
+    if let Some(parent) = resolve(dir).parent().filter(|p| !p.as_os_str().is_empty()) {
+        if !parent.is_dir() {
+            return Err(SimError::invalid(
+                format!("output {}", dir.display()),
+                parent.display(),
+                "the directory it goes in does not exist (nothing is created but the output itself)",
+            ));
+        }
     }
     let (target, tmp) = temporary(dir, "tmp", |p| std::fs::create_dir(p))?;
     let built = write(&tmp).and_then(|()| mark(&tmp));
@@ -517,6 +524,17 @@ mod tests {
         let names: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
         assert_eq!(names.len(), 1, "no temporary left behind");
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_missing_parent_is_refused_and_nothing_is_created() {
+        let root = scratch("no_parent");
+        let dir = root.join("typo").join("sub").join("report");
+        let err = write_dir_atomically(&dir, &[], |d| write_text("x")(&d.join("index.html")))
+            .unwrap_err();
+        assert!(err.to_string().contains("does not exist"), "{err}");
+        assert_eq!(err.exit_code(), 2);
+        assert!(!root.join("typo").exists());
     }
 
     #[test]

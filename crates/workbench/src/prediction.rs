@@ -428,15 +428,38 @@ impl<'a> PredictionError<'a> {
             .collect();
         let refs: Vec<(&DMatrix<f64>, &DMatrix<f64>)> =
             demeaned.iter().map(|(u, y)| (u, y)).collect();
-        let linear = Predictor::design(&disc, &refs)?;
-        let gain = linear.state_gain().cloned().ok_or_else(|| {
-            SimError::invalid(
-                "nonlinear model",
-                model.structure().system(),
-                "its linearization has a mode the outputs do not see and that does not decay; \
-                 the extended Kalman predictor cannot correct it (measure a state that sees it)",
-            )
-        })?;
+        let gain = Predictor::design(&disc, &refs)
+            .and_then(|linear| {
+                linear.state_gain().cloned().ok_or_else(|| {
+                    SimError::invalid(
+                        "nonlinear model",
+                        model.structure().system(),
+                        "its linearization has a mode the outputs do not see and that does not \
+                         decay; the extended Kalman predictor cannot correct it (measure a state \
+                         that sees it)",
+                    )
+                })
+            })
+            .map_err(|e| match (off_equilibrium(model, theta), e) {
+                (
+                    Some(why),
+                    SimError::InvalidParameter {
+                        name,
+                        value,
+                        reason,
+                    },
+                ) => SimError::InvalidParameter {
+                    name,
+                    value,
+                    reason: format!("{reason}; {why}"),
+                },
+                (Some(why), e) => SimError::invalid(
+                    "nonlinear model",
+                    model.structure().system(),
+                    format!("{e}; {why}"),
+                ),
+                (None, e) => e,
+            })?;
         let p = wb.data.outputs.len();
         let mut pe = Self::new(
             wb,
@@ -999,6 +1022,30 @@ impl Search for TimeSearch<'_> {
     fn parallel(&self) -> bool {
         self.wb.model.parallel()
     }
+}
+
+/// Why a linearization may have lost what the predictor needs: the operating point is no
+/// equilibrium, `f(x0, u0) != 0` (a hover given at zero thrust linearizes to a body the
+/// thrust no longer tilts, and the design's error named only an unobservable mode). `None`
+/// at an equilibrium (to 1e-6 of the state's scale) or for a linear model.
+fn off_equilibrium(model: &Model, theta: &[f64]) -> Option<String> {
+    let dynamics = model.dynamics(theta).ok()?;
+    let (x, u) = dynamics.operating_point();
+    let mut dx = vec![0.0; x.len()];
+    dynamics.f(&x, &u, &mut dx, &mut Vec::new()).ok()?;
+    let off: Vec<String> = dx
+        .iter()
+        .zip(&x)
+        .enumerate()
+        .filter(|(_, (d, x))| d.abs() > 1e-6 * (1.0 + x.abs()) || d.is_nan())
+        .map(|(i, (d, _))| format!("f(x0, u0)[{i}] = {d:.4e}"))
+        .collect();
+    (!off.is_empty()).then(|| {
+        format!(
+            "the operating point is not an equilibrium ({}), so the linearization there may not be the loop's: give the state and inputs where f is zero",
+            off.join(", ")
+        )
+    })
 }
 
 /// Most redesigns of the predictor after the first fit (see `fit_time`).

@@ -93,7 +93,7 @@ impl CheckArgs {
             file.inputs().join(", "),
             file.outputs().join(", ")
         );
-        human.push_str("free parameters (documented value [min, max] unit):\n");
+        human.push_str("parameters (documented value [min, max] unit; held ones say why):\n");
         for p in &params {
             human.push_str(&format!(
                 "  {} = {} [{}, {}] {}\n",

@@ -122,7 +122,7 @@ pub(super) fn read(r: &Reader, t: &Table, l: &Layout) -> Result<(Vec<Node>, Vec<
             if !names.contains(k) {
                 return Err(r.err(
                     format!("nonlinear.{what}.{k}"),
-                    format!("{k:?} is not a {kind}; {kind}s: {}", names.join(", ")),
+                    format!("{k:?} is not one of the {kind}s: {}", names.join(", ")),
                 ));
             }
         }
