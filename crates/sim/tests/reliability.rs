@@ -174,6 +174,37 @@ fn outputs_never_replace_a_file_of_another_kind() {
         assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
     }
     assert!(serde_json::from_slice::<serde_json::Value>(&std::fs::read(&out).unwrap()).is_ok());
+    // ...but only its own: a user's JSON and a log another program wrote are kept.
+    let config = dir.join("config.json");
+    std::fs::write(&config, "{\"gain\": 3}\n").unwrap();
+    let run = stabilis(&[
+        "sim",
+        "wheel-pendulum",
+        "--duration",
+        "1",
+        "--json",
+        config.to_str().unwrap(),
+    ]);
+    assert_refused(&run, "config.json");
+    assert_eq!(std::fs::read_to_string(&config).unwrap(), "{\"gain\": 3}\n");
+    let rig = dir.join("rig.mcap");
+    let mut header = b"\x89MCAP0\r\n\x01".to_vec();
+    let library = b"mcap-python 1.1";
+    header.extend_from_slice(&(8 + library.len() as u64).to_le_bytes());
+    header.extend_from_slice(&0u32.to_le_bytes());
+    header.extend_from_slice(&(library.len() as u32).to_le_bytes());
+    header.extend_from_slice(library);
+    std::fs::write(&rig, &header).unwrap();
+    let run = stabilis(&[
+        "sim",
+        "wheel-pendulum",
+        "--duration",
+        "1",
+        "--out",
+        rig.to_str().unwrap(),
+    ]);
+    assert_refused(&run, "rig.mcap");
+    assert_eq!(std::fs::read(&rig).unwrap(), header);
 }
 
 /// Starts `args`, waits `seconds`, kills it and waits for it.

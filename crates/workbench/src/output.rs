@@ -4,8 +4,10 @@
 //! - an output may not be one of the inputs, lie inside an input directory, or (for a directory)
 //!   contain an input; two outputs of one run may not name the same path or lie one inside the
 //!   other ([`check_outputs`], before any work);
-//! - an existing file is replaced only when it is of the kind being written (an MCAP log by an
-//!   MCAP log, JSON by JSON) or empty; anything else (a directory, a CSV, a device) is refused;
+//! - an existing file is replaced only when it is empty or this program wrote it (an MCAP log
+//!   whose header names it as the library, a JSON object whose `written_by` names it: see
+//!   [`stamped`]); anything else (a user's own log or JSON, a directory, a CSV, a device) is
+//!   refused;
 //! - an existing directory is replaced only when it is empty or was written by this module (it
 //!   holds the [`MARKER`] file listing its contents, and nothing else was added);
 //! - the output is written to a temporary path beside the target (`.NAME.tmp-PID`) and renamed
@@ -62,6 +64,67 @@ impl Kind {
                 .is_some_and(|b| matches!(b, b'{' | b'[')),
         }
     }
+
+    /// Whether the existing file at `path` (of this kind) is one this program wrote: an MCAP
+    /// log whose header names [`WRITER`] as its library, a JSON object whose `written_by`
+    /// does. A user's own log or JSON of the same kind is not replaced.
+    fn written_here(self, path: &Path) -> Result<bool> {
+        match self {
+            Self::Mcap => {
+                let mut head = Vec::with_capacity(512);
+                std::fs::File::open(path)
+                    .and_then(|f| f.take(512).read_to_end(&mut head))
+                    .map_err(|e| SimError::io(path, e))?;
+                Ok(mcap_library(&head).is_some_and(|l| l.starts_with(WRITER)))
+            }
+            Self::Json => {
+                let text = std::fs::read(path).map_err(|e| SimError::io(path, e))?;
+                let doc: Option<serde_json::Value> = serde_json::from_slice(&text).ok();
+                Ok(doc
+                    .as_ref()
+                    .and_then(|d| d.get(WRITTEN_BY))
+                    .and_then(|w| w.as_str())
+                    .is_some_and(|w| w.starts_with(WRITER)))
+            }
+        }
+    }
+}
+
+/// The name this program writes into its outputs (MCAP header library, JSON `written_by`),
+/// by which it knows a file it may replace.
+pub const WRITER: &str = "stabilis";
+
+/// The key of a JSON output's writer.
+pub const WRITTEN_BY: &str = "written_by";
+
+/// The library named in the header record of an MCAP log (`head`, its first bytes): magic,
+/// opcode 0x01, length (u64), profile and library (each a u32 length and UTF-8).
+fn mcap_library(head: &[u8]) -> Option<String> {
+    let rest = head.strip_prefix(b"\x89MCAP0\r\n")?;
+    let (&opcode, rest) = rest.split_first()?;
+    if opcode != 0x01 {
+        return None;
+    }
+    let rest = rest.get(8..)?;
+    let string = |b: &[u8]| -> Option<(String, usize)> {
+        let n = u32::from_le_bytes(b.get(..4)?.try_into().ok()?) as usize;
+        let s = std::str::from_utf8(b.get(4..4 + n)?).ok()?;
+        Some((s.to_string(), 4 + n))
+    };
+    let (_, used) = string(rest)?;
+    string(rest.get(used..)?).map(|(library, _)| library)
+}
+
+/// `value` with [`WRITTEN_BY`] naming this program when it is an object (the JSON outputs are).
+pub fn stamped(value: &serde_json::Value) -> serde_json::Value {
+    let mut v = value.clone();
+    if let Some(map) = v.as_object_mut() {
+        map.insert(
+            WRITTEN_BY.to_string(),
+            serde_json::Value::String(concat!("stabilis ", env!("CARGO_PKG_VERSION")).to_string()),
+        );
+    }
+    v
 }
 
 fn refuse(path: &Path, reason: impl Into<String>) -> SimError {
@@ -217,6 +280,15 @@ pub fn check_file(target: &Path, kind: Kind, inputs: &[PathBuf]) -> Result<()> {
         return Err(refuse(
             target,
             format!("exists and is not {}; not overwriting it", kind.name()),
+        ));
+    }
+    if n > 0 && !kind.written_here(target)? {
+        return Err(refuse(
+            target,
+            format!(
+                "exists and is {} this program did not write; not overwriting it",
+                kind.name()
+            ),
         ));
     }
     Ok(())
@@ -679,6 +751,49 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
+    /// A user's own JSON or MCAP log of the kind being written is kept: only a file this
+    /// program wrote (its `written_by`, its MCAP header's library) is replaced.
+    #[test]
+    fn a_users_own_file_of_the_same_kind_is_refused() {
+        let dir = scratch("own_kind");
+        let config = dir.join("config.json");
+        std::fs::write(&config, "{\"gain\": 3}").unwrap();
+        let err = write_atomically(&config, Kind::Json, &[], write_text("{}")).unwrap_err();
+        assert!(err.to_string().contains("did not write"), "{err}");
+        assert_eq!(std::fs::read_to_string(&config).unwrap(), "{\"gain\": 3}");
+        let ours = serde_json::to_string(&stamped(&serde_json::json!({"steps": []}))).unwrap();
+        let write_ours = || {
+            let text = ours.clone();
+            move |p: &Path| std::fs::write(p, text).map_err(|e| SimError::io(p, e))
+        };
+        write_atomically(&config, Kind::Json, &[], write_ours()).unwrap_err();
+        let out = dir.join("out.json");
+        write_atomically(&out, Kind::Json, &[], write_ours()).unwrap();
+        write_atomically(&out, Kind::Json, &[], write_ours()).unwrap();
+        // An MCAP header: magic, opcode 1, length, profile "", library.
+        let header = |library: &str| {
+            let mut b = b"\x89MCAP0\r\n\x01".to_vec();
+            b.extend_from_slice(&(8 + library.len() as u64).to_le_bytes());
+            b.extend_from_slice(&0u32.to_le_bytes());
+            b.extend_from_slice(&(library.len() as u32).to_le_bytes());
+            b.extend_from_slice(library.as_bytes());
+            b
+        };
+        let rig = dir.join("rig.mcap");
+        std::fs::write(&rig, header("mcap-python 1.1")).unwrap();
+        let err = write_atomically(&rig, Kind::Mcap, &[], write_text("x")).unwrap_err();
+        assert!(err.to_string().contains("did not write"), "{err}");
+        assert_eq!(std::fs::read(&rig).unwrap(), header("mcap-python 1.1"));
+        assert_eq!(
+            mcap_library(&header("stabilis 0.1.0")).as_deref(),
+            Some("stabilis 0.1.0")
+        );
+        let own = dir.join("own.mcap");
+        std::fs::write(&own, header("stabilis 0.1.0")).unwrap();
+        write_atomically(&own, Kind::Mcap, &[], write_text("x")).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
     #[test]
     fn files_of_another_kind_and_inputs_are_refused() {
         let dir = scratch("kinds");
@@ -749,17 +864,21 @@ mod tests {
     fn a_failed_write_keeps_the_old_file_and_leaves_no_temporary() {
         let dir = scratch("failed");
         let path = dir.join("out.json");
-        std::fs::write(&path, "[1]").unwrap();
+        let (one, three) = (
+            r#"{"written_by": "stabilis", "n": 1}"#,
+            r#"{"written_by": "stabilis", "n": 3}"#,
+        );
+        std::fs::write(&path, one).unwrap();
         let err = write_atomically(&path, Kind::Json, &[], |tmp| {
             std::fs::write(tmp, "[2").unwrap();
             Err(SimError::invalid("x", 1, "failed on purpose"))
         })
         .unwrap_err();
-        assert!(err.to_string().contains("on purpose"));
-        assert_eq!(std::fs::read_to_string(&path).unwrap(), "[1]");
+        assert!(err.to_string().contains("on purpose"), "{err}");
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), one);
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
-        write_atomically(&path, Kind::Json, &[], write_text("[3]")).unwrap();
-        assert_eq!(std::fs::read_to_string(&path).unwrap(), "[3]");
+        write_atomically(&path, Kind::Json, &[], write_text(three)).unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), three);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -558,7 +558,7 @@ pub fn conclusion_fields(
 /// Writes `value` to `path` through a temporary file renamed at the end (see
 /// [`crate::output`]: an existing file that is not JSON is refused).
 pub fn write_json(path: &Path, value: &Value) -> Result<()> {
-    let text = serde_json::to_string_pretty(value)
+    let text = serde_json::to_string_pretty(&output::stamped(value))
         .map_err(|e| SimError::invalid("json", "serialisation", e.to_string()))?;
     output::write_atomically(path, output::Kind::Json, &[], |tmp| {
         std::fs::write(tmp, text).map_err(|e| SimError::io(tmp, e))

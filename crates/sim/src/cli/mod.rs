@@ -296,7 +296,7 @@ where
         .run()
         .and_then(|output| match cli.json.as_deref() {
             Some(p) if p != std::path::Path::new("-") => {
-                let text = format!("{:#}\n", output.json);
+                let text = format!("{:#}\n", output::stamped(&output.json));
                 output::write_atomically(p, output::Kind::Json, &written, |tmp| {
                     std::fs::write(tmp, text).map_err(|e| SimError::io(tmp, e))
                 })?;
