@@ -177,15 +177,17 @@ fn outputs_never_replace_a_file_of_another_kind() {
     // ...but only its own: a user's JSON and a log another program wrote are kept.
     let config = dir.join("config.json");
     std::fs::write(&config, "{\"gain\": 3}\n").unwrap();
-    let run = stabilis(&[
-        "sim",
-        "wheel-pendulum",
-        "--duration",
-        "1",
-        "--json",
-        config.to_str().unwrap(),
-    ]);
-    assert_refused(&run, "config.json");
+    let sim_to = |flag: &str, path: &std::path::Path| {
+        stabilis(&[
+            "sim",
+            "wheel-pendulum",
+            "--duration",
+            "1",
+            flag,
+            path.to_str().unwrap(),
+        ])
+    };
+    assert_refused(&sim_to("--json", &config), "config.json");
     assert_eq!(std::fs::read_to_string(&config).unwrap(), "{\"gain\": 3}\n");
     let rig = dir.join("rig.mcap");
     let mut header = b"\x89MCAP0\r\n\x01".to_vec();
@@ -195,15 +197,7 @@ fn outputs_never_replace_a_file_of_another_kind() {
     header.extend_from_slice(&(library.len() as u32).to_le_bytes());
     header.extend_from_slice(library);
     std::fs::write(&rig, &header).unwrap();
-    let run = stabilis(&[
-        "sim",
-        "wheel-pendulum",
-        "--duration",
-        "1",
-        "--out",
-        rig.to_str().unwrap(),
-    ]);
-    assert_refused(&run, "rig.mcap");
+    assert_refused(&sim_to("--out", &rig), "rig.mcap");
     assert_eq!(std::fs::read(&rig).unwrap(), header);
 }
 

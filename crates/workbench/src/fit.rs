@@ -278,6 +278,17 @@ pub fn holds(j: &DMatrix<f64>, tol: f64) -> Vec<usize> {
 /// Levenberg-Marquardt from `theta` (residuals `r` there) over the free parameters. Leaves
 /// `theta` and `r` at the end point and returns the iterations, the Jacobian there and
 /// whether it gave up ([`FitOptions::give_up_above`]).
+/// The active set: positions in `free` of the parameters that may move. One on a bound whose
+/// descent direction (against `grad`) leaves the box stays put.
+fn moving(free: &[usize], params: &[Parameter], theta: &[f64], grad: &DVector<f64>) -> Vec<usize> {
+    (0..free.len())
+        .filter(|&k| {
+            let (t, p) = (theta[free[k]], &params[free[k]]);
+            !((t <= p.lower && grad[k] > 0.0) || (t >= p.upper && grad[k] < 0.0))
+        })
+        .collect()
+}
+
 /// Err when the fit stopped at a wall of the model's domain, not at a minimum: the
 /// Gauss-Newton step over the parameters free to move would lower the cost by more than one
 /// noise unit (the costs are sums of whitened residuals), yet a thousandth of it cannot be
@@ -295,12 +306,7 @@ fn not_at_a_wall(
     let free = free_indices(held);
     let j = scaled_free_jacobian(d, params, held);
     let grad = j.transpose() * r;
-    let moving: Vec<usize> = (0..free.len())
-        .filter(|&k| {
-            let (t, p) = (theta[free[k]], &params[free[k]]);
-            !((t <= p.lower && grad[k] > 0.0) || (t >= p.upper && grad[k] < 0.0))
-        })
-        .collect();
+    let moving = moving(&free, params, theta, &grad);
     if moving.is_empty() {
         return Ok(());
     }
@@ -371,13 +377,7 @@ fn levenberg_marquardt(
     for it in 0..opts.max_iterations {
         let jtj = j.transpose() * &j;
         let grad = j.transpose() * &*r;
-        // Active set: a parameter on a bound whose descent direction leaves the box stays put.
-        let moving: Vec<usize> = (0..free.len())
-            .filter(|&k| {
-                let (t, p) = (theta[free[k]], &params[free[k]]);
-                !((t <= p.lower && grad[k] > 0.0) || (t >= p.upper && grad[k] < 0.0))
-            })
-            .collect();
+        let moving = moving(&free, params, theta, &grad);
         if moving.is_empty() {
             return Ok((it, d, false));
         }
