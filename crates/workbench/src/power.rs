@@ -1175,7 +1175,8 @@ impl PowerResult {
     /// Writes `index.html` and `power.json` into a new directory `dir` (see
     /// [`crate::output`]: never over anything this program did not write, nor an input).
     pub fn write_report(&self, dir: &Path, inputs: &[std::path::PathBuf]) -> Result<()> {
-        let json = serde_json::to_string_pretty(self)
+        let json = serde_json::to_value(self)
+            .and_then(|v| serde_json::to_string_pretty(&crate::output::stamped(&v)))
             .map_err(|e| SimError::invalid("json", "serialisation", e.to_string()))?;
         let html = self.html();
         crate::output::write_dir_atomically(dir, inputs, |tmp| {
