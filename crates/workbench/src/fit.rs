@@ -275,9 +275,6 @@ pub fn holds(j: &DMatrix<f64>, tol: f64) -> Vec<usize> {
     held
 }
 
-/// Levenberg-Marquardt from `theta` (residuals `r` there) over the free parameters. Leaves
-/// `theta` and `r` at the end point and returns the iterations, the Jacobian there and
-/// whether it gave up ([`FitOptions::give_up_above`]).
 /// The active set: positions in `free` of the parameters that may move. One on a bound whose
 /// descent direction (against `grad`) leaves the box stays put.
 fn moving(free: &[usize], params: &[Parameter], theta: &[f64], grad: &DVector<f64>) -> Vec<usize> {
@@ -356,6 +353,9 @@ fn not_at_a_wall(
     ))
 }
 
+/// Levenberg-Marquardt from `theta` (residuals `r` there) over the free parameters. Leaves
+/// `theta` and `r` at the end point and returns the iterations, the Jacobian there and
+/// whether it gave up ([`FitOptions::give_up_above`]).
 fn levenberg_marquardt(
     criterion: &dyn LeastSquares,
     params: &[Parameter],

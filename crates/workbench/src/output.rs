@@ -91,8 +91,11 @@ impl Kind {
 }
 
 /// The name this program writes into its outputs (MCAP header library, JSON `written_by`),
-/// by which it knows a file it may replace.
+/// by which it knows a file it may replace (of any version).
 pub const WRITER: &str = "stabilis";
+
+/// What it writes there: [`WRITER`] and its version.
+pub const WRITTEN_AS: &str = concat!("stabilis ", env!("CARGO_PKG_VERSION"));
 
 /// The key of a JSON output's writer.
 pub const WRITTEN_BY: &str = "written_by";
@@ -121,7 +124,7 @@ pub fn stamped(value: &serde_json::Value) -> serde_json::Value {
     if let Some(map) = v.as_object_mut() {
         map.insert(
             WRITTEN_BY.to_string(),
-            serde_json::Value::String(concat!("stabilis ", env!("CARGO_PKG_VERSION")).to_string()),
+            serde_json::Value::String(WRITTEN_AS.to_string()),
         );
     }
     v
@@ -607,6 +610,7 @@ mod tests {
         assert!(err.to_string().contains("does not exist"), "{err}");
         assert_eq!(err.exit_code(), 2);
         assert!(!root.join("typo").exists());
+        std::fs::remove_dir_all(&root).unwrap();
     }
 
     #[test]

@@ -795,7 +795,7 @@ impl Workbench {
             design: &design,
         };
         let (mut done, found) = forward_selection(&search, start, progress)?;
-        if done.len() > 1 {
+        let weighting = if done.len() > 1 {
             // The effects were chosen under the starting model's predictor. The final model's
             // parameters are its fit under its own predictor, as `fit` gives them: under the
             // starting model's gain a planar quadrotor's inertia came out 1-2 % (2 standard
@@ -807,8 +807,6 @@ impl Workbench {
             if let Some(last) = done.last_mut() {
                 last.r = self.fit_time(&last.model, Some(&last.r.theta), None)?.0;
             }
-        }
-        let weighting = if done.len() > 1 {
             FINAL_WEIGHTING
         } else {
             START_WEIGHTING

@@ -90,7 +90,7 @@ impl LogWriter {
         })?;
         let inner = mcap::WriteOptions::new()
             .profile("")
-            .library(concat!("stabilis ", env!("CARGO_PKG_VERSION")))
+            .library(crate::output::WRITTEN_AS)
             .create(BufWriter::new(file))
             .map_err(|source| mcap_error(&path, source))?;
         Ok(Self {
