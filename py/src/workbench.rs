@@ -62,15 +62,20 @@ impl Effect {
     fn new(
         py: Python<'_>,
         name: String,
-        params: &Bound<'_, PyDict>,
+        params: &Bound<'_, PyAny>,
         func: Option<Py<PyAny>>,
-        bounds: Option<HashMap<String, Real<(f64, f64)>>>,
-        units: Option<HashMap<String, String>>,
+        bounds: Option<&Bound<'_, PyAny>>,
+        units: Option<&Bound<'_, PyAny>>,
         description: &str,
         f: Option<Py<PyAny>>,
         h: Option<Py<PyAny>>,
     ) -> PyResult<Self> {
+        let wrong = |what: &str, expected: &str| {
+            PyTypeError::new_err(format!("effect {name}: {what} must map {expected}"))
+        };
         let params: Vec<(String, f64)> = params
+            .cast::<PyDict>()
+            .map_err(|_| wrong("params", "names (str) to documented values (float)"))?
             .iter()
             .map(|(k, v)| Ok((k.extract::<String>()?, v.extract::<Real<f64>>()?.0)))
             .collect::<PyResult<_>>()
@@ -87,8 +92,16 @@ impl Effect {
                 "effect {name}: give at least one parameter"
             )));
         }
-        let bounds = bounds.unwrap_or_default();
-        let units = units.unwrap_or_default();
+        let bounds: HashMap<String, Real<(f64, f64)>> = bounds
+            .map(|b| b.extract())
+            .transpose()
+            .map_err(|e| wrong("bounds", &format!("parameter names to (min, max); {e}")))?
+            .unwrap_or_default();
+        let units: HashMap<String, String> = units
+            .map(|u| u.extract())
+            .transpose()
+            .map_err(|_| wrong("units", "parameter names to units (str)"))?
+            .unwrap_or_default();
         for key in bounds.keys().chain(units.keys()) {
             if !params.iter().any(|(p, _)| p == key) {
                 return Err(PyValueError::new_err(format!(
@@ -379,7 +392,7 @@ impl PyStructure {
     }
 
     /// Declares a nonlinear effect after checking its name against `taken` (the effects the
-    /// model already knows) and its parameters against the model's.
+    /// model may not lose) and its parameters against the model's.
     fn declare(&self, effect: Arc<Py<Effect>>, taken: &[String]) -> PyResult<()> {
         let e = effect.get();
         let Form::Nonlinear(_) = self.form else {
@@ -666,12 +679,16 @@ fn py_parameter(name: &str, spec: &Bound<'_, PyAny>) -> PyResult<(Parameter, boo
             .extract::<Real<f64>>()
             .map_err(|_| bad())?
             .0;
-        let unit = d
-            .get_item("unit")?
-            .map_or(Ok(String::new()), |u| u.extract::<String>())?;
-        let fixed = d
-            .get_item("fixed")?
-            .map_or(Ok(false), |f| f.extract::<bool>())?;
+        let unit = d.get_item("unit")?.map_or(Ok(String::new()), |u| {
+            u.extract::<String>().map_err(|_| {
+                PyTypeError::new_err(format!("parameter {name}: unit must be a string"))
+            })
+        })?;
+        let fixed = d.get_item("fixed")?.map_or(Ok(false), |f| {
+            f.extract::<bool>().map_err(|_| {
+                PyTypeError::new_err(format!("parameter {name}: fixed must be True or False"))
+            })
+        })?;
         (
             value,
             num("min", f64::NEG_INFINITY)?,
@@ -682,12 +699,10 @@ fn py_parameter(name: &str, spec: &Bound<'_, PyAny>) -> PyResult<(Parameter, boo
     } else {
         return Err(bad());
     };
-    if !(value.is_finite() && lower <= value && value <= upper) {
-        return Err(PyValueError::new_err(format!(
-            "parameter {name}: value {value} must be finite and lie in [{lower}, {upper}]"
-        )));
-    }
-    Ok((Parameter::new(name, value, lower, upper, unit), fixed))
+    let p = Parameter::new(name, value, lower, upper, unit);
+    workbench::model::check_parameters(std::slice::from_ref(&p))
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    Ok((p, fixed))
 }
 
 /// A model for the workbench: from a model file (`Model.from_file(path)`) or from Python,
@@ -715,22 +730,47 @@ impl Model {
     #[new]
     #[pyo3(signature = (states, inputs, outputs, parameters, matrices = None, effects = None, name = None, f = None, h = None, operating_point = None))]
     #[allow(clippy::too_many_arguments)]
-    fn new(
-        py: Python<'_>,
-        states: Vec<String>,
-        inputs: Vec<String>,
-        outputs: Vec<String>,
-        parameters: &Bound<'_, PyDict>,
+    fn new<'py>(
+        py: Python<'py>,
+        states: &Bound<'_, PyAny>,
+        inputs: &Bound<'_, PyAny>,
+        outputs: &Bound<'_, PyAny>,
+        parameters: &Bound<'py, PyAny>,
         matrices: Option<Py<PyAny>>,
-        effects: Option<Vec<Py<Effect>>>,
+        effects: Option<&Bound<'py, PyAny>>,
         name: Option<String>,
         f: Option<Py<PyAny>>,
         h: Option<Py<PyAny>>,
-        operating_point: Option<&Bound<'_, PyDict>>,
+        operating_point: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Self> {
         // Without a name the system is read from the logs' topics when the workbench loads them.
         let name = name.unwrap_or_default();
         let name = name.as_str();
+        let names = |what: &str, list: &Bound<'_, PyAny>| -> PyResult<Vec<String>> {
+            list.extract::<Vec<String>>().map_err(|_| {
+                PyTypeError::new_err(format!(
+                    "model {name}: {what} must be a list of names (str), e.g. [\"x\"]; got {}",
+                    type_name(list)
+                ))
+            })
+        };
+        let dict = |what: &str, d: &Bound<'py, PyAny>, expected: &str| {
+            d.cast::<PyDict>().cloned().map_err(|_| {
+                PyTypeError::new_err(format!(
+                    "model {name}: {what} must be a dict {{name: {expected}}}; got {}",
+                    type_name(d)
+                ))
+            })
+        };
+        let (states, inputs, outputs) = (
+            names("states", states)?,
+            names("inputs", inputs)?,
+            names("outputs", outputs)?,
+        );
+        let parameters = &dict("parameters", parameters, "value, (value, min, max) or dict")?;
+        let operating_point = operating_point
+            .map(|p| dict("operating_point", p, "value"))
+            .transpose()?;
         for (what, list) in [
             ("states", &states),
             ("inputs", &inputs),
@@ -848,6 +888,14 @@ impl Model {
         // Effects in nonlinear form become the model's declared effects, each evaluated once
         // at its documented values so that a broken callable fails here.
         let mut matrix_form = Vec::new();
+        let effects = effects
+            .map(|e| e.extract::<Vec<Py<Effect>>>())
+            .transpose()
+            .map_err(|_| {
+                PyTypeError::new_err(format!(
+                    "model {name}: effects must be a list of stabilis.Effect"
+                ))
+            })?;
         for e in effects.unwrap_or_default() {
             if !e.get().nonlinear() {
                 matrix_form.push(e);
@@ -1116,9 +1164,8 @@ impl Workbench {
                 }
             )));
         };
-        let mut taken = wb.model().known();
-        taken.extend(wb.model().enabled());
-        own.declare(Arc::new(user.unbind()), &taken)?;
+        // An enabled effect cannot be replaced; a generic or offered one of the same name can.
+        own.declare(Arc::new(user.unbind()), &wb.model().enabled())?;
         let probe = wb.model().with_effect(&name).map_err(to_py_err);
         let checked = probe.and_then(|probe| {
             run_with(&self.error, py, || {
@@ -1374,9 +1421,9 @@ impl Workbench {
         &mut self,
         py: Python<'_>,
         effect: &Bound<'_, PyAny>,
-        params: Option<&Bound<'_, PyDict>>,
-        bounds: Option<HashMap<String, Real<(f64, f64)>>>,
-        units: Option<HashMap<String, String>>,
+        params: Option<&Bound<'_, PyAny>>,
+        bounds: Option<&Bound<'_, PyAny>>,
+        units: Option<&Bound<'_, PyAny>>,
         name: Option<String>,
     ) -> PyResult<()> {
         let user = user_effect(py, effect, params, bounds, units, name)?;
@@ -1456,9 +1503,9 @@ impl Workbench {
         &mut self,
         py: Python<'_>,
         effect: &Bound<'_, PyAny>,
-        params: Option<&Bound<'_, PyDict>>,
-        bounds: Option<HashMap<String, Real<(f64, f64)>>>,
-        units: Option<HashMap<String, String>>,
+        params: Option<&Bound<'_, PyAny>>,
+        bounds: Option<&Bound<'_, PyAny>>,
+        units: Option<&Bound<'_, PyAny>>,
         name: Option<String>,
     ) -> PyResult<()> {
         if let Ok(name) = effect.extract::<String>() {
@@ -1539,9 +1586,9 @@ impl Workbench {
 fn user_effect<'py>(
     py: Python<'py>,
     effect: &Bound<'py, PyAny>,
-    params: Option<&Bound<'py, PyDict>>,
-    bounds: Option<HashMap<String, Real<(f64, f64)>>>,
-    units: Option<HashMap<String, String>>,
+    params: Option<&Bound<'py, PyAny>>,
+    bounds: Option<&Bound<'py, PyAny>>,
+    units: Option<&Bound<'py, PyAny>>,
     name: Option<String>,
 ) -> PyResult<Bound<'py, Effect>> {
     let extras = params.is_some() || bounds.is_some() || units.is_some() || name.is_some();
@@ -1577,6 +1624,13 @@ fn user_effect<'py>(
         None,
     )?;
     Bound::new(py, built)
+}
+
+/// The Python type name of `obj` (`str`, `float`), for a type error that says what it got.
+fn type_name(obj: &Bound<'_, PyAny>) -> String {
+    obj.get_type()
+        .name()
+        .map_or_else(|_| "?".to_string(), |n| n.to_string())
 }
 
 /// Adds the `workbench` submodule.

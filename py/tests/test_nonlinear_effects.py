@@ -191,14 +191,23 @@ def test_nonlinear_effect_errors_are_named_or_the_users_own(short_viscous):
     wb.suspect(viscous(stabilis))  # each failed one was withdrawn
     with pytest.raises(ValueError, match="cart_viscous: the model already has an effect"):
         wb.suspect(viscous(stabilis))
-    with pytest.raises(ValueError, match="sensor_bias: the model already has an effect"):
-        wb.suspect(stabilis.Effect("sensor_bias", {"k": 1.0}, f=viscous_f))
     with pytest.raises(ValueError, match=r"cart_drag: parameter \"M\" is also a parameter"):
         wb.suspect(stabilis.Effect("cart_drag", {"M": 1.0}, f=viscous_f))
     with pytest.raises(TypeError, match="cart_viscous: give func .* not both"):
         viscous(stabilis, func=lambda p, m: {})
     with pytest.raises(TypeError, match="cart_viscous: give func"):
         viscous(stabilis, f=None)
+    # An effect named like a generic one replaces it, as a model file's [effects] entry does:
+    # the fit is the file's cart_viscous fit under the generic name. Once enabled it stays.
+    ref = file_fit_with_viscous(stabilis, data)
+    renamed = stabilis.Workbench(model=python_cart_pole(stabilis), data=data)
+    bias_named = stabilis.Effect("sensor_bias", {"b": 0.5}, f=viscous_f, bounds={"b": (0.0, 20.0)})
+    renamed.suspect(bias_named)
+    renamed.add("sensor_bias")
+    got = renamed.fit()["steps"][-1]["params"]
+    assert got["sensor_bias.b"] == pytest.approx(ref["b"], rel=AGREEMENT), (got, ref)
+    with pytest.raises(ValueError, match="sensor_bias: the model already has an effect"):
+        renamed.suspect(bias_named)
     # Where the nonlinear form has no equations to add to: a model file (declare it there) and
     # a linear Python model (matrix form).
     file = stabilis.Workbench(model=str(MODEL), data=data)

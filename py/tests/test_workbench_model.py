@@ -127,6 +127,24 @@ def test_errors_name_the_problem_and_user_exceptions_pass_through():
         stabilis.Model(states=["q", "q"], inputs=["u"], outputs=["q"], parameters={},
                        matrices=matrices)
 
+    with pytest.raises(ValueError, match=r"invalid k = bounds \[5, 0.1\]: the lower bound \(min\) exceeds"):
+        stabilis.Model(states=["q", "qdot"], inputs=["u"], outputs=["q"],
+                       parameters={"k": (1.0, 5.0, 0.1), "c": 2.0, "g": 30.0}, matrices=matrices)
+    # A wrong type names the argument and what it must be (the binding's own message did not).
+    wrong = [(dict(states="q"), r"states must be a list of names \(str\).*; got str"),
+             (dict(parameters=[1.0]), "parameters must be a dict .*; got list"),
+             (dict(parameters={"k": {"value": 1.0, "unit": 3}}), "parameter k: unit must be a string")]
+    for change, message in wrong:
+        kw = dict(states=["q", "qdot"], inputs=["u"], outputs=["q"],
+                  parameters={"k": 1.0, "c": 2.0, "g": 30.0}, matrices=matrices)
+        with pytest.raises(TypeError, match=message):
+            stabilis.Model(**(kw | change))
+    for change, message in [(dict(params=0.5), "effect e: params must map names"),
+                            (dict(bounds={"b": 3}), r"effect e: bounds must map parameter names to \(min, max\)"),
+                            (dict(units={"b": 3}), r"effect e: units must map parameter names to units")]:
+        with pytest.raises(TypeError, match=message):
+            stabilis.Effect(**({"name": "e", "params": {"b": 0.5}, "func": lag_effect} | change))
+
     def boom(p):
         raise Boom("no model today")
 

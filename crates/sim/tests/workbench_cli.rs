@@ -160,7 +160,7 @@ fn missing_channel_is_named_and_no_report_is_left() {
 }
 
 #[test]
-fn unknown_effect_is_named() {
+fn unknown_or_repeated_effect_is_named() {
     let logs = temp("logs-unknown");
     write_logs(&logs, None);
     let stderr = refused(&[
@@ -174,6 +174,14 @@ fn unknown_effect_is_named() {
         stderr.contains("ground_effect") && stderr.contains("momentum_drag"),
         "{stderr}"
     );
+    let stderr = refused(&[
+        "fit",
+        "--with",
+        "momentum_drag, fan_gyroscopic,momentum_drag",
+        "--data",
+        logs.to_str().unwrap(),
+    ]);
+    assert!(stderr.contains("names momentum_drag twice"), "{stderr}");
 }
 
 /// Simulates four 40 s Cubli balancing runs with `stabilis sim cubli` (0.01 N m multisine on

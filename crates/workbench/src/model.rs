@@ -61,11 +61,21 @@ impl Parameter {
 /// Checks names are unique and values lie inside their bounds.
 pub fn check_parameters(params: &[Parameter]) -> Result<()> {
     for (i, p) in params.iter().enumerate() {
+        if p.lower > p.upper {
+            return Err(SimError::invalid(
+                &p.name,
+                format!("bounds [{}, {}]", p.lower, p.upper),
+                "the lower bound (min) exceeds the upper (max)",
+            ));
+        }
         if !(p.lower <= p.value && p.value <= p.upper && p.value.is_finite()) {
             return Err(SimError::invalid(
                 &p.name,
                 p.value,
-                format!("documented value must lie in [{}, {}]", p.lower, p.upper),
+                format!(
+                    "documented value must be finite and lie in [{}, {}]",
+                    p.lower, p.upper
+                ),
             ));
         }
         if params[..i].iter().any(|q| q.name == p.name) {
@@ -211,7 +221,17 @@ impl Model {
 
     /// Whether the structure and every effect it may use can be evaluated on several threads.
     pub fn parallel(&self) -> bool {
-        self.structure.parallel() && self.pool.iter().chain(&self.added).all(|e| e.parallel())
+        self.structure.parallel() && self.offered().chain(&self.added).all(|e| e.parallel())
+    }
+
+    /// The pool less the effects the structure now declares itself: an effect declared in the
+    /// structure after the model was built (a Python model's) replaces a generic one of that
+    /// name, as an effect of a model file does.
+    fn offered(&self) -> impl Iterator<Item = &Arc<dyn Effect>> {
+        let own = self.structure.effects();
+        self.pool
+            .iter()
+            .filter(move |e| !own.iter().any(|o| o == e.name()))
     }
 
     /// The structure.
@@ -229,13 +249,13 @@ impl Model {
     /// Every effect name known to the model: the structure's, then the pool's.
     pub fn known(&self) -> Vec<String> {
         let mut names = self.structure.effects();
-        names.extend(self.pool.iter().map(|e| e.name().to_string()));
+        names.extend(self.offered().map(|e| e.name().to_string()));
         names
     }
 
     /// One-line description of a known effect.
     pub fn describe(&self, effect: &str) -> String {
-        match self.pool.iter().find(|e| e.name() == effect) {
+        match self.offered().find(|e| e.name() == effect) {
             Some(e) => e.description().to_string(),
             None => self.structure.describe(effect),
         }
@@ -254,7 +274,7 @@ impl Model {
     pub fn frf_candidates(&self) -> Vec<String> {
         self.candidates()
             .into_iter()
-            .filter(|c| self.pool.iter().all(|e| e.name() != c || e.frf_visible()))
+            .filter(|c| self.offered().all(|e| e.name() != c || e.frf_visible()))
             .collect()
     }
 
@@ -262,7 +282,7 @@ impl Model {
     pub fn dynamics_candidates(&self) -> Vec<String> {
         self.candidates()
             .into_iter()
-            .filter(|c| self.pool.iter().all(|e| e.name() != c || e.has_dynamics()))
+            .filter(|c| self.offered().all(|e| e.name() != c || e.has_dynamics()))
             .collect()
     }
 
@@ -317,7 +337,7 @@ impl Model {
         if self.enabled().iter().any(|e| e == name) {
             return Ok(m);
         }
-        if let Some(e) = self.pool.iter().find(|e| e.name() == name) {
+        if let Some(e) = self.offered().find(|e| e.name() == name) {
             m.added.push(e.clone());
         } else if self.structure.effects().iter().any(|e| e == name) {
             m.enabled.push(name.to_string());

@@ -217,7 +217,7 @@ impl DiscoverArgs {
 impl FitArgs {
     /// `stabilis fit`: as `compare`, but an effect to fit is required.
     pub fn run_fit(&self) -> Result<Output> {
-        if self.with.iter().all(|e| e.trim().is_empty()) {
+        if self.effects()?.is_empty() {
             return Err(SimError::invalid(
                 "--with",
                 "(none)",
@@ -227,18 +227,36 @@ impl FitArgs {
         self.run()
     }
 
+    /// The effects of `--with`, trimmed, empty entries (a trailing comma) left out; an effect
+    /// named twice is refused, since it may be a typo for another.
+    fn effects(&self) -> Result<Vec<&str>> {
+        let mut names: Vec<&str> = Vec::new();
+        for e in self.with.iter().map(|e| e.trim()).filter(|e| !e.is_empty()) {
+            if names.contains(&e) {
+                return Err(SimError::invalid(
+                    "--with",
+                    self.with.join(","),
+                    format!("names {e} twice; each effect is enabled once"),
+                ));
+            }
+            names.push(e);
+        }
+        Ok(names)
+    }
+
     /// Fits the model with the given effects and reports it (a one-step discovery record).
     pub fn run(&self) -> Result<Output> {
+        let effects = self.effects()?;
         if matches!(self.common.source()?, Source::Cubli) {
             let mut bench = self.common.cubli()?;
-            for e in &self.with {
-                bench.add(e.trim())?;
+            for e in &effects {
+                bench.add(e)?;
             }
             return self.common.finish_cubli(&bench.fit()?);
         }
         let mut wb = self.common.workbench()?;
-        for e in &self.with {
-            wb.add(e.trim())?;
+        for e in &effects {
+            wb.add(e)?;
         }
         let d = wb.compared()?;
         self.common.finish(&wb, &d)
