@@ -75,15 +75,13 @@ impl Effect {
         };
         let params: Vec<(String, f64)> = params
             .cast::<PyDict>()
-            .map_err(|_| wrong("params", "names (str) to documented values (float)"))?
-            .iter()
-            .map(|(k, v)| Ok((k.extract::<String>()?, v.extract::<Real<f64>>()?.0)))
-            .collect::<PyResult<_>>()
-            .map_err(|_| {
-                PyTypeError::new_err(format!(
-                    "effect {name}: params must map names (str) to documented values (float)"
-                ))
-            })?;
+            .map_err(PyErr::from)
+            .and_then(|d| {
+                d.iter()
+                    .map(|(k, v)| Ok((k.extract::<String>()?, v.extract::<Real<f64>>()?.0)))
+                    .collect::<PyResult<_>>()
+            })
+            .map_err(|_| wrong("params", "names (str) to documented values (float)"))?;
         if name.is_empty() {
             return Err(PyValueError::new_err("effect name must not be empty"));
         }
