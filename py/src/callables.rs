@@ -51,17 +51,8 @@ impl Callables {
         extras: &[Extra],
         out: &mut [f64],
     ) -> PyResult<()> {
-        let model = if model.is_empty() { "(unnamed)" } else { model };
         let func = if output { &self.h } else { &self.f };
-        call_checked(
-            py,
-            &format!("model {model}"),
-            output,
-            func,
-            (x, u),
-            params,
-            out,
-        )?;
+        call_checked(py, model, output, func, (x, u), params, out)?;
         let mut term = vec![0.0; out.len()];
         for e in extras {
             let Some(func) = (if output { &e.h } else { &e.f }) else {
@@ -185,6 +176,7 @@ pub struct Extra {
 /// The callables at one parameter vector: what the time-domain criterion integrates.
 #[derive(Debug)]
 pub struct PyDynamics {
+    /// How messages name the model ("model <name>").
     pub model: String,
     pub callables: Arc<Callables>,
     pub params: Py<PyDict>,
@@ -212,11 +204,7 @@ impl PyDynamics {
             if let Ok(mut slot) = self.error.lock() {
                 slot.get_or_insert(err);
             }
-            sim::SimError::invalid(
-                format!("model {}", self.model),
-                if output { "h" } else { "f" },
-                message,
-            )
+            sim::SimError::invalid(self.model.clone(), if output { "h" } else { "f" }, message)
         })
     }
 }

@@ -346,6 +346,11 @@ enum Form {
 }
 
 impl PyStructure {
+    /// How messages name this model.
+    fn label(&self) -> String {
+        model_label(&self.name)
+    }
+
     /// The same model under another system name.
     fn named(&self, py: Python<'_>, name: String) -> Self {
         Self {
@@ -382,7 +387,7 @@ impl PyStructure {
                         sim::SimError::invalid(
                             "effect",
                             n,
-                            format!("not declared in the Python model {}", self.name),
+                            format!("not declared in the Python {}", self.label()),
                         )
                     })
             })
@@ -395,8 +400,8 @@ impl PyStructure {
         let e = effect.get();
         let Form::Nonlinear(_) = self.form else {
             return Err(PyValueError::new_err(format!(
-                "effect {}: f=/h= add terms to a nonlinear model's f and h; the model {} is linear (matrices=): give the effect as Effect(name, params, func) returning terms added to A, B, C, D",
-                e.name, self.name
+                "effect {}: f=/h= add terms to a nonlinear model's f and h; the {} is linear (matrices=): give the effect as Effect(name, params, func) returning terms added to A, B, C, D",
+                e.name, self.label()
             )));
         };
         let declared = self.declared_effects();
@@ -445,8 +450,8 @@ impl PyStructure {
         let want = n + effects.iter().map(|e| e.get().params.len()).sum::<usize>();
         if theta.len() != want {
             return Err(PyValueError::new_err(format!(
-                "model {}: {} parameter values given, expected {want}",
-                self.name,
+                "{}: {} parameter values given, expected {want}",
+                self.label(),
                 theta.len()
             )));
         }
@@ -486,7 +491,7 @@ impl PyStructure {
         let (params, extras) = self.at(py, enabled, theta)?;
         let matrices = match &self.form {
             Form::Linear(m) => m,
-            Form::Nonlinear(c) => return c.linearize(py, &self.name, &params, &extras),
+            Form::Nonlinear(c) => return c.linearize(py, &self.label(), &params, &extras),
         };
         let out = matrices.call1(py, (params,))?;
         let out = out.bind(py);
@@ -495,14 +500,14 @@ impl PyStructure {
             .and_then(|it| it.collect::<PyResult<Vec<_>>>())
             .map_err(|_| {
                 PyTypeError::new_err(format!(
-                    "model {}: matrices(params) must return (A, B, C, D)",
-                    self.name
+                    "{}: matrices(params) must return (A, B, C, D)",
+                    self.label()
                 ))
             })?;
         if parts.len() != 4 {
             return Err(PyValueError::new_err(format!(
-                "model {}: matrices(params) returned {} items, expected (A, B, C, D)",
-                self.name,
+                "{}: matrices(params) returned {} items, expected (A, B, C, D)",
+                self.label(),
                 parts.len()
             )));
         }
@@ -513,23 +518,23 @@ impl PyStructure {
         for ((key, part), want) in ["A", "B", "C", "D"].iter().zip(parts).zip(shapes) {
             let array = np.call_method1(
                 "atleast_2d",
-                (real_array(&part, &format!("model {}: {key}", self.name))?,),
+                (real_array(&part, &format!("{}: {key}", self.label()))?,),
             )?;
             let array: PyReadonlyArray2<f64> = array.extract().map_err(|_| {
-                PyValueError::new_err(format!("model {}: {key} must be a 2-D array", self.name))
+                PyValueError::new_err(format!("{}: {key} must be a 2-D array", self.label()))
             })?;
             let a = array.as_array();
             if a.dim() != want {
                 return Err(PyValueError::new_err(format!(
-                    "model {}: {key} has shape {:?}, must be {want:?} ({n} states, {m} inputs, {p} outputs)",
-                    self.name,
+                    "{}: {key} has shape {:?}, must be {want:?} ({n} states, {m} inputs, {p} outputs)",
+                    self.label(),
                     a.dim()
                 )));
             }
             if let Some(((r, c), v)) = a.indexed_iter().find(|(_, v)| !v.is_finite()) {
                 return Err(PyValueError::new_err(format!(
-                    "model {}: {key}[{r}, {c}] = {v} at params {theta:?}",
-                    self.name
+                    "{}: {key}[{r}, {c}] = {v} at params {theta:?}",
+                    self.label()
                 )));
             }
             mats.push(nalgebra::DMatrix::from_fn(want.0, want.1, |i, j| a[(i, j)]));
@@ -622,7 +627,7 @@ impl ModelStructure for PyStructure {
             Python::attach(|py| {
                 let (params, extras) = self.at(py, enabled, theta)?;
                 Ok(Box::new(PyDynamics {
-                    model: self.name.clone(),
+                    model: self.label(),
                     callables: Arc::clone(callables),
                     params: params.unbind(),
                     extras,
@@ -641,7 +646,7 @@ impl PyStructure {
         if let Ok(mut slot) = self.error.lock() {
             slot.get_or_insert(err);
         }
-        sim::SimError::invalid(format!("model {}", self.name), "Python callable", message)
+        sim::SimError::invalid(self.label(), "Python callable", message)
     }
 }
 
@@ -744,10 +749,11 @@ impl Model {
         // Without a name the system is read from the logs' topics when the workbench loads them.
         let name = name.unwrap_or_default();
         let name = name.as_str();
+        let this = model_label(name);
         let names = |what: &str, list: &Bound<'_, PyAny>| -> PyResult<Vec<String>> {
             list.extract::<Vec<String>>().map_err(|_| {
                 PyTypeError::new_err(format!(
-                    "model {name}: {what} must be a list of names (str), e.g. [\"x\"]; got {}",
+                    "{this}: {what} must be a list of names (str), e.g. [\"x\"]; got {}",
                     type_name(list)
                 ))
             })
@@ -755,7 +761,7 @@ impl Model {
         let dict = |what: &str, d: &Bound<'py, PyAny>, expected: &str| {
             d.cast::<PyDict>().cloned().map_err(|_| {
                 PyTypeError::new_err(format!(
-                    "model {name}: {what} must be a dict {{name: {expected}}}; got {}",
+                    "{this}: {what} must be a dict {{name: {expected}}}; got {}",
                     type_name(d)
                 ))
             })
@@ -776,7 +782,7 @@ impl Model {
         ] {
             if list.is_empty() {
                 return Err(PyValueError::new_err(format!(
-                    "model {name}: {what} must name at least one"
+                    "{this}: {what} must name at least one"
                 )));
             }
             if let Some((i, n)) = list
@@ -785,7 +791,7 @@ impl Model {
                 .find(|(i, n)| list[..*i].contains(n))
             {
                 return Err(PyValueError::new_err(format!(
-                    "model {name}: {what}[{i}] {n:?} is named twice"
+                    "{this}: {what}[{i}] {n:?} is named twice"
                 )));
             }
         }
@@ -793,12 +799,12 @@ impl Model {
             (Some(m), None, None) => {
                 if !m.bind(py).is_callable() {
                     return Err(PyTypeError::new_err(format!(
-                        "model {name}: matrices must be callable"
+                        "{this}: matrices must be callable"
                     )));
                 }
                 if operating_point.is_some() {
                     return Err(PyValueError::new_err(format!(
-                        "model {name}: operating_point belongs to a nonlinear model (f=, h=)"
+                        "{this}: operating_point belongs to a nonlinear model (f=, h=)"
                     )));
                 }
                 Form::Linear(m)
@@ -807,31 +813,29 @@ impl Model {
                 for (label, c) in [("f", &f), ("h", &h)] {
                     if !c.bind(py).is_callable() {
                         return Err(PyTypeError::new_err(format!(
-                            "model {name}: {label} must be callable"
+                            "{this}: {label} must be callable"
                         )));
                     }
                 }
                 let point = operating_point.ok_or_else(|| {
                     PyValueError::new_err(format!(
-                        "model {name}: a nonlinear model needs operating_point={{name: value}} for every state and input"
+                        "{this}: a nonlinear model needs operating_point={{name: value}} for every state and input"
                     ))
                 })?;
                 let value_of = |n: &String| -> PyResult<f64> {
                     let v = point.get_item(n)?.ok_or_else(|| {
-                        PyValueError::new_err(format!(
-                            "model {name}: operating_point is missing {n:?}"
-                        ))
+                        PyValueError::new_err(format!("{this}: operating_point is missing {n:?}"))
                     })?;
                     let Real(v) = v.extract::<Real<f64>>().map_err(|_| {
                         PyTypeError::new_err(format!(
-                            "model {name}: operating_point[{n:?}] must be a number"
+                            "{this}: operating_point[{n:?}] must be a number"
                         ))
                     })?;
                     if v.is_finite() {
                         Ok(v)
                     } else {
                         Err(PyValueError::new_err(format!(
-                            "model {name}: operating_point[{n:?}] = {v} must be finite"
+                            "{this}: operating_point[{n:?}] = {v} must be finite"
                         )))
                     }
                 };
@@ -839,7 +843,7 @@ impl Model {
                     let key: String = key.extract()?;
                     if !states.contains(&key) && !inputs.contains(&key) {
                         return Err(PyValueError::new_err(format!(
-                            "model {name}: operating_point names {key:?}, which is neither a state nor an input"
+                            "{this}: operating_point names {key:?}, which is neither a state nor an input"
                         )));
                     }
                 }
@@ -853,8 +857,8 @@ impl Model {
             }
             _ => {
                 return Err(PyTypeError::new_err(format!(
-                "model {name}: give matrices= (a linear model) or both f= and h= (a nonlinear one)"
-            )))
+                    "{this}: give matrices= (a linear model) or both f= and h= (a nonlinear one)"
+                )))
             }
         };
         let mut params = Vec::new();
@@ -890,9 +894,7 @@ impl Model {
             .map(|e| e.extract::<Vec<Py<Effect>>>())
             .transpose()
             .map_err(|_| {
-                PyTypeError::new_err(format!(
-                    "model {name}: effects must be a list of stabilis.Effect"
-                ))
+                PyTypeError::new_err(format!("{this}: effects must be a list of stabilis.Effect"))
             })?;
         for e in effects.unwrap_or_default() {
             if !e.get().nonlinear() {
@@ -1622,6 +1624,16 @@ fn user_effect<'py>(
         None,
     )?;
     Bound::new(py, built)
+}
+
+/// How messages name a model: "model <name>", or "model" before it has one (a Python model
+/// without `name=` is named after the logs' topics when a workbench loads them).
+fn model_label(name: &str) -> String {
+    if name.is_empty() {
+        "model".into()
+    } else {
+        format!("model {name}")
+    }
 }
 
 /// The Python type name of `obj` (`str`, `float`), for a type error that says what it got.
