@@ -460,14 +460,12 @@ proptest! {
     }
 }
 
-/// The 4 x 4 symmetric matrix met in a fitted flying-platform model, on which nalgebra's real
-/// Schur iteration (`complex_eigenvalues`) does not converge in 100 000 sweeps, so a discovery
-/// never returned (the complex one does not converge either, until shifted by the matrix's
-/// norm): `lti::eigenvalues` returns, and its values are the symmetric eigenvalues (an
-/// independent decomposition) to 1e-12.
-#[test]
-fn eigenvalues_return_where_the_real_schur_iteration_does_not() {
-    let a = DMatrix::from_column_slice(
+/// The 4 x 4 symmetric matrix met in a fitted flying-platform model: nearly rank one, with a
+/// cluster of eigenvalues at rounding level. nalgebra's real Schur iteration
+/// (`complex_eigenvalues`) does not converge on it in 100 000 sweeps, so a discovery never
+/// returned; the complex one does not converge either until shifted by the matrix's norm.
+fn nearly_rank_one() -> DMatrix<f64> {
+    DMatrix::from_column_slice(
         4,
         4,
         &[
@@ -488,7 +486,14 @@ fn eigenvalues_return_where_the_real_schur_iteration_does_not() {
             0.05310163018813394,
             0.00335038657398492,
         ],
-    );
+    )
+}
+
+#[test]
+/// `lti::eigenvalues` returns, and its values are the symmetric eigenvalues (an independent
+/// decomposition) to 1e-12.
+fn eigenvalues_return_where_the_real_schur_iteration_does_not() {
+    let a = nearly_rank_one();
     assert!(nalgebra::linalg::Schur::try_new(a.clone(), f64::EPSILON, 100_000).is_none());
     let mut got: Vec<f64> = lti::eigenvalues(&a).unwrap().iter().map(|z| z.re).collect();
     let mut want: Vec<f64> = a.symmetric_eigenvalues().iter().copied().collect();
@@ -498,6 +503,33 @@ fn eigenvalues_return_where_the_real_schur_iteration_does_not() {
         assert!((g - w).abs() < 1e-12, "{got:?} against {want:?}");
     }
     assert!((lti::spectral_radius(&a).unwrap() - want[3].abs()).abs() < 1e-12);
+}
+
+#[test]
+fn dlyap_solves_where_the_complex_schur_iteration_does_not() {
+    // Half the nearly rank-one matrix above: its complex Schur iteration does not converge
+    // either, and dlyap had no fallback (lyap's problem on it is singular: its eigenvalues sum
+    // to zero in pairs). Reference: the Kronecker form solved by LU.
+    let a = nearly_rank_one() * 0.5;
+    let complex = a.map(|x| nalgebra::Complex::new(x, 0.0));
+    assert!(complex.try_schur(f64::EPSILON, 100_000).is_none());
+    let q = m(
+        4,
+        4,
+        &[
+            2.0, 0.1, 0.0, 0.3, 0.1, 1.0, 0.2, 0.0, 0.0, 0.2, 1.5, 0.1, 0.3, 0.0, 0.1, 1.0,
+        ],
+    );
+    // A X A' - X + Q = 0: (A ⊗ A - I) vec X = -vec Q.
+    let vec_q = DMatrix::from_column_slice(16, 1, q.as_slice());
+    let kron = a.kronecker(&a) - DMatrix::<f64>::identity(16, 16);
+    let vec_x = kron.lu().solve(&(-vec_q)).unwrap();
+    let want = DMatrix::from_column_slice(4, 4, vec_x.as_slice());
+    let x = lti::dlyap(&a, &q).unwrap();
+    assert!(
+        (&x - &want).norm() < 1e-12 * want.norm(),
+        "{x} against {want}"
+    );
 }
 
 proptest! {
