@@ -185,7 +185,14 @@ pub fn solve(
             None => {
                 let v = r.norm_squared();
                 let estimates = report(params, &held, &theta, &j, v, r.len());
-                let free = held.iter().filter(|h| !**h).count();
+                // A fit that gave up has not held its unseen combinations; they are not
+                // free parameters of its cost either.
+                let unseen = if gave_up {
+                    holds(&j, opts.rank_tolerance).len()
+                } else {
+                    0
+                };
+                let free = held.iter().filter(|h| !**h).count() - unseen;
                 return Ok(FitResult {
                     theta,
                     params: estimates,
@@ -534,5 +541,55 @@ mod tests {
         let mut rest = held[1..].to_vec();
         rest.sort_unstable();
         assert_eq!(rest, [1, 3]);
+    }
+
+    /// `r = y - J theta` with a fixed `J`.
+    struct Linear {
+        j: DMatrix<f64>,
+        y: DVector<f64>,
+    }
+
+    impl LeastSquares for Linear {
+        fn residuals(&self, theta: &[f64]) -> Result<DVector<f64>> {
+            Ok(&self.y - &self.j * DVector::from_column_slice(theta))
+        }
+        fn jacobian(&self, _: &[f64], _: &DVector<f64>) -> Result<DMatrix<f64>> {
+            Ok(-&self.j)
+        }
+    }
+
+    /// A fit that gives up at once counts the parameters the data can see: of three whose
+    /// last two columns differ by 1e-7 (below the rank tolerance after normalising), two.
+    /// The counted number is what the nested test charges the candidate for.
+    #[test]
+    fn a_fit_that_gives_up_counts_an_unseen_combination_once() {
+        let j = DMatrix::from_column_slice(
+            4,
+            3,
+            &[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 1e-7, 0.0],
+        );
+        let criterion = Linear {
+            j,
+            y: DVector::from_column_slice(&[1.0, 1.0, 0.0, 1.0]),
+        };
+        let params: Vec<Parameter> = ["a", "b", "c"]
+            .iter()
+            .map(|n| Parameter::new(*n, 0.0, -10.0, 10.0, ""))
+            .collect();
+        // The smallest reachable cost is 1 (the residual's fourth entry), from 3 at zero.
+        let opts = FitOptions {
+            give_up_above: Some(0.5),
+            ..FitOptions::default()
+        };
+        let r = solve(&criterion, &params, None, &opts).unwrap();
+        assert!(r.gave_up);
+        assert_eq!(r.free, 2);
+        // It stops where the cost cannot fall by half the way to 0.5 (an upper bound of 1).
+        assert!((1.0..3.0).contains(&r.cost), "{}", r.cost);
+        // Without the give-up the fit holds the combination itself and counts the same.
+        let r = solve(&criterion, &params, None, &FitOptions::default()).unwrap();
+        assert!(!r.gave_up);
+        assert_eq!(r.free, 2);
+        assert!((r.cost - 1.0).abs() < 1e-9, "{}", r.cost);
     }
 }

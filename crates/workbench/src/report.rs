@@ -5,7 +5,7 @@ use std::path::Path;
 
 use serde_json::{json, Value};
 
-use super::discover::{CandidateScore, Conclusion, Discovery, Step};
+use super::discover::{CandidateScore, Conclusion, Discovery, Step, Verdict};
 use super::fit::ParamEstimate;
 use super::frf::CMatrix;
 use super::model::Parameter;
@@ -360,6 +360,21 @@ fn time_domain_table(s: &mut String, d: &Discovery, nonlinear: bool) {
                 c.input_correlation.as_ref().map_or(0.0, |(_, v)| *v),
                 c.state_correlation.map_or(0, |(i, _)| i),
                 c.state_correlation.map_or(0.0, |(_, v)| v),
+            );
+        }
+        let coloured: Vec<&str> = r
+            .channels
+            .iter()
+            .filter(|c| c.not_white)
+            .map(|c| c.output.as_str())
+            .collect();
+        if !coloured.is_empty()
+            && matches!(d.conclusion.verdict, Verdict::ExplainedToNoiseLevel { .. })
+        {
+            let _ = writeln!(
+                s,
+                "  (not white in [{}] beside the verdict \"explained\": the disturbances' spectrum is not the one the predictor's noise model assumes. The verdict rests on the correlation with the excitation (or past inputs), which holds whatever the noise model; the standard errors assume white innovations and may be too small)",
+                coloured.join(", ")
             );
         }
         if let Some(c) = &r.coherence {
