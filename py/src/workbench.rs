@@ -1062,6 +1062,7 @@ fn dataset_from_arrays(
 fn check_rate(given: Option<f64>, data_hz: f64) -> PyResult<()> {
     match given {
         Some(fs) if fs.is_nan() || (fs - data_hz).abs() > 1e-6 * data_hz.abs() => {
+            let data_hz = workbench::load::hz(data_hz);
             Err(PyValueError::new_err(format!(
                 "sample_rate_hz={fs} contradicts the data, which were recorded at {data_hz} Hz; \
                  omit sample_rate_hz (it is needed only for data given as arrays) or give {data_hz}"

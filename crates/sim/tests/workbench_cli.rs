@@ -152,8 +152,11 @@ fn missing_channel_is_named_and_no_report_is_left() {
         "--report",
         report.to_str().unwrap(),
     ]);
+    // Read as the default system's logs, which a user of another system may not know.
     assert!(
-        stderr.contains("\"wz\"") && stderr.contains("missing field"),
+        stderr.contains("\"wz\"")
+            && stderr.contains("missing field")
+            && stderr.contains("neither --model nor --system was given"),
         "{stderr}"
     );
     assert!(!report.exists());
@@ -347,7 +350,7 @@ fn cubli_bad_data_is_named_and_no_report_is_left() {
     );
     // Output and input logs of different lengths.
     let short = temp("cubli-short.mcap");
-    let data = sim::systems::cubli::load_cubli(&[source]).unwrap();
+    let data = sim::systems::cubli::load_cubli(std::slice::from_ref(&source)).unwrap();
     let e = &data.experiments[0];
     let mut w = LogWriter::create(&short).unwrap();
     let ti = w.add_topic("/cubli/input", &data.inputs).unwrap();
@@ -372,5 +375,34 @@ fn cubli_bad_data_is_named_and_no_report_is_left() {
     w.finish().unwrap();
     let stderr = run(&short);
     assert!(stderr.contains("/cubli/output"), "{stderr}");
+    // One file of three with its time in milliseconds: the message lists each rate with its
+    // files, the odd one first, rounded (the mean step of a time column is not exact).
+    let rates = temp("cubli-rates");
+    std::fs::create_dir_all(&rates).unwrap();
+    for (name, rows) in [("a", 0), ("b", 1)] {
+        // b one row shorter: the same log twice is refused as such.
+        cubli_csv(&rates.join(format!("{name}.csv")), &source, |_, r| {
+            r.truncate(r.len() - rows)
+        });
+    }
+    cubli_csv(&rates.join("ms.csv"), &source, |_, rows| {
+        for r in rows.iter_mut() {
+            r[0] = (1e3 * r[0].parse::<f64>().unwrap()).to_string();
+        }
+    });
+    let stderr = run(&rates);
+    let fs = data.sample_rate_hz;
+    let (slow, fast) = (
+        format!("{} Hz in {}", fs / 1e3, rates.join("ms.csv").display()),
+        format!(
+            "{fs} Hz in {}, {}",
+            rates.join("a.csv").display(),
+            rates.join("b.csv").display()
+        ),
+    );
+    assert!(
+        stderr.contains(&format!("{slow}; {fast}")) && stderr.contains("other units"),
+        "{stderr}"
+    );
     assert!(!report.exists());
 }

@@ -194,7 +194,7 @@ impl Workbench {
                 "criterion",
                 "time",
                 format!(
-                    "needs a nonlinear model ([nonlinear] in the model file); the {} model is linear: use --criterion frf",
+                    "needs a nonlinear model ([nonlinear] in the model file); the {} model is linear: use the FRF criterion (--criterion frf; criterion=\"frf\" in Python)",
                     model.structure().system()
                 ),
             ));

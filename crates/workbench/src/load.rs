@@ -168,6 +168,41 @@ fn experiment(
     })
 }
 
+/// The sample rate the experiments share; when they do not, an error that lists each rate with
+/// the experiments recorded at it (the largest group last, so a file in other units stands
+/// out first).
+fn one_rate(experiments: &[Experiment], rates: &[f64]) -> Result<f64> {
+    let mut groups: Vec<(f64, Vec<&str>)> = Vec::new();
+    for (e, &fs) in experiments.iter().zip(rates) {
+        match groups
+            .iter_mut()
+            .find(|(r, _)| (r - fs).abs() <= 1e-6 * r.abs())
+        {
+            Some((_, names)) => names.push(&e.name),
+            None => groups.push((fs, vec![&e.name])),
+        }
+    }
+    if groups.len() <= 1 {
+        return Ok(groups.first().map_or(0.0, |g| g.0));
+    }
+    groups.sort_by_key(|(_, names)| names.len());
+    let listed: Vec<String> = groups
+        .iter()
+        .map(|(r, names)| format!("{} Hz in {}", hz(*r), names.join(", ")))
+        .collect();
+    Err(SimError::invalid(
+        "sample rate",
+        listed.join("; "),
+        "all experiments must share one sample rate (is one file's time column in other units?)",
+    ))
+}
+
+/// A rate for a message: ten significant digits, so that 200.00000000000003 (the mean step
+/// of a log's time column) reads 200.
+pub fn hz(v: f64) -> String {
+    format!("{v:.9e}").parse::<f64>().unwrap_or(v).to_string()
+}
+
 /// Loads experiments of `system` with the given channel names from `paths`.
 pub fn load(
     system: &str,
@@ -176,28 +211,18 @@ pub fn load(
     paths: &[PathBuf],
 ) -> Result<Dataset> {
     let files = expand(paths)?;
-    let mut experiments = Vec::with_capacity(files.len());
-    let mut rate: Option<f64> = None;
     // Files are read in parallel: parsing their messages is most of the loading time.
     let jobs: Vec<_> = files
         .iter()
         .map(|file| move || experiment(system, inputs, outputs, file))
         .collect();
-    for (exp, fs) in in_parallel(true, jobs, "reading a log")? {
-        match rate {
-            Some(r0) if (r0 - fs).abs() > 1e-6 * r0 => {
-                return Err(SimError::invalid(
-                    format!("sample rate of {}", exp.name),
-                    fs,
-                    format!("all experiments must share one sample rate; the first has {r0} Hz"),
-                ))
-            }
-            _ => rate = Some(fs),
-        }
-        experiments.push(exp);
-    }
+    let (experiments, rates): (Vec<Experiment>, Vec<f64>) =
+        in_parallel(true, jobs, "reading a log")?
+            .into_iter()
+            .unzip();
+    let rate = one_rate(&experiments, &rates)?;
     let data = Dataset {
-        sample_rate_hz: rate.unwrap_or(0.0),
+        sample_rate_hz: rate,
         inputs: inputs.to_vec(),
         outputs: outputs.to_vec(),
         experiments,

@@ -35,7 +35,7 @@ use serde::{Deserialize, Serialize};
 use super::closed_loop::{controller_rate, growth, run_loop, GROWTH};
 use super::dataset::{Dataset, Experiment, Periodic};
 use super::diagnose::LEVEL;
-use super::kalman::Predictor;
+use super::kalman::{Gain, Predictor};
 use super::model::Model;
 use super::model_file::ModelFile;
 use super::report::fmt_num;
@@ -268,7 +268,7 @@ pub fn prepare(
         .map(|e| (demeaned(&e.u), demeaned(&e.y)))
         .collect();
     let pairs: Vec<(&DMatrix<f64>, &DMatrix<f64>)> = centred.iter().map(|(u, y)| (u, y)).collect();
-    let predictor = Predictor::design(&disc, &pairs)?;
+    let predictor = Predictor::design(&disc, &pairs, Gain::NoiseModel)?;
     let (q, r) = predictor.covariances().ok_or_else(|| {
         SimError::invalid(
             "model",

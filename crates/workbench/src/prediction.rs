@@ -28,7 +28,7 @@ use super::discover::{
 };
 use super::dynamics::Dynamics;
 use super::fit::{solve, FitResult, LeastSquares};
-use super::kalman::{Predictor, BURN_IN};
+use super::kalman::{Gain, Predictor, BURN_IN};
 use super::model::Model;
 use super::residual::{residual_tests, ResidualTests, DEFAULT_LAGS};
 use super::search::{forward_selection, Search};
@@ -428,7 +428,7 @@ impl<'a> PredictionError<'a> {
             .collect();
         let refs: Vec<(&DMatrix<f64>, &DMatrix<f64>)> =
             demeaned.iter().map(|(u, y)| (u, y)).collect();
-        let gain = Predictor::design(&disc, &refs)
+        let gain = Predictor::design(&disc, &refs, Gain::NoiseModel)
             .and_then(|linear| {
                 linear.state_gain().cloned().ok_or_else(|| {
                     SimError::invalid(

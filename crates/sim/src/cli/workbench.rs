@@ -120,7 +120,20 @@ impl Common {
                 &structure.inputs(),
                 &structure.outputs(),
                 &self.data,
-            )?
+            )
+            .map_err(|e| {
+                if self.model.is_some() || self.system != "flying_platform" {
+                    return e;
+                }
+                SimError::invalid(
+                    "data",
+                    self.data[0].display(),
+                    format!(
+                        "{e}; neither --model nor --system was given, so the logs were read as \
+                         the shipped flying platform's: for your own system give --model FILE"
+                    ),
+                )
+            })?
         };
         let choice = match self.estimator {
             EstimatorArg::Auto => EstimatorChoice::Auto,
