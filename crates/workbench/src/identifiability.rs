@@ -38,7 +38,8 @@ pub struct Identifiability {
     /// Groups of parameters of which the outputs see fewer combinations than there are
     /// parameters (each the support of a direction without effect).
     pub unseparated: Vec<Vec<String>>,
-    /// The directions without effect themselves, one per group of `unseparated`.
+    /// The directions without effect themselves, each with the group of `unseparated` it
+    /// moves (a group of five parameters of which the outputs see three combinations has two).
     pub combinations: Vec<Combination>,
     /// The parameters a fit holds at their documented values, in the order it holds them, if
     /// its Jacobian were this one ([`crate::fit::holds`] at the fit's rank tolerance): one per
@@ -128,8 +129,8 @@ pub fn analyse(model: &Model, theta: &[f64]) -> Result<Identifiability> {
                     let group: Vec<String> = weights.iter().map(|(n, _)| n.clone()).collect();
                     if !unseparated.contains(&group) {
                         unseparated.push(group);
-                        combinations.push(Combination { weights });
                     }
+                    combinations.push(Combination { weights });
                 }
             }
         }
@@ -232,5 +233,27 @@ C = [[1, 0, 0, 0], [0, 0, 1, 0]]
         assert!(w[0].1 * w[1].1 < 0.0 && w[1].1 * w[3].1 > 0.0, "{w:?}");
         assert!(w[3].1.abs() < 0.05 && w[3].1.abs() > 0.03, "{w:?}");
         assert_eq!(id.holds, ["m"]);
+
+        // A wheel inertia seen only through `Mx + Iw/r^2` (r measured) adds a second unseen
+        // combination of the same five parameters: both are reported (one was), and a fit
+        // holds two.
+        let text = text
+            .replace(
+                "r = { value = 0.05, min = 0.01, max = 0.5 }",
+                "Iw = { value = 0.002, min = 0.0, max = 0.1 }\nr = { value = 0.05, fixed = true }",
+            )
+            .replace("a = \"Mx + m\"", "a = \"Mx + Iw/r^2 + m\"");
+        let file = ModelFile::parse(&text, Path::new("segway.toml")).unwrap();
+        let model = Model::new(Arc::new(file));
+        let id = analyse(&model, &model.documented().unwrap()).unwrap();
+        assert_eq!(id.combinations.len(), 2, "{id:?}");
+        assert_eq!(id.holds.len(), 2, "{id:?}");
+        for c in &id.combinations {
+            let group: Vec<&String> = c.weights.iter().map(|(n, _)| n).collect();
+            assert!(id
+                .unseparated
+                .iter()
+                .any(|g| g.iter().eq(group.iter().copied())));
+        }
     }
 }

@@ -140,17 +140,29 @@ impl CheckArgs {
                 id.no_effect.join(", ")
             ));
         }
-        for (g, c) in id.unseparated.iter().zip(&id.combinations) {
-            let weights: Vec<String> = c
-                .weights
+        for g in &id.unseparated {
+            let unseen: Vec<String> = id
+                .combinations
                 .iter()
-                .map(|(n, w)| format!("{n} {w:+.3}"))
+                .filter(|c| c.weights.iter().map(|(n, _)| n).eq(g.iter()))
+                .map(|c| {
+                    let weights: Vec<String> = c
+                        .weights
+                        .iter()
+                        .map(|(n, w)| format!("{n} {w:+.3}"))
+                        .collect();
+                    weights.join(", ")
+                })
                 .collect();
+            let which = match unseen.len() {
+                1 => "the unseen one".to_string(),
+                k => format!("{k} unseen ones"),
+            };
             human.push_str(&format!(
                 "the outputs cannot separate {}: only combinations of them are identifiable \
-                 (the unseen one, on unit-norm Jacobian columns: {})\n",
+                 ({which}, on unit-norm Jacobian columns: {})\n",
                 g.join(", "),
-                weights.join(", ")
+                unseen.join("; ")
             ));
         }
         let held: Vec<&str> = id
