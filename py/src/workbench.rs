@@ -1040,7 +1040,9 @@ fn dataset_from_arrays(
         let r = get("r", m)?;
         let periodic = r.as_ref().and_then(detect_period);
         out.push(Experiment {
-            name: format!("experiment {}", i + 1),
+            // As the messages above name it, so that a row in a later message (0-based)
+            // reads as numpy indexes it.
+            name: format!("data[{i}]"),
             u,
             y,
             r,

@@ -162,6 +162,12 @@ def test_errors_name_the_problem_and_user_exceptions_pass_through():
     renamed = {"u": e["u"], "y": e["y"], "excitation": e["r"]}
     with pytest.raises(ValueError, match="data\\[0\\] has the key 'excitation'; an experiment holds"):
         stabilis.Workbench(model=model(), data=[renamed], sample_rate_hz=FS)
+    # Arrays are named as numpy indexes them: data[1], row 100 (0-based both).
+    two = experiments(plant(42.0, 2.4, 31.0), seeds=(1, 2))
+    two[1]["y"] = np.array(two[1]["y"], dtype=float)
+    two[1]["y"][100] = np.nan
+    with pytest.raises(Exception, match=r"output of data\[1\], sample 100 is not a finite number"):
+        stabilis.Workbench(model=model(), data=two, sample_rate_hz=FS)
 
 
 def test_a_model_undefined_beside_its_start_is_refused_not_fitted():
