@@ -395,5 +395,16 @@ fn clean_closed_loop_without_excitation_finds_nothing() {
             why.contains("biased under feedback") && why.contains("/flying_platform/excitation"),
             "{why}"
         );
+        // The tentative sentence names the bias, so the verdict does not repeat it; with
+        // nothing added (compare) the verdict itself names it (it did not: a misfit read as
+        // one no candidate explains).
+        assert!(!d.conclusion.verdict_sentence().contains("; but"));
+        let verdict = wb.compared().unwrap().conclusion.verdict_sentence();
+        assert!(
+            verdict.contains("; but the FRF estimator is")
+                && verdict.contains("biased under feedback")
+                && verdict.contains("/flying_platform/excitation"),
+            "{verdict}"
+        );
     }
 }

@@ -494,6 +494,11 @@ pub struct Conclusion {
     /// less than noise alone varies it, one sentence each ([`Conclusion::with_near_misses`]):
     /// with a misfit left, they are what to try first.
     pub near_misses: Vec<String>,
+    /// What qualifies the verdict itself, whatever was added: the estimate it rests on is
+    /// biased under feedback, indistinguishable from zero, or distorted
+    /// ([`Conclusion::with_warnings`]). The verdict's sentence ends with them when no effect
+    /// is tentative (a tentative one already names them).
+    pub warnings: Vec<String>,
     /// What the verdict's p-value tested, as "for ..." ([`Conclusion::with_test`]).
     #[serde(skip)]
     pub test: &'static str,
@@ -527,8 +532,14 @@ impl Conclusion {
             level,
             candidates: Candidates::Tried,
             near_misses: Vec::new(),
+            warnings: Vec::new(),
             test: COST_TEST,
         }
+    }
+
+    /// The same conclusion with what qualifies its verdict (see [`Conclusion::warnings`]).
+    pub fn with_warnings(self, warnings: Vec<String>) -> Self {
+        Self { warnings, ..self }
     }
 
     /// The same conclusion for a verdict whose p-value is that of `test` (by default the FRF
@@ -572,7 +583,7 @@ impl Conclusion {
     /// The verdict's sentence, with the closing words the candidates allow.
     pub fn verdict_sentence(&self) -> String {
         let sentence = self.verdict.sentence_of(self.candidates, self.test);
-        match &self.verdict {
+        let sentence = match &self.verdict {
             Verdict::UnexplainedStructuredMisfit { .. } if !self.near_misses.is_empty() => {
                 format!(
                     "{sentence} beyond the noise: {}",
@@ -580,7 +591,11 @@ impl Conclusion {
                 )
             }
             _ => sentence,
+        };
+        if self.warnings.is_empty() || !self.tentative.is_empty() {
+            return sentence;
         }
+        format!("{sentence}; but {}", self.warnings.join("; "))
     }
 
     /// A sentence naming the tentative effects and why; `None` when there are none.
@@ -936,7 +951,8 @@ impl Workbench {
         Discovery {
             steps: vec![step],
             conclusion: Conclusion::settle(Vec::new(), Vec::new(), unexplained, verdict, LEVEL)
-                .with_candidates(Candidates::of(&self.model, false)),
+                .with_candidates(Candidates::of(&self.model, false))
+                .with_warnings(self.data_caveats()),
             weighting,
         }
     }
@@ -947,6 +963,17 @@ impl Workbench {
     /// drag), and a structured misfit left by the final model (the F tests assumed the rest
     /// was noise; an effect may be absorbing part of that misfit), as for the Cubli.
     fn caveats(&self, verdict: &Verdict) -> Vec<String> {
+        let mut why = self.data_caveats();
+        if matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. }) {
+            why.push(MISFIT_CAVEAT.to_string());
+        }
+        why
+    }
+
+    /// The caveats that concern the estimate every verdict rests on, whatever was added: an
+    /// estimator biased under feedback, a response indistinguishable from zero, nonlinear
+    /// distortion within the band.
+    fn data_caveats(&self) -> Vec<String> {
         let mut why = Vec::new();
         if self.frf.estimator.biased_under_feedback() && !self.data.is_open_loop() {
             let fix = if self.data.has_excitation() {
@@ -969,9 +996,6 @@ impl Workbench {
                 self.frf.lines.first().map_or(0.0, |l| l.freq_hz),
                 self.frf.lines.last().map_or(0.0, |l| l.freq_hz),
             ));
-        }
-        if matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. }) {
-            why.push(MISFIT_CAVEAT.to_string());
         }
         // The FRF criterion compares a linear(ized) model with the excited lines, where
         // distortion adds to the error but not to the noise reference.
@@ -1128,7 +1152,8 @@ impl Workbench {
         let unexplained = matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. });
         let conclusion = Conclusion::settle(found, caveats, unexplained, verdict, LEVEL)
             .with_candidates(Candidates::of(&self.model, true))
-            .with_near_misses(&last.candidates);
+            .with_near_misses(&last.candidates)
+            .with_warnings(self.data_caveats());
         let weighting = self.weighting_sentence(&last.effects);
         Ok(Discovery {
             steps,

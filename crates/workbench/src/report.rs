@@ -546,7 +546,7 @@ fn candidates_json(candidates: &[CandidateScore]) -> Value {
 
 /// The JSON document's fields every criterion writes: the system, the steps and the
 /// conclusion (`found`, `tentative`, `tentative_why`, `unexplained`, `verdict`,
-/// `verdict_text`, `near_misses`, `level`).
+/// `verdict_text`, `near_misses`, `warnings`, `level`).
 pub fn conclusion_fields(
     system: &str,
     steps: Vec<Value>,
@@ -563,6 +563,7 @@ pub fn conclusion_fields(
         ("verdict", json!(c.verdict)),
         ("verdict_text", json!(c.verdict_sentence())),
         ("near_misses", json!(c.near_misses)),
+        ("warnings", json!(c.warnings)),
         ("level", json!(c.level)),
     ] {
         m.insert(k.to_string(), v);
