@@ -36,6 +36,9 @@ pub struct Expr {
 pub struct ExprError {
     /// What is wrong.
     pub reason: String,
+    /// The name not among the symbols, when that is what is wrong (the caller lists the
+    /// names the place may read).
+    pub unknown: Option<String>,
 }
 
 impl Expr {
@@ -45,6 +48,7 @@ impl Expr {
         check_functions(text)?;
         let rewritten = conventional_minus(&plain_numbers(text));
         let flat = exmex::parse::<f64>(&rewritten).map_err(|e| ExprError {
+            unknown: None,
             reason: format!("syntax error in {text:?}: {}", e.msg()),
         })?;
         let mut slots = Vec::with_capacity(flat.var_names().len());
@@ -55,10 +59,8 @@ impl Expr {
                     let at = position_of(text, name)
                         .map_or(String::new(), |c| format!(" at position {c}"));
                     return Err(ExprError {
-                        reason: format!(
-                            "unknown name {name:?}{at} in {text:?}; known names: {}",
-                            symbols.join(", ")
-                        ),
+                        reason: format!("unknown name {name:?}{at} in {text:?}"),
+                        unknown: Some(name.to_string()),
                     });
                 }
             }
@@ -114,6 +116,7 @@ impl Expr {
             self.flat.eval(&vars)
         };
         result.map_err(|e| ExprError {
+            unknown: None,
             reason: format!("cannot evaluate {:?}: {}", self.text, e.msg()),
         })
     }
@@ -125,6 +128,7 @@ impl Expr {
             return Ok(Derivative::Zero);
         };
         let flat = self.flat.clone().partial(var).map_err(|e| ExprError {
+            unknown: None,
             reason: format!("cannot differentiate {:?}: {}", self.text, e.msg()),
         })?;
         // The derivative reads a subset of the variables, in exmex's sorted order again.
@@ -140,6 +144,7 @@ impl Expr {
             })
             .collect::<Option<Vec<usize>>>()
             .ok_or_else(|| ExprError {
+                unknown: None,
                 reason: format!("derivative of {:?} reads an unknown name", self.text),
             })?;
         Ok(Derivative::Expr(Box::new(Self {
@@ -241,6 +246,7 @@ fn check_characters(text: &str) -> Result<(), ExprError> {
                 depth -= 1;
                 if depth < 0 {
                     return Err(ExprError {
+                        unknown: None,
                         reason: format!("unmatched ')' at position {col} in {text:?}"),
                     });
                 }
@@ -248,6 +254,7 @@ fn check_characters(text: &str) -> Result<(), ExprError> {
             c if c.is_ascii_alphanumeric() || c.is_whitespace() || "_.+-*/^,".contains(c) => {}
             c => {
                 return Err(ExprError {
+                    unknown: None,
                     reason: format!("unexpected character {c:?} at position {col} in {text:?}"),
                 })
             }
@@ -255,11 +262,13 @@ fn check_characters(text: &str) -> Result<(), ExprError> {
     }
     if depth > 0 {
         return Err(ExprError {
+            unknown: None,
             reason: format!("unclosed '(' in {text:?}"),
         });
     }
     if text.trim().is_empty() {
         return Err(ExprError {
+            unknown: None,
             reason: "empty expression".into(),
         });
     }
@@ -293,6 +302,7 @@ fn check_functions(text: &str) -> Result<(), ExprError> {
         let next = chars[end..].iter().find(|c| !c.is_whitespace());
         if next == Some(&'(') && !FUNCTIONS.contains(&name.as_str()) {
             return Err(ExprError {
+                unknown: None,
                 reason: format!(
                     "unknown function {name:?} at position {} in {text:?}; functions: {}",
                     i + 1,

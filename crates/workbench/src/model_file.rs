@@ -279,7 +279,22 @@ impl Reader<'_> {
         let text = v
             .as_str()
             .ok_or_else(|| self.err(key, "must be a number or an expression string"))?;
-        let e = Expr::parse(text, symbols).map_err(|e| self.err(key, e.reason))?;
+        let e = Expr::parse(text, symbols).map_err(|e| match e.unknown {
+            // Only the names this place may read: a [linear] entry lists no state.
+            Some(_) => {
+                let here: Vec<&str> = symbols
+                    .iter()
+                    .zip(visible)
+                    .filter(|(_, v)| **v)
+                    .map(|(s, _)| s.as_str())
+                    .collect();
+                self.err(
+                    key,
+                    format!("{}; names here: {}", e.reason, here.join(", ")),
+                )
+            }
+            None => self.err(key, e.reason),
+        })?;
         if let Some(&slot) = e.reads().iter().find(|&&s| !visible[s]) {
             return Err(self.err(
                 key,
@@ -1231,7 +1246,13 @@ A = { "omega,omega" = "-b/Jp" }        # added terms, keyed "row,column" by stat
         let cases = [
             (
                 PENDULUM.replace("\"m*g*l/Jp\"", "\"m*g*l/Jq\""),
-                vec!["pendulum.toml", "linear.A[1][0]", "\"Jq\" at position 7"],
+                // Only the names the entry may read: no state, input or effect parameter.
+                vec![
+                    "pendulum.toml",
+                    "linear.A[1][0]",
+                    "\"Jq\" at position 7",
+                    "names here: m, l, J, g, Jp",
+                ],
             ),
             (
                 PENDULUM.replace(
