@@ -373,7 +373,7 @@ fn time_domain_table(s: &mut String, d: &Discovery, nonlinear: bool) {
         {
             let _ = writeln!(
                 s,
-                "  (not white in [{}] beside the verdict \"explained\": the disturbances' spectrum is not the one the predictor's noise model assumes. The verdict rests on the correlation with the excitation (or past inputs), which holds whatever the noise model; the standard errors assume white innovations and may be too small)",
+                "  (not white in [{}] beside the verdict \"explained\": the disturbances' spectrum is not the one the predictor's noise model assumes. The verdict rests on the correlation with the excitation (or past inputs), which a right model passes whatever the noise model; but in closed loop a noise model that does not fit biases the fitted parameters a little, and the standard errors assume white innovations and may be too small)",
                 coloured.join(", ")
             );
         }
