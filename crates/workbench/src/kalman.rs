@@ -252,7 +252,7 @@ impl Predictor {
         let (f, gain) = best.1.unwrap_or((f, first.gain));
         let gain = match gain_choice {
             Gain::NoiseModel => gain,
-            Gain::Refined => Self::refine(disc, gain, &r, &f, &search),
+            Gain::Refined => Self::refine(disc, gain, &search),
         };
         let covariances = whole_state.then(|| {
             (
@@ -312,27 +312,7 @@ impl Predictor {
         let q = qu * f.input + qx * f.state;
         let rm = DMatrix::from_fn(p, p, |i, j| if i == j { r[i] * f.sensor[i] } else { 0.0 });
         let k = gain(disc, &q, &rm)?;
-        let candidate = Self {
-            disc: disc.clone(),
-            gain: k,
-            covariances: None,
-            state_gain: None,
-            noise: Self::estimate(r, f, 0.0),
-        };
-        let mut s = DMatrix::zeros(p, p);
-        let mut samples = 0usize;
-        for (u, y) in records {
-            let (e, _) = candidate.run(u, y);
-            let from = BURN_IN.min(e.nrows() / 2);
-            let e = e.rows(from, e.nrows() - from);
-            s += e.transpose() * e;
-            samples += e.nrows();
-        }
-        let s = s / samples.max(1) as f64;
-        let logdet = s
-            .cholesky()
-            .map(|c| 2.0 * c.l().diagonal().iter().map(|d| d.ln()).sum::<f64>())
-            .unwrap_or(f64::INFINITY);
+        let logdet = log_det(&Self::with_gain(disc, &k).innovations(records));
         if !logdet.is_finite() {
             return Err(SimError::invalid(
                 "Kalman predictor",
@@ -340,7 +320,44 @@ impl Predictor {
                 "is singular",
             ));
         }
-        Ok((logdet, candidate.gain))
+        Ok((logdet, k))
+    }
+
+    /// A predictor of `disc` with the gain `k` and nothing estimated: what the searches run.
+    fn with_gain(disc: &Discrete, k: &DMatrix<f64>) -> Self {
+        Self {
+            disc: disc.clone(),
+            gain: k.clone(),
+            covariances: None,
+            state_gain: None,
+            noise: NoiseEstimate {
+                sensor_variance: Vec::new(),
+                process_ratio: 0.0,
+                state_ratio: 0.0,
+                predictor_spectral_radius: 0.0,
+            },
+        }
+    }
+
+    /// The innovations on `records`, each record's first [`BURN_IN`] samples left out (the
+    /// predictor starts from the zero state), stacked (samples x outputs).
+    fn innovations(&self, records: &[(DMatrix<f64>, DMatrix<f64>)]) -> DMatrix<f64> {
+        let parts: Vec<DMatrix<f64>> = records
+            .iter()
+            .map(|(u, y)| {
+                let (e, _) = self.run(u, y);
+                let from = BURN_IN.min(e.nrows() / 2);
+                e.rows(from, e.nrows() - from).into_owned()
+            })
+            .collect();
+        let rows = parts.iter().map(|e| e.nrows()).sum();
+        let mut all = DMatrix::zeros(rows, self.disc.c.nrows());
+        let mut at = 0;
+        for e in parts {
+            all.rows_mut(at, e.nrows()).copy_from(&e);
+            at += e.nrows();
+        }
+        all
     }
 
     /// The gain that minimises the log-determinant of the innovation covariance over all
@@ -353,43 +370,9 @@ impl Predictor {
     fn refine(
         disc: &Discrete,
         k0: DMatrix<f64>,
-        r: &[f64],
-        f: &Factors,
         records: &[(DMatrix<f64>, DMatrix<f64>)],
     ) -> DMatrix<f64> {
-        let p = disc.c.nrows();
-        let innovations = |k: &DMatrix<f64>| -> DMatrix<f64> {
-            let candidate = Self {
-                disc: disc.clone(),
-                gain: k.clone(),
-                covariances: None,
-                state_gain: None,
-                noise: Self::estimate(r, f, 0.0),
-            };
-            let parts: Vec<DMatrix<f64>> = records
-                .iter()
-                .map(|(u, y)| {
-                    let (e, _) = candidate.run(u, y);
-                    let from = BURN_IN.min(e.nrows() / 2);
-                    e.rows(from, e.nrows() - from).into_owned()
-                })
-                .collect();
-            let rows = parts.iter().map(|e| e.nrows()).sum();
-            let mut all = DMatrix::zeros(rows, p);
-            let mut at = 0;
-            for e in parts {
-                all.rows_mut(at, e.nrows()).copy_from(&e);
-                at += e.nrows();
-            }
-            all
-        };
-        let log_det = |e: &DMatrix<f64>| -> f64 {
-            let s = e.transpose() * e / e.nrows().max(1) as f64;
-            s.cholesky()
-                .map(|c| 2.0 * c.l().diagonal().iter().map(|d| d.ln()).sum::<f64>())
-                .filter(|v| v.is_finite())
-                .unwrap_or(f64::INFINITY)
-        };
+        let innovations = |k: &DMatrix<f64>| Self::with_gain(disc, k).innovations(records);
         let stable =
             |k: &DMatrix<f64>| spectral_radius(&(&disc.phi - k * &disc.c)).is_ok_and(|r| r < 1.0);
         let mut k = k0;
@@ -490,6 +473,15 @@ impl Predictor {
         out.rows_mut(0, invalid).fill(0.0);
         out
     }
+}
+
+/// Log-determinant of the sample covariance of `e` (samples x outputs); infinite when singular.
+fn log_det(e: &DMatrix<f64>) -> f64 {
+    let s = e.transpose() * e / e.nrows().max(1) as f64;
+    s.cholesky()
+        .map(|c| 2.0 * c.l().diagonal().iter().map(|d| d.ln()).sum::<f64>())
+        .filter(|v| v.is_finite())
+        .unwrap_or(f64::INFINITY)
 }
 
 /// Relative singular value below which a direction of the observability matrix counts as
