@@ -323,7 +323,7 @@ impl EffectTrait for PyEffect {
 #[derive(Debug)]
 struct PyStructure {
     name: String,
-    states: usize,
+    states: Vec<String>,
     inputs: Vec<String>,
     outputs: Vec<String>,
     params: Vec<Parameter>,
@@ -355,7 +355,7 @@ impl PyStructure {
     fn named(&self, py: Python<'_>, name: String) -> Self {
         Self {
             name,
-            states: self.states,
+            states: self.states.clone(),
             inputs: self.inputs.clone(),
             outputs: self.outputs.clone(),
             params: self.params.clone(),
@@ -512,7 +512,7 @@ impl PyStructure {
             )));
         }
         let np = py.import("numpy")?;
-        let (n, m, p) = (self.states, self.inputs.len(), self.outputs.len());
+        let (n, m, p) = (self.states.len(), self.inputs.len(), self.outputs.len());
         let shapes = [(n, n), (n, m), (p, n), (p, m)];
         let mut mats = Vec::with_capacity(4);
         for ((key, part), want) in ["A", "B", "C", "D"].iter().zip(parts).zip(shapes) {
@@ -564,6 +564,10 @@ impl ModelStructure for PyStructure {
 
     fn outputs(&self) -> Vec<String> {
         self.outputs.clone()
+    }
+
+    fn state_names(&self) -> Vec<String> {
+        self.states.clone()
     }
 
     fn effects(&self) -> Vec<String> {
@@ -876,7 +880,7 @@ impl Model {
         let error = Arc::new(Mutex::new(None));
         let structure = PyStructure {
             name: name.to_string(),
-            states: states.len(),
+            states: states.clone(),
             inputs,
             outputs,
             params,

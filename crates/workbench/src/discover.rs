@@ -8,7 +8,7 @@ use super::cost::WeightedCost;
 use super::diagnose::{diagnose, matched_sf, Diagnosis, LEVEL};
 use super::fit::{fit, FitResult, ParamEstimate};
 use super::frf::Estimator;
-use super::model::Model;
+use super::model::{Drift, Model};
 use super::residual::{residual_tests, ResidualTests, DEFAULT_LAGS};
 use super::search::{forward_selection, Search};
 use super::stats::{chi2_sf, f_sf};
@@ -944,17 +944,18 @@ impl Workbench {
 
     /// A one-step record of a fitted model (for `compare` and `fit`): no candidate tried, the
     /// verdict on the remaining cost.
-    pub fn record(&self, step: Step) -> Discovery {
+    pub fn record(&self, step: Step) -> Result<Discovery> {
         let verdict = self.verdict(&step);
         let weighting = self.weighting_sentence(&step.effects);
         let unexplained = matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. });
-        Discovery {
+        let warnings = self.warnings(&self.model)?;
+        Ok(Discovery {
             steps: vec![step],
             conclusion: Conclusion::settle(Vec::new(), Vec::new(), unexplained, verdict, LEVEL)
                 .with_candidates(Candidates::of(&self.model, false))
-                .with_warnings(self.data_caveats()),
+                .with_warnings(warnings),
             weighting,
-        }
+        })
     }
 
     /// Reasons not to confirm the effects a discovery added: an FRF estimator biased under
@@ -968,6 +969,22 @@ impl Workbench {
             why.push(MISFIT_CAVEAT.to_string());
         }
         why
+    }
+
+    /// What qualifies a verdict on `model`: the [data caveats](Self::data_caveats), and an
+    /// operating point that is not an equilibrium at the documented values (the FRF criterion
+    /// compares the linearization there). The documented values, not the fitted ones: a fit
+    /// biased by a missing effect unbalances a point the user gave right.
+    fn warnings(&self, model: &Model) -> Result<Vec<String>> {
+        let mut why = self.data_caveats();
+        let drift = model.drift(&model.documented()?)?;
+        if !drift.is_empty() {
+            why.push(format!(
+                "the operating point is not an equilibrium at the documented values ({}): the FRF criterion compares the linearization there, which is not where the loop runs, and the fitted parameters absorb the difference; give the operating point the loop holds (inputs that balance the model)",
+                Drift::describe(&drift)
+            ));
+        }
+        Ok(why)
     }
 
     /// The caveats that concern the estimate every verdict rests on, whatever was added: an
@@ -1137,6 +1154,10 @@ impl Workbench {
         let (mut done, found) = forward_selection(&FrfSearch(self), start, progress)?;
         self.common_weighting(&mut done)?;
         let smoothing = self.smoothing_caveat(done.last())?;
+        let warnings = match done.last() {
+            Some(f) => self.warnings(&f.model)?,
+            None => self.data_caveats(),
+        };
         let steps = self.records(done)?;
         let last = steps
             .last()
@@ -1153,7 +1174,7 @@ impl Workbench {
         let conclusion = Conclusion::settle(found, caveats, unexplained, verdict, LEVEL)
             .with_candidates(Candidates::of(&self.model, true))
             .with_near_misses(&last.candidates)
-            .with_warnings(self.data_caveats());
+            .with_warnings(warnings);
         let weighting = self.weighting_sentence(&last.effects);
         Ok(Discovery {
             steps,

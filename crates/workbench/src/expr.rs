@@ -129,7 +129,14 @@ impl Expr {
         };
         let flat = self.flat.clone().partial(var).map_err(|e| ExprError {
             unknown: None,
-            reason: format!("cannot differentiate {:?}: {}", self.text, e.msg()),
+            reason: format!(
+                "cannot differentiate {:?}: {}; the model is linearized at its operating \
+                 point, and abs, signum, min, max, floor, ceil, round, trunc and fract have no \
+                 derivative here: write a smooth form, e.g. sqrt(v^2 + eps^2) for abs(v), \
+                 tanh(v/eps) for signum(v)",
+                self.text,
+                e.msg()
+            ),
         })?;
         // The derivative reads a subset of the variables, in exmex's sorted order again.
         let slots = flat

@@ -201,9 +201,11 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
     let ne = data.experiments.len();
     if ne < nu {
         return Err(SimError::invalid(
-            "experiments",
+            "number of periodic experiments",
             ne,
-            format!("a multi-experiment FRF of {nu} inputs needs at least {nu} experiments"),
+            format!(
+                "a multi-experiment FRF of {nu} inputs needs at least {nu} experiments: at each line one periodic record gives one input direction, so give one record per input (each exciting another input, or the same lines with other phases), or records whose excitation is not periodic (Welch)"
+            ),
         ));
     }
     let dft = Dft::new(n);
@@ -403,6 +405,53 @@ pub(crate) fn uses_instrumental_variable(data: &Dataset, choice: EstimatorChoice
             Ok(true)
         }
     }
+}
+
+/// Refuses data that leave an input unexcited in every experiment, naming it: an input that
+/// never moves, or under the instrumental variable an excitation that never does, makes every
+/// line's stacking matrix singular, which the estimate could only report as a condition
+/// number at its first line.
+pub(crate) fn check_excited(data: &Dataset, instrumental: bool) -> Result<()> {
+    let moves = |m: &DMatrix<f64>, j: usize| {
+        let c = m.column(j);
+        let (lo, hi) = (c.min(), c.max());
+        hi - lo > 1e-12 * lo.abs().max(hi.abs()) && hi > lo
+    };
+    let files = || {
+        let names: Vec<&str> = data.experiments.iter().map(|e| e.name.as_str()).collect();
+        match names.len() {
+            0..=3 => names.join(", "),
+            k => format!("{}, ... ({k} in all)", names[..2].join(", ")),
+        }
+    };
+    for (j, name) in data.inputs.iter().enumerate() {
+        if !data.experiments.iter().any(|e| moves(&e.u, j)) {
+            return Err(SimError::invalid(
+                format!("input {name}"),
+                "constant in every experiment",
+                format!(
+                    "nothing excites it ({}), so its responses cannot be estimated; excite it in some experiment, or make it a parameter of the model instead of an input",
+                    files()
+                ),
+            ));
+        }
+        if instrumental
+            && !data
+                .experiments
+                .iter()
+                .any(|e| e.r.as_ref().is_some_and(|r| moves(r, j)))
+        {
+            return Err(SimError::invalid(
+                format!("excitation of input {name}"),
+                "constant in every experiment",
+                format!(
+                    "the instrumental-variable estimate needs every input's logged excitation to move in some experiment ({}); excite {name}, or use the least-squares estimate (--estimator ls, estimator=\"ls\" in Python), biased in closed loop",
+                    files()
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Pooled per-period noise covariance of `y - G u` at one line from the whole record's bins

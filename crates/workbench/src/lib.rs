@@ -54,7 +54,7 @@ pub use dataset::{Dataset, Experiment, Periodic};
 pub use discover::{CandidateScore, Discovery, Step, Verdict};
 pub use fit::{FitOptions, FitResult, ParamEstimate};
 pub use frf::{Estimator, EstimatorChoice, FrfEstimate};
-pub use model::{Effect, Model, ModelStructure, Parameter, StateSpace};
+pub use model::{Drift, Effect, Model, ModelStructure, Parameter, StateSpace};
 pub use model_file::{Controller, ModelFile};
 pub use prediction::Criterion;
 
@@ -147,6 +147,7 @@ impl Workbench {
                 ));
             }
         }
+        frf::check_excited(&data, frf::uses_instrumental_variable(&data, estimator)?)?;
         let (frf, noise) = if data.is_periodic() {
             let mut frf = frf::periodic_frf(&data, estimator)?;
             if let Some((lo, hi)) = options.band_hz {
@@ -279,7 +280,7 @@ impl Workbench {
     /// misfit verdict says so rather than that none explains it.
     pub fn compared(&self) -> Result<Discovery> {
         let mut d = match self.criterion {
-            Criterion::Frf => self.record(self.compare()?),
+            Criterion::Frf => self.record(self.compare()?)?,
             Criterion::Time => self.compare_time()?,
         };
         d.conclusion = d

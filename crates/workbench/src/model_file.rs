@@ -1097,6 +1097,10 @@ impl ModelStructure for ModelFile {
         &self.name
     }
 
+    fn state_names(&self) -> Vec<String> {
+        self.states.clone()
+    }
+
     fn inputs(&self) -> Vec<String> {
         self.inputs.clone()
     }

@@ -29,7 +29,7 @@ use super::discover::{
 use super::dynamics::Dynamics;
 use super::fit::{solve, FitResult, LeastSquares};
 use super::kalman::{Gain, Predictor, BURN_IN};
-use super::model::Model;
+use super::model::{Drift, Model};
 use super::residual::{residual_tests, ResidualTests, DEFAULT_LAGS};
 use super::search::{forward_selection, Search};
 use super::timedomain::{fit_percent, time_fit, DEFAULT_HORIZON, DEFAULT_WINDOW};
@@ -1042,25 +1042,15 @@ impl Search for TimeSearch<'_> {
 }
 
 /// Why a linearization may have lost what the predictor needs: the operating point is no
-/// equilibrium, `f(x0, u0) != 0` (a hover given at zero thrust linearizes to a body the
+/// equilibrium ([`Model::drift`]; a hover given at zero thrust linearizes to a body the
 /// thrust no longer tilts, and the design's error named only an unobservable mode). `None`
-/// at an equilibrium (to 1e-6 of the state's scale) or for a linear model.
+/// at an equilibrium or for a linear model.
 fn off_equilibrium(model: &Model, theta: &[f64]) -> Option<String> {
-    let dynamics = model.dynamics(theta).ok()?;
-    let (x, u) = dynamics.operating_point();
-    let mut dx = vec![0.0; x.len()];
-    dynamics.f(&x, &u, &mut dx, &mut Vec::new()).ok()?;
-    let off: Vec<String> = dx
-        .iter()
-        .zip(&x)
-        .enumerate()
-        .filter(|(_, (d, x))| d.abs() > 1e-6 * (1.0 + x.abs()) || d.is_nan())
-        .map(|(i, (d, _))| format!("f(x0, u0)[{i}] = {d:.4e}"))
-        .collect();
-    (!off.is_empty()).then(|| {
+    let drift = model.drift(theta).ok()?;
+    (!drift.is_empty()).then(|| {
         format!(
             "the operating point is not an equilibrium ({}), so the linearization there may not be the loop's: give the state and inputs where f is zero",
-            off.join(", ")
+            Drift::describe(&drift)
         )
     })
 }

@@ -13,7 +13,7 @@ use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
 use workbench::discover::Candidates;
 use workbench::{
-    Criterion, DataOptions, Dataset, EstimatorChoice, Experiment, ModelFile, ModelStructure,
+    Criterion, DataOptions, Dataset, EstimatorChoice, Experiment, Model, ModelFile, ModelStructure,
     Workbench,
 };
 
@@ -217,6 +217,27 @@ fn bad_nonlinear_files_are_refused_by_name() {
         (
             PENDULUM.replace("add.torque = \"-b*omega\"", "add.tork = \"-b*omega\""),
             vec!["effects.viscous.add.tork", "not a definition"],
+        ),
+        (
+            PENDULUM.replace(
+                "f.theta = \"omega\"\nf.omega = \"k*sin(theta) + c*torque\"",
+                "f = [\"omega\", \"k*sin(theta) + c*torque\"]",
+            ),
+            vec!["nonlinear.f", "not a table (given: array)", "f.theta = "],
+        ),
+        // A term an effect adds is named itself when its derivative is not finite, not the
+        // expression it adds to nor the state it spoils through the chain rule.
+        (
+            PENDULUM.replace("\"-b*omega\"", "\"-b*sqrt(omega)\""),
+            vec!["effects.viscous.add.torque: its derivative by omega is -inf"],
+        ),
+        (
+            PENDULUM.replace("k*sin(theta)", "k*sin(theta) - abs(omega)"),
+            vec![
+                "nonlinear.f.omega",
+                "cannot differentiate",
+                "sqrt(v^2 + eps^2) for abs(v)",
+            ],
         ),
     ];
     for (text, wants) in cases {
@@ -706,7 +727,7 @@ operating_point = {{ x = 0, v = 0, th = 0, w = 0, T = {thrust} }}
         .unwrap_err()
         .to_string();
     assert!(
-        err.contains("the operating point is not an equilibrium (f(x0, u0)[3] = -1.0000e0)")
+        err.contains("the operating point is not an equilibrium (d(w)/dt = -1.0000)")
             && err.matches("hover").count() == 1,
         "{err}"
     );
@@ -719,4 +740,47 @@ operating_point = {{ x = 0, v = 0, th = 0, w = 0, T = {thrust} }}
         "{:?}",
         at_hover.err()
     );
+}
+
+/// An operating point that is not an equilibrium is measured against the closed form and
+/// named where a user reads it. The pendulum at `T0 = 0.5` moves at `omega' = c T0 = 5`, all
+/// of its row's linear term `c |T0|`; at `theta0 = 0.3` with the balancing torque written to
+/// six digits it is still; the FRF criterion's verdict on the off point carries the warning,
+/// on the balanced file it does not.
+#[test]
+fn an_operating_point_off_equilibrium_is_measured_and_named() {
+    let off = PENDULUM.replace(
+        "operating_point = { theta = 0, omega = 0, T = 0 }",
+        "operating_point = { theta = 0, omega = 0, T = 0.5 }",
+    );
+    let model = Model::new(Arc::new(file(&off).unwrap()));
+    let drift = model.drift(&[20.0, 10.0]).unwrap();
+    assert_eq!(drift.len(), 1, "{drift:?}");
+    assert_eq!(drift[0].state, "omega");
+    assert!((drift[0].rate - 5.0).abs() < 1e-12, "{drift:?}");
+    assert!((drift[0].relative - 1.0).abs() < 1e-12, "{drift:?}");
+    let t0 = -20.0 * 0.3f64.sin() / 10.0;
+    let balanced = PENDULUM.replace(
+        "operating_point = { theta = 0, omega = 0, T = 0 }",
+        &format!("operating_point = {{ theta = 0.3, omega = 0, T = {t0:.6} }}"),
+    );
+    let model = Model::new(Arc::new(file(&balanced).unwrap()));
+    assert!(model.drift(&[20.0, 10.0]).unwrap().is_empty());
+    // A linear model has no operating point to drift from.
+    let linear = "name = \"p\"\nstates = [\"x\"]\ninputs = [\"u\"]\noutputs = [\"x\"]\n\
+                  [linear]\nA = [[-1]]\nB = [[1]]\nC = [[1]]\n";
+    let model = Model::new(Arc::new(file(linear).unwrap()));
+    assert!(model.drift(&[]).unwrap().is_empty());
+
+    let warned = |text: &str| {
+        let d = workbench_with(text, campaign(0.0, 0.0, 11), Some(Criterion::Frf))
+            .compared()
+            .unwrap();
+        d.conclusion
+            .warnings
+            .iter()
+            .any(|w| w.contains("not an equilibrium") && w.contains("d(omega)/dt"))
+    };
+    assert!(warned(&off));
+    assert!(!warned(PENDULUM));
 }

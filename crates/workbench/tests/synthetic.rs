@@ -466,12 +466,50 @@ fn bad_data_gives_named_errors() {
         .to_string();
     assert!(msg.contains("periods of experiment 1"), "{msg}");
 
+    // An input no experiment excites is named with the files, not found as a singular
+    // matrix at the first line (its condition number read 1e302); with the excitation
+    // logged, its excitation is checked too (the feedback still moves the input).
+    let mut unexcited = good.clone();
+    for e in &mut unexcited.experiments {
+        e.r.as_mut().unwrap().column_mut(1).fill(0.0);
+    }
+    let msg = Workbench::new(Arc::new(Toy), unexcited.clone(), EstimatorChoice::Auto)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.contains("excitation of input u2 = constant in every experiment")
+            && msg.contains("experiment 1, experiment 2, ... (4 in all)")
+            && msg.contains("--estimator ls"),
+        "{msg}"
+    );
+    for e in &mut unexcited.experiments {
+        e.u.column_mut(1).fill(0.3);
+    }
+    let msg = Workbench::new(Arc::new(Toy), unexcited, EstimatorChoice::LeastSquares)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.contains("input u2 = constant in every experiment"),
+        "{msg}"
+    );
+
+    // One periodic record exciting both inputs at the same lines gives one input direction
+    // per line.
     let mut few = good;
+    let second = few.experiments[1].r.clone().unwrap();
+    few.experiments[0]
+        .r
+        .as_mut()
+        .unwrap()
+        .set_column(1, &second.column(1));
     few.experiments.truncate(1);
     let msg = Workbench::new(Arc::new(Toy), few, EstimatorChoice::Auto)
         .unwrap_err()
         .to_string();
-    assert!(msg.contains("at least 2 experiments"), "{msg}");
+    assert!(
+        msg.contains("at least 2 experiments") && msg.contains("one record per input"),
+        "{msg}"
+    );
 }
 
 /// The toy with a second name for its coupling: two effects no data can tell apart.

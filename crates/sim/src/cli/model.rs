@@ -10,7 +10,7 @@ use serde_json::json;
 use super::Output;
 use crate::error::Result;
 use workbench::identifiability;
-use workbench::{Model, ModelFile, ModelStructure};
+use workbench::{Drift, Model, ModelFile, ModelStructure};
 
 /// Verbs on model files.
 #[derive(Debug, Clone, PartialEq, clap::Subcommand)]
@@ -76,6 +76,7 @@ impl CheckArgs {
         let params = model.parameters()?;
         let theta: Vec<f64> = params.iter().map(|p| p.value).collect();
         let id = identifiability::analyse(&model, &theta)?;
+        let drift = model.drift(&theta)?;
         let eig = ss.a.complex_eigenvalues();
         let (tolerance, unstable, marginal) = classify(&ss.a, eig.as_slice());
         let show = |ls: &[Complex<f64>]| -> String {
@@ -110,6 +111,16 @@ impl CheckArgs {
             .iter()
             .map(|l| format!("{:.5} {:+.5}i", l.re, l.im))
             .collect();
+        if !drift.is_empty() {
+            human.push_str(&format!(
+                "the operating point is not an equilibrium at the documented values: {}; the \
+                 linearization above is not where a loop holds the plant, and an FRF fit's \
+                 parameters absorb the difference: give the inputs that balance the model \
+                 (a derivative counts above {:.0} % of its row's linear terms)\n",
+                Drift::describe(&drift),
+                100.0 * workbench::model::DRIFT_TOLERANCE
+            ));
+        }
         human.push_str(&format!("eigenvalues of A: {}\n", eig_text.join(", ")));
         human.push_str(&if unstable.is_empty() {
             "no unstable eigenvalue\n".to_string()
@@ -204,6 +215,7 @@ impl CheckArgs {
             "eigenvalue_tolerance": tolerance,
             "candidates": model.candidates(),
             "identifiability": id,
+            "drift": drift,
         });
         Ok(Output { human, json })
     }

@@ -140,7 +140,7 @@ impl Table {
             if (w[1] - w[0]).partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                 return Err(SimError::invalid(
                     format!("t of {name} at sample {}", k + 1),
-                    w[1],
+                    format!("{} s", w[1]),
                     format!("must increase (the sample before is at t = {})", w[0]),
                 ));
             }
@@ -155,7 +155,7 @@ impl Table {
             if (step - typical).abs() > UNIFORM_TOLERANCE * typical {
                 return Err(SimError::invalid(
                     format!("t of {name} at sample {}", k + 1),
-                    w[1],
+                    format!("{} s", w[1]),
                     format!(
                         "uneven sampling: a step of {step:.6} s where the typical (median) step \
                          is {typical:.6} s (samples missing, repeated or out of order?)"

@@ -113,9 +113,16 @@ pub(super) fn read(r: &Reader, t: &Table, l: &Layout) -> Result<(Vec<Node>, Vec<
     }
     let exprs = |what: &str, names: &[String], kind: &str| -> Result<Vec<Node>> {
         let table = t.get(what).and_then(Value::as_table).ok_or_else(|| {
+            let problem = match t.get(what) {
+                None => "missing".to_string(),
+                Some(v) => format!("not a table (given: {})", v.type_str()),
+            };
             r.err(
                 format!("nonlinear.{what}"),
-                format!("missing: one expression per {kind}, {what}.<{kind}> = \"...\""),
+                format!(
+                    "{problem}: one expression per {kind} by name, {what}.{} = \"...\"",
+                    names.first().map_or("<name>", String::as_str)
+                ),
             )
         })?;
         for k in table.keys() {
@@ -355,6 +362,18 @@ impl Section {
                     continue;
                 }
                 let v = d.eval(table).map_err(|e| self.err(&node.key, e.reason))?;
+                if !v.is_finite() {
+                    // Named here, where the term is known: summed, it would blame whichever
+                    // state or input it spoils and the expression it was added to.
+                    return Err(self.err(
+                        &node.key,
+                        format!(
+                            "its derivative by {} is {v} at the operating point ({})",
+                            self.symbols[*s],
+                            self.point_text(table)
+                        ),
+                    ));
+                }
                 for (o, g) in out.iter_mut().zip(&grad[*s]) {
                     *o += v * g;
                 }
