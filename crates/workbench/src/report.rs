@@ -59,7 +59,9 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
         let _ = writeln!(
             s,
             "noise level: cost is the prediction error in absolute units, cost/resid. its mean \
-             per residual; the residual tests below judge the noise level"
+             per residual; the residual tests below judge the noise level. The start's own \
+             weighting makes its cost/resid. 1 by construction, and a candidate's test counts \
+             its reduction on every residual: a few per cent can be decisive (see the candidates' p and dBIC)"
         );
         "cost/resid."
     } else {
