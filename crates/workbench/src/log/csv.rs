@@ -1,5 +1,6 @@
 //! CSV measurements: a header row, a `t` column in seconds, and the same field names as the
-//! MCAP topics. Read into the same [`Table`] as an MCAP topic.
+//! MCAP topics. Read into the same [`Table`] as an MCAP topic. Fields are separated by commas,
+//! or by the semicolons or tabs of the header row; lines starting with `#` are comments.
 use std::path::Path;
 
 use super::Table;
@@ -20,9 +21,16 @@ pub fn read_csv(path: impl AsRef<Path>) -> Result<Table> {
         path: path.to_path_buf(),
         reason,
     };
+    if text.iter().all(u8::is_ascii_whitespace) {
+        return Err(csv_error(
+            "the file is empty: a CSV needs a header row (t and the channel names) and one row per sample".into(),
+        ));
+    }
     let mut reader = csv::ReaderBuilder::new()
         .has_headers(true)
         .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .delimiter(delimiter(&text))
         .from_reader(text.as_slice());
     let header: Vec<String> = reader
         .headers()
@@ -62,8 +70,13 @@ pub fn read_csv(path: impl AsRef<Path>) -> Result<Table> {
         let mut t = 0.0;
         for (i, (cell, name)) in record.iter().zip(&header).enumerate() {
             let value: f64 = cell.parse().map_err(|_| {
+                let hint = if cell.contains(',') {
+                    " (a decimal comma? numbers need a decimal point)"
+                } else {
+                    ""
+                };
                 csv_error(format!(
-                    "line {line}, column {name:?}: {cell:?} is not a number"
+                    "line {line}, column {name:?}: {cell:?} is not a number{hint}"
                 ))
             })?;
             if !value.is_finite() {
@@ -82,4 +95,20 @@ pub fn read_csv(path: impl AsRef<Path>) -> Result<Table> {
         table.push(t, &values)?;
     }
     Ok(table)
+}
+
+/// The field delimiter: a comma, or else the semicolon or tab that separates the header row's
+/// fields (spreadsheets in many locales write `;`, and some loggers tab-separated values), so
+/// that such a file reads instead of failing with its whole header taken as one field. Lines
+/// before the header that start with `#` are comments.
+fn delimiter(text: &[u8]) -> u8 {
+    let header = text
+        .split(|&b| b == b'\n')
+        .find(|line| !line.trim_ascii().is_empty() && !line.starts_with(b"#"))
+        .unwrap_or_default();
+    let count = |d: u8| header.iter().filter(|&&b| b == d).count();
+    [b',', b';', b'\t']
+        .into_iter()
+        .find(|&d| count(d) > 0)
+        .unwrap_or(b',')
 }

@@ -266,6 +266,35 @@ fn csv_reads_into_the_same_table() {
     assert_eq!(table.column("v").unwrap(), &[2.0, 4.0]);
 }
 
+/// Semicolon- and tab-separated files, comment lines before the header and Windows line ends
+/// read as the comma-separated file does.
+#[test]
+fn csv_delimiters_comments_and_line_ends_read_alike() {
+    let comma = temp("comma.csv");
+    std::fs::write(&comma, "t,x,v\n0,1.5,2\n0.5,-3,4e-3\n").unwrap();
+    let want = read_csv(&comma).unwrap();
+    for (name, text) in [
+        ("semicolon.csv", "t;x;v\n0;1.5;2\n0.5;-3;4e-3\n"),
+        ("tab.csv", "t\tx\tv\n0\t1.5\t2\n0.5\t-3\t4e-3\n"),
+        (
+            "comment.csv",
+            "# rig 3, 2026-12-04\nt,x,v\n0,1.5,2\n# pause\n0.5,-3,4e-3\n",
+        ),
+        ("crlf.csv", "t,x,v\r\n0,1.5,2\r\n0.5,-3,4e-3\r\n"),
+    ] {
+        let path = temp(name);
+        std::fs::write(&path, text).unwrap();
+        let table = read_csv(&path).unwrap();
+        assert_eq!(table.fields, want.fields, "{name}");
+        assert_eq!(table.t, want.t, "{name}");
+        assert_eq!(
+            table.column("v").unwrap(),
+            want.column("v").unwrap(),
+            "{name}"
+        );
+    }
+}
+
 #[test]
 fn csv_errors_are_named() {
     let cases = [
@@ -281,6 +310,12 @@ fn csv_errors_are_named() {
             "line 2, column \"x\": \"one\" is not a number",
         ),
         ("ragged.csv", "t,x\n0,1\n1\n", "bad CSV file"),
+        ("empty.csv", " \n", "the file is empty"),
+        (
+            "decimal-comma.csv",
+            "t;x\n0;1,5\n",
+            "\"1,5\" is not a number (a decimal comma?",
+        ),
     ];
     for (name, text, expected) in cases {
         let path = temp(name);
