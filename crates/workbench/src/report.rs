@@ -92,10 +92,23 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
             st.reduction_percent,
             st.normalized_cost
         );
-        for (_, f) in &st.diagnosis.fit_percent {
+        for (_, f) in step_fit(st) {
             let _ = write!(s, " {f:>7.1}");
         }
         s.push('\n');
+    }
+    if let Some(p) = d
+        .steps
+        .first()
+        .and_then(|st| st.time_fit.prediction_error.as_ref())
+    {
+        let _ = writeln!(
+            s,
+            "fit%: the extended Kalman predictor's {}-step prediction (EKF {}-step below), the \
+             criterion's own model; the linearization's fits, which a non-smooth effect such as \
+             dry friction distorts, are in the table below",
+            p.horizon_samples, p.horizon_samples
+        );
     }
     let _ = writeln!(s, "weighting: {}", d.weighting);
     time_domain_table(&mut s, d, wb.model().structure().is_nonlinear());
@@ -266,6 +279,18 @@ fn step_label(st: &Step) -> String {
     }
 }
 
+/// The fit % per output the step table shows: under the time criterion the extended Kalman
+/// predictor's k-step prediction, the nonlinear model the criterion fits (the linearization's
+/// periodic fit fell from 56 % to 4 % when a Furuta pendulum's model gained the arm's dry
+/// friction, whose slope at rest is steep, while this one rose from 97 % to 99 %); else the
+/// periodic steady state on the excited lines.
+fn step_fit(st: &crate::discover::Step) -> &[(String, f64)] {
+    match &st.time_fit.prediction_error {
+        Some(p) => &p.k_step,
+        None => &st.diagnosis.fit_percent,
+    }
+}
+
 /// Time-domain fit % per step (simulation and k-step prediction) with the stated policy, and
 /// the residual tests of the last step.
 fn time_domain_table(s: &mut String, d: &Discovery, nonlinear: bool) {
@@ -432,8 +457,7 @@ pub fn json(wb: &Workbench, d: &Discovery) -> Value {
                 ("normalized_cost", json!(s.normalized_cost)),
                 (
                     "fit_percent",
-                    s.diagnosis
-                        .fit_percent
+                    step_fit(s)
                         .iter()
                         .map(|(n, f)| (n.clone(), json!(f)))
                         .collect::<serde_json::Map<_, _>>()

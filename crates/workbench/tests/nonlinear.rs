@@ -373,7 +373,17 @@ fn nothing_hidden_finds_nothing() {
 fn dry_friction_and_a_sensor_offset_are_found_as_themselves() {
     let mut confirmed = 0;
     for seed in [21, 22, 23] {
-        let d = workbench(campaign(0.3, 0.0, seed)).discover().unwrap();
+        let wb = workbench(campaign(0.3, 0.0, seed));
+        let d = wb.discover().unwrap();
+        // The step table's fit % is the criterion's own (the EKF's k-step prediction), and it
+        // rises when the friction is added.
+        let json = workbench::report::json(&wb, &d);
+        let fit = |i: usize| json["steps"][i]["fit_percent"]["theta"].as_f64().unwrap();
+        for (i, st) in d.steps.iter().enumerate() {
+            let k_step = &st.time_fit.prediction_error.as_ref().unwrap().k_step;
+            assert_eq!(fit(i), k_step[0].1, "seed {seed} step {i}");
+        }
+        assert!(fit(d.steps.len() - 1) > fit(0), "seed {seed}: {json}");
         let added: Vec<&String> = d
             .conclusion
             .found
