@@ -428,10 +428,18 @@ impl Verdict {
                     .iter()
                     .map(|(o, i, r)| format!("{i}->{o} ({r:.1}x)"))
                     .collect();
+                // One bin is a frequency, not a band ("4.69-4.69 Hz").
+                let band = |a: &f64, b: &f64| {
+                    if format!("{a:.2}") == format!("{b:.2}") {
+                        format!("{a:.2} Hz")
+                    } else {
+                        format!("{a:.2}-{b:.2} Hz")
+                    }
+                };
                 let place = match (band_hz, entries.is_empty()) {
-                    (Some((a, b)), true) => format!(", {a:.2}-{b:.2} Hz"),
+                    (Some((a, b)), true) => format!(", {}", band(a, b)),
                     (Some((a, b)), false) => {
-                        format!(", {a:.2}-{b:.2} Hz; largest in {}", entries.join(", "))
+                        format!(", {}; largest in {}", band(a, b), entries.join(", "))
                     }
                     (None, false) => {
                         format!(", spread over the band; largest in {}", entries.join(", "))

@@ -6,15 +6,16 @@
 //! `x̂_{k+1} = F(x̂_k, u_k) + K (y_k - h(x̂_k, u_k))`, `F` the model integrated over one sample
 //! with the logged input held (classical RK4, sub-steps from the linearization's fastest
 //! mode, the delayed input switching inside the sample), and `K` the stationary gain of the
-//! starting model's linearization at the operating point for the noise covariances estimated
-//! from the data ([`super::kalman::Predictor::design`] on the linearization, at the starting
-//! model's fit). The gain keeps an unstable plant's prediction bounded where a free run
-//! diverges. It is held for the whole discovery, with the weighting `W` (the inverse
-//! innovation covariance of the starting model's fit): every model is then one predictor with
-//! its own `F`, and every cost compares with every other. Holding the gain, rather than
-//! re-linearizing at every sample or for every model, costs little near the operating point,
-//! where a stabilized plant stays; it also keeps a dry friction's linearization (steep at
-//! zero speed, where the plant rarely is) out of the predictor.
+//! starting model's linearization averaged along the data for the noise covariances estimated
+//! from the data ([`super::kalman::Predictor::design`] on the mean Jacobian over the states
+//! the predictor at the operating point's gain passes, at the starting model's fit: a
+//! statistical linearization, in which a dry friction's slope, steep at zero speed where the
+//! plant rarely is, counts as often as the plant is there). The gain keeps an unstable plant's
+//! prediction bounded where a free run diverges. It is held for the whole discovery, with the
+//! weighting `W` (the inverse innovation covariance of the starting model's fit): every model
+//! is then one predictor with its own `F`, and every cost compares with every other. Holding
+//! the gain, rather than re-linearizing at every sample or for every model, costs little near
+//! the operating point, where a stabilized plant stays.
 //!
 //! The criterion is `V = Σ e_kᵀ W e_k`, fitted by the workbench's Levenberg-Marquardt
 //! ([`super::fit::solve`]) with forward-difference Jacobians.
@@ -29,6 +30,7 @@ use super::discover::{
 use super::dynamics::Dynamics;
 use super::fit::{solve, FitResult, LeastSquares};
 use super::kalman::{Gain, Predictor, BURN_IN};
+use super::model::StateSpace;
 use super::model::{Drift, Model};
 use super::residual::{residual_tests, ResidualTests, DEFAULT_LAGS};
 use super::search::{forward_selection, Search};
@@ -418,8 +420,158 @@ impl<'a> PredictionError<'a> {
     /// noise covariances estimated on it, and the inverse innovation covariance of its
     /// nonlinear predictor.
     fn design(wb: &'a Workbench, model: &'a Model, theta: &[f64]) -> Result<Design> {
+        let p = wb.data.outputs.len();
+        let at_op = model.state_space(theta)?;
+        let gain = Self::stationary_gain(wb, model, theta, &at_op)?;
+        // Statistical linearization: the gain of the Jacobian averaged over the states the
+        // predictor at the operating point's gain passes through, where the data are. At the
+        // operating point a dry friction's slope is its steepest (tc / eps at rest), which the
+        // plant rarely is; a Furuta pendulum's final fit with the arm's friction under that
+        // gain read every parameter's standard error above its value and a misfit.
+        let pe = Self::new(
+            wb,
+            model,
+            &Design {
+                gain: gain.clone(),
+                whiten: DMatrix::identity(p, p),
+            },
+        );
+        let gain = match pe
+            .innovations(theta)
+            .ok()
+            .and_then(|inn| pe.averaged_linearization(theta, &inn, &at_op))
+        {
+            Some(averaged) => Self::stationary_gain(wb, model, theta, &averaged).unwrap_or(gain),
+            None => gain,
+        };
+        let mut pe = Self::new(
+            wb,
+            model,
+            &Design {
+                gain,
+                whiten: DMatrix::identity(p, p),
+            },
+        );
+        let inn = pe.innovations(theta)?;
+        let mut s = DMatrix::zeros(p, p);
+        let mut count = 0usize;
+        for (e, _) in &inn.runs {
+            let e = scored(e);
+            s += e.transpose() * &e;
+            count += e.nrows();
+        }
+        let s = s / count.max(1) as f64;
+        let w = s.try_inverse().ok_or_else(|| {
+            SimError::invalid("prediction", "innovation covariance", "is singular")
+        })?;
+        let l = w.cholesky().ok_or_else(|| {
+            SimError::invalid(
+                "prediction",
+                "innovation covariance",
+                "is not positive definite",
+            )
+        })?;
+        pe.design.whiten = l.l().transpose();
+        Ok(pe.design)
+    }
+
+    /// The model's Jacobians `(A, B, C, D)` averaged over the predicted states `inn` and the
+    /// logged inputs (at most [`AVERAGED_SAMPLES`] samples, evenly spread), by central
+    /// differences of `f` and `h`; `None` when a difference is not finite or the model's
+    /// state differs from its linearization's (`at_op`, whose input delay it keeps).
+    fn averaged_linearization(
+        &self,
+        theta: &[f64],
+        inn: &Innovations,
+        at_op: &StateSpace,
+    ) -> Option<StateSpace> {
+        let d = self.model.dynamics(theta).ok()?;
+        let (n, m, p) = (d.states(), d.inputs(), d.outputs());
+        if at_op.a.nrows() != n || at_op.b.ncols() != m || at_op.c.nrows() != p {
+            return None;
+        }
+        let total: usize = inn
+            .runs
+            .iter()
+            .map(|(_, xs)| xs.nrows().saturating_sub(BURN_IN))
+            .sum();
+        let every = total.div_ceil(AVERAGED_SAMPLES).max(1);
+        // Steps from each coordinate's spread along the data (a state at rest has none).
+        let mut spread = vec![0.0f64; n + m];
+        for (rec, (_, xs)) in self.records.iter().zip(&inn.runs) {
+            for k in BURN_IN..xs.nrows().min(rec.u.nrows()) {
+                for j in 0..n {
+                    spread[j] = spread[j].max(xs[(k, j)].abs());
+                }
+                for j in 0..m {
+                    spread[n + j] = spread[n + j].max(rec.u[(k, j)].abs());
+                }
+            }
+        }
+        let (mut fx, mut hx) = (DMatrix::zeros(n, n + m), DMatrix::zeros(p, n + m));
+        let (mut dx_plus, mut dx_minus) = (vec![0.0; n], vec![0.0; n]);
+        let (mut y_plus, mut y_minus) = (vec![0.0; p], vec![0.0; p]);
+        let mut scratch = Vec::new();
+        let mut count = 0usize;
+        let mut at = 0usize;
+        for (rec, (_, xs)) in self.records.iter().zip(&inn.runs) {
+            for k in BURN_IN..xs.nrows().min(rec.u.nrows()) {
+                at += 1;
+                if at % every != 0 {
+                    continue;
+                }
+                let mut z: Vec<f64> = xs
+                    .row(k)
+                    .iter()
+                    .chain(rec.u.row(k).iter())
+                    .copied()
+                    .collect();
+                for j in 0..n + m {
+                    let h = 1e-6 * spread[j].max(1e-6);
+                    let keep = z[j];
+                    z[j] = keep + h;
+                    d.f(&z[..n], &z[n..], &mut dx_plus, &mut scratch).ok()?;
+                    d.h(&z[..n], &z[n..], &mut y_plus, &mut scratch).ok()?;
+                    z[j] = keep - h;
+                    d.f(&z[..n], &z[n..], &mut dx_minus, &mut scratch).ok()?;
+                    d.h(&z[..n], &z[n..], &mut y_minus, &mut scratch).ok()?;
+                    z[j] = keep;
+                    for i in 0..n {
+                        fx[(i, j)] += (dx_plus[i] - dx_minus[i]) / (2.0 * h);
+                    }
+                    for i in 0..p {
+                        hx[(i, j)] += (y_plus[i] - y_minus[i]) / (2.0 * h);
+                    }
+                }
+                count += 1;
+            }
+        }
+        if count == 0 {
+            return None;
+        }
+        let (fx, hx) = (fx / count as f64, hx / count as f64);
+        if fx.iter().chain(hx.iter()).any(|v| !v.is_finite()) {
+            return None;
+        }
+        Some(StateSpace {
+            a: fx.columns(0, n).into_owned(),
+            b: fx.columns(n, m).into_owned(),
+            c: hx.columns(0, n).into_owned(),
+            d: hx.columns(n, m).into_owned(),
+            delay: at_op.delay,
+        })
+    }
+
+    /// The stationary gain of the linear model `ss` for the noise covariances estimated on
+    /// it from the data (the workbench's noise model).
+    fn stationary_gain(
+        wb: &Workbench,
+        model: &Model,
+        theta: &[f64],
+        ss: &StateSpace,
+    ) -> Result<DMatrix<f64>> {
         let t = 1.0 / wb.data.sample_rate_hz;
-        let disc = model.state_space(theta)?.discretize(t)?;
+        let disc = ss.discretize(t)?;
         let demeaned: Vec<(DMatrix<f64>, DMatrix<f64>)> = wb
             .data
             .experiments
@@ -428,7 +580,7 @@ impl<'a> PredictionError<'a> {
             .collect();
         let refs: Vec<(&DMatrix<f64>, &DMatrix<f64>)> =
             demeaned.iter().map(|(u, y)| (u, y)).collect();
-        let gain = Predictor::design(&disc, &refs, Gain::NoiseModel)
+        Predictor::design(&disc, &refs, Gain::NoiseModel)
             .and_then(|linear| {
                 linear.state_gain().cloned().ok_or_else(|| {
                     SimError::invalid(
@@ -459,37 +611,7 @@ impl<'a> PredictionError<'a> {
                     format!("{e}; {why}"),
                 ),
                 (None, e) => e,
-            })?;
-        let p = wb.data.outputs.len();
-        let mut pe = Self::new(
-            wb,
-            model,
-            &Design {
-                gain,
-                whiten: DMatrix::identity(p, p),
-            },
-        );
-        let inn = pe.innovations(theta)?;
-        let mut s = DMatrix::zeros(p, p);
-        let mut count = 0usize;
-        for (e, _) in &inn.runs {
-            let e = scored(e);
-            s += e.transpose() * &e;
-            count += e.nrows();
-        }
-        let s = s / count.max(1) as f64;
-        let w = s.try_inverse().ok_or_else(|| {
-            SimError::invalid("prediction", "innovation covariance", "is singular")
-        })?;
-        let l = w.cholesky().ok_or_else(|| {
-            SimError::invalid(
-                "prediction",
-                "innovation covariance",
-                "is not positive definite",
-            )
-        })?;
-        pe.design.whiten = l.l().transpose();
-        Ok(pe.design)
+            })
     }
 
     fn innovations(&self, theta: &[f64]) -> Result<Innovations> {
@@ -1060,6 +1182,10 @@ const START_WEIGHTING: &str = "time-domain prediction error of the extended Kalm
 /// The weighting of a discovery that added effects.
 const FINAL_WEIGHTING: &str = "time-domain prediction error of the extended Kalman predictor in absolute units; every step's cost and tests under the gain and the inverse innovation covariance of the starting model's fit, where the effects were chosen; the final model's parameters from its fit under its own predictor, as fit gives them";
 
+/// Most samples the averaged linearization of a design visits (evenly spread over the
+/// records): enough for a mean, and a Python model's callables stay a fraction of a fit.
+const AVERAGED_SAMPLES: usize = 2000;
+
 /// Most redesigns of the predictor after the first fit (see `fit_time`).
 const DESIGN_ROUNDS: usize = 4;
 /// A refit that leaves the cost per residual this close to 1 left its design's point
@@ -1138,6 +1264,73 @@ mod tests {
         let model = Model::new(Arc::new(ModelFile::from_path(&path).unwrap()));
         let theta = model.documented().unwrap();
         (model, theta)
+    }
+
+    /// The averaged linearization is the mean of the Jacobians along the states, against the
+    /// closed form of the pendulum with dry friction `-tc tanh(omega/eps)` (to 1e-6, central
+    /// differences): `A[1][0] = mean m g l cos(theta) / Jp`, `A[1][1] = mean -(tc/eps)
+    /// sech²(omega/eps) / Jp`, `B = 1 / Jp`. At the operating point the friction's slope is
+    /// its steepest, -tc/(eps Jp) = -2 1/s; along a swing of 0.5 rad/s it is a few per cent of
+    /// that.
+    #[test]
+    fn the_averaged_linearization_is_the_mean_jacobian_along_the_data() {
+        let (model, _) = pendulum();
+        let model = model.with_effect("joint_coulomb").unwrap();
+        let theta = model.documented().unwrap();
+        let (m, g, l, jp, tc, eps) = (0.5, 9.81, 0.4, 0.02 + 0.5 * 0.4 * 0.4, 0.01, 0.05);
+        let samples = BURN_IN + 1500;
+        let xs = DMatrix::from_fn(samples, 2, |k, j| {
+            let phase = std::f64::consts::TAU * k as f64 / 97.0;
+            if j == 0 {
+                0.02 * phase.cos()
+            } else {
+                0.5 * phase.sin()
+            }
+        });
+        let (u, y) = (DMatrix::zeros(samples, 1), DMatrix::zeros(samples, 1));
+        let pe = PredictionError {
+            model: &model,
+            records: vec![Record {
+                name: "swing",
+                u: &u,
+                y: &y,
+                limit: vec![f64::INFINITY],
+            }],
+            t: 0.01,
+            design: Design {
+                gain: DMatrix::zeros(2, 1),
+                whiten: DMatrix::identity(1, 1),
+            },
+        };
+        let inn = Innovations {
+            runs: vec![(DMatrix::zeros(samples, 1), xs.clone())],
+        };
+        let at_op = model.state_space(&theta).unwrap();
+        assert!(
+            (at_op.a[(1, 1)] + tc / eps / jp).abs() < 1e-9,
+            "{}",
+            at_op.a
+        );
+        let avg = pe.averaged_linearization(&theta, &inn, &at_op).unwrap();
+        let used = BURN_IN..samples;
+        let mean = |f: &dyn Fn(usize) -> f64| used.clone().map(f).sum::<f64>() / 1500.0;
+        let a10 = mean(&|k| m * g * l * xs[(k, 0)].cos() / jp);
+        let a11 = mean(&|k| -(tc / eps) / (xs[(k, 1)] / eps).cosh().powi(2) / jp);
+        for (got, want) in [
+            (avg.a[(0, 0)], 0.0),
+            (avg.a[(0, 1)], 1.0),
+            (avg.a[(1, 0)], a10),
+            (avg.a[(1, 1)], a11),
+            (avg.b[(1, 0)], 1.0 / jp),
+            (avg.c[(0, 0)], 1.0),
+            (avg.d[(0, 0)], 0.0),
+        ] {
+            assert!(
+                (got - want).abs() <= 1e-6 * want.abs().max(1.0),
+                "{got} against {want}"
+            );
+        }
+        assert!(a11.abs() < 0.2 * at_op.a[(1, 1)].abs(), "{a11}");
     }
 
     /// Innovations of a linear model that pass the lag tests but cohere with the excitation in

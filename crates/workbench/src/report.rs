@@ -47,7 +47,9 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
         count(wb.data().experiments.len(), "experiment"),
         wb.frf().describe()
     );
-    if let Some(why) = wb.welch_reason() {
+    // Why the FRF is a Welch estimate, and how to get the periodic one, matters to the FRF
+    // criterion; the time criterion only locates a misfit with it.
+    if let Some(why) = wb.welch_reason().filter(|_| wb.criterion() == crate::Criterion::Frf) {
         let _ = writeln!(s, "Welch estimate: {why}");
     }
     if let Some(distortion) = &wb.frf().distortion {
@@ -145,10 +147,15 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
         for c in &st.candidates {
             if c.abandoned {
                 // Its cost is where the fit stopped, not a fitted one: no reduction to show.
+                let seen = if c.added_parameters == 0 {
+                    " (at this fit the data cannot tell its parameters from the model's)"
+                } else {
+                    ""
+                };
                 let _ = writeln!(
                     s,
                     "  not added: {:<15} fit stopped: the linear model of its cost cannot reach \
-                     the significance threshold  +{} params",
+                     the significance threshold  +{} params{seen}",
                     c.effect, c.added_parameters,
                 );
                 continue;
@@ -422,6 +429,9 @@ fn time_domain_table(s: &mut String, d: &Discovery, nonlinear: bool) {
             }
             for o in &c.outputs {
                 let flagged = match (o.flagged_hz.first(), o.flagged_hz.last()) {
+                    (Some(a), _) if o.flagged_hz.len() == 1 => {
+                        format!("flagged on 1 bin, {} Hz", fmt_num(*a))
+                    }
                     (Some(a), Some(b)) => format!(
                         "flagged on {} bin(s), {}-{} Hz",
                         o.flagged_hz.len(),

@@ -160,12 +160,14 @@ pub fn excited_band(data: &Dataset) -> Result<(f64, f64)> {
         .filter(|&k| density[k] * BAND_DYNAMIC_RANGE >= peak && coherent(k))
         .collect();
     let (Some(&lo), Some(&hi)) = (excited.first(), excited.last()) else {
+        let names: Vec<&str> = data.experiments.iter().map(|e| e.name.as_str()).collect();
         return Err(SimError::invalid(
-            "data",
-            "excitation",
+            format!("logged excitation of {}", names.join(", ")),
+            format!("records of {lengths:?} samples"),
             format!(
-                "explains less than {:.0}% of the inputs at every frequency (coherence): feedback \
-                 of noise dominates them",
+                "it explains less than {:.0}% of the inputs at every frequency (coherence over \
+                 {l}-sample segments): feedback of noise dominates the inputs, or the records are \
+                 too short to tell; log longer records or a larger excitation",
                 100.0 * MIN_COHERENCE
             ),
         ));
