@@ -624,6 +624,18 @@ impl Conclusion {
             let _ = writeln!(s, "tentative: {t}");
         }
         let _ = writeln!(s, "verdict: {}", self.verdict_sentence());
+        // Beside an explained verdict a significant candidate is still worth naming: the
+        // effect-size rule kept out a real pendulum friction whose absence left a length 6
+        // standard errors off, with the verdict "explained".
+        if !matches!(self.verdict, Verdict::UnexplainedStructuredMisfit { .. })
+            && !self.near_misses.is_empty()
+        {
+            let _ = writeln!(
+                s,
+                "near miss (the verdict holds without it): {}",
+                self.near_misses.join("; ")
+            );
+        }
         s
     }
 }
@@ -1319,8 +1331,8 @@ mod tests {
             scored("pendulum_friction", 130_000.0, 129_879.0, 4e-28),
             scored("sensor_bias", 130_000.0, 129_990.0, 0.2),
         ];
-        let c =
-            Conclusion::settle(Vec::new(), Vec::new(), true, misfit, 0.01).with_near_misses(&last);
+        let c = Conclusion::settle(Vec::new(), Vec::new(), true, misfit.clone(), 0.01)
+            .with_near_misses(&last);
         let s = c.verdict_sentence();
         assert!(
             s.contains("no candidate effect explains it beyond the noise: pendulum_friction passes the tests (p = 4.0e-28) but lowers the cost by 121.0, less than noise alone varies it (508.3)"),
@@ -1331,6 +1343,16 @@ mod tests {
         let c = Conclusion::settle(Vec::new(), Vec::new(), false, explained, 0.01)
             .with_near_misses(&last);
         assert!(!c.verdict_sentence().contains("pendulum_friction"));
+        // The summary's lines still name it, on a line of its own.
+        let lines = c.lines();
+        assert!(
+            lines.contains("near miss (the verdict holds without it): pendulum_friction passes the tests (p = 4.0e-28)")
+                && !lines.contains("sensor_bias"),
+            "{lines}"
+        );
+        let c =
+            Conclusion::settle(Vec::new(), Vec::new(), true, misfit, 0.01).with_near_misses(&last);
+        assert!(!c.lines().contains("near miss ("), "{}", c.lines());
     }
 
     /// Rivals: equal costs are, a gap noise cannot make (z = sqrt(dV)/2 beyond 2.58) is not;

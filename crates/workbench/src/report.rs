@@ -49,7 +49,10 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
     );
     // Why the FRF is a Welch estimate, and how to get the periodic one, matters to the FRF
     // criterion; the time criterion only locates a misfit with it.
-    if let Some(why) = wb.welch_reason().filter(|_| wb.criterion() == crate::Criterion::Frf) {
+    if let Some(why) = wb
+        .welch_reason()
+        .filter(|_| wb.criterion() == crate::Criterion::Frf)
+    {
         let _ = writeln!(s, "Welch estimate: {why}");
     }
     if let Some(distortion) = &wb.frf().distortion {
