@@ -54,7 +54,7 @@ impl ComplexWishart {
             return Err(SimError::invalid(
                 "noise degrees of freedom",
                 n,
-                format!("need at least {p} (periods - 1 summed over experiments) to estimate a {p}x{p} noise covariance"),
+                format!("need at least {p} (the periods after each experiment's first, summed over the experiments) to estimate the {p}x{p} noise covariance of the periodic FRF: log more periods per experiment, or more experiments"),
             ));
         }
         let diag = (0..p)
@@ -273,6 +273,9 @@ mod tests {
     #[test]
     fn too_few_degrees_of_freedom_is_named() {
         let msg = ComplexWishart::new(6, 4).unwrap_err().to_string();
-        assert!(msg.contains("noise degrees of freedom"), "{msg}");
+        assert!(
+            msg.contains("noise degrees of freedom") && msg.contains("log more periods"),
+            "{msg}"
+        );
     }
 }
