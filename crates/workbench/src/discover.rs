@@ -512,6 +512,45 @@ pub struct Conclusion {
     pub test: &'static str,
 }
 
+/// How many times its documented value (either way) a fitted parameter may lie before the
+/// verdict says so ([`far_from_documented`]): an order of magnitude.
+pub const FAR_FROM_DOCUMENTED: f64 = 10.0;
+
+/// A sentence naming the fitted parameters of `model` that lie more than
+/// [`FAR_FROM_DOCUMENTED`] times from their documented values (or changed sign), `None` when
+/// none does. A fit that explains the data with such values is bent by something the model
+/// lacks or misstates: under the FRF criterion a Furuta pendulum's dry friction, linearized at
+/// rest, read "explained" with the arm inertia 16 times and the motor constant 13 times their
+/// documented values, and nothing said so.
+pub fn far_from_documented(model: &Model, params: &[ParamEstimate]) -> Result<Option<String>> {
+    let documented = model.parameters()?;
+    let far: Vec<String> = params
+        .iter()
+        .filter(|p| !p.held)
+        .filter_map(|p| {
+            let doc = documented.iter().find(|d| d.name == p.name)?.value;
+            let ratio = p.value / doc;
+            (doc != 0.0
+                && p.value != 0.0
+                && !(1.0 / FAR_FROM_DOCUMENTED..=FAR_FROM_DOCUMENTED).contains(&ratio))
+            .then(|| {
+                let how = if ratio > 0.0 && ratio < 1.0 {
+                    format!("1/{:.1}", 1.0 / ratio)
+                } else {
+                    format!("{ratio:.1}")
+                };
+                format!("{} {how} times it", p.name)
+            })
+        })
+        .collect();
+    Ok((!far.is_empty()).then(|| {
+        format!(
+            "parameters fitted far from their documented values ({}): a fit that far from the model file is bent by something the model lacks or misstates (a wrong documented value, a missing effect, or under the FRF criterion a non-smooth effect linearized at the operating point); check them before trusting the verdict",
+            far.join(", ")
+        )
+    }))
+}
+
 /// What the FRF criterion's verdict tests: its remaining cost against the Monte-Carlo
 /// reference of noise alone.
 pub const COST_TEST: &str = "for the remaining cost under noise alone";
@@ -968,7 +1007,7 @@ impl Workbench {
         let verdict = self.verdict(&step);
         let weighting = self.weighting_sentence(&step.effects);
         let unexplained = matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. });
-        let warnings = self.warnings(&self.model)?;
+        let warnings = self.warnings(&self.model, &step.params)?;
         Ok(Discovery {
             steps: vec![step],
             conclusion: Conclusion::settle(Vec::new(), Vec::new(), unexplained, verdict, LEVEL)
@@ -991,12 +1030,14 @@ impl Workbench {
         why
     }
 
-    /// What qualifies a verdict on `model`: the [data caveats](Self::data_caveats), and an
-    /// operating point that is not an equilibrium at the documented values (the FRF criterion
+    /// What qualifies a verdict on `model` fitted to `params`: the [data
+    /// caveats](Self::data_caveats), parameters [far from their documented
+    /// values](far_from_documented), and an operating point that is not an equilibrium at the documented values (the FRF criterion
     /// compares the linearization there). The documented values, not the fitted ones: a fit
     /// biased by a missing effect unbalances a point the user gave right.
-    fn warnings(&self, model: &Model) -> Result<Vec<String>> {
+    fn warnings(&self, model: &Model, params: &[ParamEstimate]) -> Result<Vec<String>> {
         let mut why = self.data_caveats();
+        why.extend(far_from_documented(model, params)?);
         let drift = model.drift(&model.documented()?)?;
         if !drift.is_empty() {
             why.push(format!(
@@ -1175,7 +1216,7 @@ impl Workbench {
         self.common_weighting(&mut done)?;
         let smoothing = self.smoothing_caveat(done.last())?;
         let warnings = match done.last() {
-            Some(f) => self.warnings(&f.model)?,
+            Some(f) => self.warnings(&f.model, &f.r.params)?,
             None => self.data_caveats(),
         };
         let steps = self.records(done)?;

@@ -945,6 +945,7 @@ impl Workbench {
         weighting: &str,
     ) -> Result<Discovery> {
         let base_cost = fitted.first().map_or(1.0, |f| f.r.cost);
+        let last_model = fitted.last().map(|f| f.model.clone());
         let jobs: Vec<_> = fitted
             .into_iter()
             .map(|f| move || self.time_step(f, design, base_cost))
@@ -967,7 +968,13 @@ impl Workbench {
         let conclusion = Conclusion::settle(found, why, unexplained, verdict, LEVEL)
             .with_candidates(super::discover::Candidates::of(&self.model, true))
             .with_near_misses(&last.candidates)
-            .with_test(EXCITATION_TEST);
+            .with_test(EXCITATION_TEST)
+            .with_warnings(match &last_model {
+                Some(m) => super::discover::far_from_documented(m, &last.params)?
+                    .into_iter()
+                    .collect(),
+                None => Vec::new(),
+            });
         Ok(Discovery {
             weighting: weighting.to_string(),
             steps,

@@ -796,3 +796,38 @@ fn an_operating_point_off_equilibrium_is_measured_and_named() {
     assert!(warned(&off));
     assert!(!warned(PENDULUM));
 }
+
+/// A fit an order of magnitude from the documented values is named beside the verdict, under
+/// either criterion: the pendulum's `k` documented at 2 where the plant has 25 fits near 25,
+/// 12.5 times it; documented at 20 it is not named.
+#[test]
+fn a_fit_far_from_the_documented_values_is_named() {
+    let off = PENDULUM.replace("k = { value = 20.0", "k = { value = 2.0");
+    for criterion in [Criterion::Time, Criterion::Frf] {
+        let named = |text: &str| {
+            let d = workbench_with(text, campaign(0.0, 0.0, 11), Some(criterion))
+                .compared()
+                .unwrap();
+            let k = d.steps[0]
+                .params
+                .iter()
+                .find(|p| p.name == "k")
+                .unwrap()
+                .value;
+            let warned = d
+                .conclusion
+                .warnings
+                .iter()
+                .any(|w| w.contains("parameters fitted far from their documented values (k 1"));
+            (k, warned, d.conclusion.verdict_sentence())
+        };
+        let (k, warned, verdict) = named(&off);
+        assert!((k / 25.0 - 1.0).abs() < 0.05, "{criterion:?}: k {k}");
+        assert!(
+            warned && verdict.contains("times it"),
+            "{criterion:?}: {verdict}"
+        );
+        let (_, warned, verdict) = named(PENDULUM);
+        assert!(!warned, "{criterion:?}: {verdict}");
+    }
+}
