@@ -880,7 +880,7 @@ impl Model {
         let error = Arc::new(Mutex::new(None));
         let structure = PyStructure {
             name: name.to_string(),
-            states: states.clone(),
+            states,
             inputs,
             outputs,
             params,

@@ -1032,9 +1032,10 @@ impl Workbench {
 
     /// What qualifies a verdict on `model` fitted to `params`: the [data
     /// caveats](Self::data_caveats), parameters [far from their documented
-    /// values](far_from_documented), and an operating point that is not an equilibrium at the documented values (the FRF criterion
-    /// compares the linearization there). The documented values, not the fitted ones: a fit
-    /// biased by a missing effect unbalances a point the user gave right.
+    /// values](far_from_documented), and an operating point that is not an equilibrium at the
+    /// documented values (the FRF criterion compares the linearization there). The documented
+    /// values, not the fitted ones: a fit biased by a missing effect unbalances a point the
+    /// user gave right.
     fn warnings(&self, model: &Model, params: &[ParamEstimate]) -> Result<Vec<String>> {
         let mut why = self.data_caveats();
         why.extend(far_from_documented(model, params)?);

@@ -415,7 +415,7 @@ pub(crate) fn check_excited(data: &Dataset, instrumental: bool) -> Result<()> {
     let moves = |m: &DMatrix<f64>, j: usize| {
         let c = m.column(j);
         let (lo, hi) = (c.min(), c.max());
-        hi - lo > 1e-12 * lo.abs().max(hi.abs()) && hi > lo
+        hi - lo > 1e-12 * lo.abs().max(hi.abs())
     };
     let files = || {
         let names: Vec<&str> = data.experiments.iter().map(|e| e.name.as_str()).collect();

@@ -30,8 +30,7 @@ use super::discover::{
 use super::dynamics::Dynamics;
 use super::fit::{solve, FitResult, LeastSquares};
 use super::kalman::{Gain, Predictor, BURN_IN};
-use super::model::StateSpace;
-use super::model::{Drift, Model};
+use super::model::{Drift, Model, StateSpace};
 use super::residual::{residual_tests, ResidualTests, DEFAULT_LAGS};
 use super::search::{forward_selection, Search};
 use super::timedomain::{fit_percent, time_fit, DEFAULT_HORIZON, DEFAULT_WINDOW};
@@ -422,36 +421,27 @@ impl<'a> PredictionError<'a> {
     fn design(wb: &'a Workbench, model: &'a Model, theta: &[f64]) -> Result<Design> {
         let p = wb.data.outputs.len();
         let at_op = model.state_space(theta)?;
-        let gain = Self::stationary_gain(wb, model, theta, &at_op)?;
+        let mut pe = Self::new(
+            wb,
+            model,
+            &Design {
+                gain: Self::stationary_gain(wb, model, theta, &at_op)?,
+                whiten: DMatrix::identity(p, p),
+            },
+        );
         // Statistical linearization: the gain of the Jacobian averaged over the states the
         // predictor at the operating point's gain passes through, where the data are. At the
         // operating point a dry friction's slope is its steepest (tc / eps at rest), which the
         // plant rarely is; a Furuta pendulum's final fit with the arm's friction under that
         // gain read every parameter's standard error above its value and a misfit.
-        let pe = Self::new(
-            wb,
-            model,
-            &Design {
-                gain: gain.clone(),
-                whiten: DMatrix::identity(p, p),
-            },
-        );
-        let gain = match pe
+        if let Some(gain) = pe
             .innovations(theta)
             .ok()
             .and_then(|inn| pe.averaged_linearization(theta, &inn, &at_op))
+            .and_then(|averaged| Self::stationary_gain(wb, model, theta, &averaged).ok())
         {
-            Some(averaged) => Self::stationary_gain(wb, model, theta, &averaged).unwrap_or(gain),
-            None => gain,
-        };
-        let mut pe = Self::new(
-            wb,
-            model,
-            &Design {
-                gain,
-                whiten: DMatrix::identity(p, p),
-            },
-        );
+            pe.design.gain = gain;
+        }
         let inn = pe.innovations(theta)?;
         let mut s = DMatrix::zeros(p, p);
         let mut count = 0usize;
