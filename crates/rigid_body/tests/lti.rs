@@ -332,6 +332,17 @@ fn riccati_reports_unsolvable_problems() {
     assert_eq!(err.to_string(), "Q is not symmetric");
 }
 
+/// A model without states (a plant whose outputs see none of its states, reduced to its
+/// observable part) has empty solutions, not a panic in the eigen-decomposition of `Q`.
+#[test]
+fn riccati_of_no_state_is_empty() {
+    let none = DMatrix::<f64>::zeros(0, 0);
+    let b = DMatrix::<f64>::zeros(0, 1);
+    let one = DMatrix::<f64>::identity(1, 1);
+    assert_eq!(lti::dare(&none, &b, &none, &one).unwrap().shape(), (0, 0));
+    assert_eq!(lti::care(&none, &b, &none, &one).unwrap().shape(), (0, 0));
+}
+
 #[test]
 fn dlqr_of_discretized_double_integrator_approaches_lqr() {
     // For small h, dlqr with Q h, R h tends to the continuous LQR gain.

@@ -249,6 +249,15 @@ fn model_check_puts_both_zero_eigenvalues_on_the_imaginary_axis() {
     assert_eq!(json["unstable"], serde_json::json!([]));
     assert_eq!(json["marginal"].as_array().unwrap().len(), 2, "{json}");
     assert_eq!(json["eigenvalues"].as_array().unwrap().len(), 4);
+    assert_eq!(json["silent_outputs"], serde_json::json!([]));
+    // An output row left at zero is named: the workbench refuses it.
+    let silent = dir.join("silent.toml");
+    std::fs::write(&silent, TWO_MASS.replace("[0, 0, 1, 0]]", "[0, 0, 0, 0]]")).unwrap();
+    let stdout = ok(&["model", "check", silent.to_str().unwrap()]);
+    assert!(
+        stdout.contains("output x2 depends on no state and no input"),
+        "{stdout}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -127,9 +127,68 @@ impl Dataset {
                         found: e.u.nrows(),
                     });
                 }
+                if let Some(r) = &e.r {
+                    check_repeats(&e.name, &self.inputs, r, p)?;
+                }
+            }
+            for (kind, names, m) in [
+                ("input", &self.inputs, &e.u),
+                ("output", &self.outputs, &e.y),
+            ] {
+                check_spikes(&e.name, kind, names, m, self.sample_rate_hz)?;
             }
         }
-        Ok(())
+        check_outputs_move(self)
+    }
+
+    /// The outputs logged through a coarse quantizer: every change between samples is a
+    /// multiple of one step (an encoder's count) and the value stays on one step in at least
+    /// [`COARSE_STILL`] of the samples. Its error then follows the signal for many samples
+    /// instead of being white sensor noise.
+    pub fn coarse_quantization(&self) -> Vec<Quantization> {
+        self.outputs
+            .iter()
+            .enumerate()
+            .filter_map(|(j, name)| {
+                let columns: Vec<_> = self.experiments.iter().map(|e| e.y.column(j)).collect();
+                let range = columns.iter().map(|c| c.amax()).fold(0.0, f64::max);
+                let floor = 1e-8 * range;
+                let steps: Vec<f64> = columns
+                    .iter()
+                    .flat_map(|c| (1..c.len()).map(move |k| (c[k] - c[k - 1]).abs()))
+                    .collect();
+                let moves: Vec<f64> = steps.iter().copied().filter(|d| *d > floor).collect();
+                let step = moves.iter().copied().fold(f64::INFINITY, f64::min);
+                if moves.len() < 10 || !step.is_finite() {
+                    return None;
+                }
+                let on_grid = moves
+                    .iter()
+                    .filter(|d| {
+                        let k = *d / step;
+                        (k - k.round()).abs() <= 0.01 + floor / step
+                    })
+                    .count();
+                let still = 1.0 - moves.len() as f64 / steps.len() as f64;
+                if (on_grid as f64) < 0.99 * moves.len() as f64 || still < COARSE_STILL {
+                    return None;
+                }
+                // Spread about each record's own mean, pooled.
+                let (sq, n) = columns.iter().fold((0.0, 0usize), |(q, n), c| {
+                    let mean = c.mean();
+                    (
+                        q + c.iter().map(|v| (v - mean).powi(2)).sum::<f64>(),
+                        n + c.len(),
+                    )
+                });
+                Some(Quantization {
+                    output: name.clone(),
+                    step,
+                    still,
+                    rms_steps: (sq / n.max(1) as f64).sqrt() / step,
+                })
+            })
+            .collect()
     }
 
     /// True when every experiment carries the known excitation.
@@ -260,6 +319,38 @@ impl Dataset {
     }
 }
 
+/// Share of samples on the previous sample's value above which a quantized output counts as
+/// coarse ([`Dataset::coarse_quantization`]): a double pendulum's link angles on 4096-count
+/// encoders at 200 Hz sat still in 71-79 % of the samples, its cart position on 0.1 mm
+/// counts in 12-14 %.
+pub const COARSE_STILL: f64 = 0.5;
+
+/// An output logged through a coarse quantizer ([`Dataset::coarse_quantization`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Quantization {
+    /// The output.
+    pub output: String,
+    /// The quantization step, in the output's units.
+    pub step: f64,
+    /// Share of samples equal to the one before.
+    pub still: f64,
+    /// The output's rms about each record's mean, in steps.
+    pub rms_steps: f64,
+}
+
+impl Quantization {
+    /// "th2 (step 0.001534, still in 79 % of the samples, rms 3.7 steps)".
+    pub fn describe(&self) -> String {
+        format!(
+            "{} (step {:.4e}, still in {:.0} % of the samples, rms {:.1} steps)",
+            self.output,
+            self.step,
+            100.0 * self.still,
+            self.rms_steps
+        )
+    }
+}
+
 /// Largest deviation between repetitions that still counts as exact repetition, relative to
 /// the excitation's peak: logs written with single-precision (7-digit) values repeat to it.
 const REPETITION_TOLERANCE: f64 = 1e-6;
@@ -327,6 +418,107 @@ pub fn detect_period(r: &DMatrix<f64>) -> Option<Periodic> {
     })
 }
 
+/// Deviation between periods, relative to the excitation's peak, above which a logged
+/// excitation does not repeat with its `period_samples` metadata: far above single-precision
+/// rounding, far below any period of a multisine or noise sequence of another length.
+const METADATA_REPETITION_TOLERANCE: f64 = 1e-3;
+
+/// Refuses `period_samples` metadata that the logged excitation `r` contradicts: the periodic
+/// estimate would average unrelated stretches as periods and call the result noise-free.
+fn check_repeats(experiment: &str, inputs: &[String], r: &DMatrix<f64>, p: Periodic) -> Result<()> {
+    let tol = METADATA_REPETITION_TOLERANCE * r.amax();
+    let last = p.transient + p.period * (p.periods - 1);
+    for t in p.transient..last {
+        if let Some(j) = (0..r.ncols()).find(|&j| (r[(t + p.period, j)] - r[(t, j)]).abs() > tol) {
+            let found = match detect_period(r) {
+                Some(d) => format!("it repeats every {} samples", d.period),
+                None => "it does not repeat at all".to_string(),
+            };
+            return Err(SimError::invalid(
+                format!("period_samples of {experiment}"),
+                p.period,
+                format!(
+                    "the logged excitation r_{} does not repeat with it (sample {t}: {:.6}, one period later {:.6}); {found}: correct the metadata or leave it out",
+                    inputs.get(j).map_or("?", |s| s.as_str()),
+                    r[(t, j)],
+                    r[(t + p.period, j)]
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// How many typical steps (the median absolute difference between neighbouring samples) a
+/// sample must stand out from both neighbours, in the same direction, to be refused as a
+/// logging glitch: a one-sample spike of 1e6 among samples of 1e-2 is 1e8 of them, a
+/// controller's response to an impulse of the excitation a few thousand.
+pub const SPIKE: f64 = 1e5;
+
+/// Refuses a single sample that leaps far out of its channel and straight back
+/// ([`SPIKE`]), naming the experiment, channel and sample: one such value dominates every
+/// spectrum and fit, and nothing downstream can say where it came from.
+fn check_spikes(
+    experiment: &str,
+    kind: &str,
+    names: &[String],
+    m: &DMatrix<f64>,
+    sample_rate_hz: f64,
+) -> Result<()> {
+    let n = m.nrows();
+    if n < 3 {
+        return Ok(());
+    }
+    for (j, name) in names.iter().enumerate() {
+        let c = m.column(j);
+        let mut steps: Vec<f64> = (1..n).map(|k| (c[k] - c[k - 1]).abs()).collect();
+        let mid = steps.len() / 2;
+        let typical = *steps.select_nth_unstable_by(mid, f64::total_cmp).1;
+        if !(typical > 0.0) {
+            continue;
+        }
+        for k in 1..n - 1 {
+            let (before, after) = (c[k] - c[k - 1], c[k] - c[k + 1]);
+            let leap = before.abs().min(after.abs());
+            if before.signum() == after.signum() && leap > SPIKE * typical {
+                return Err(SimError::invalid(
+                    format!("{kind} {name} of {experiment}"),
+                    format!("{:e} at sample {k} (t = {:.6} s from the start)", c[k], k as f64 / sample_rate_hz),
+                    format!(
+                        "leaps from {:e} and back to {:e}, {:.1e} times the channel's typical step between samples ({typical:.3e}): a logging glitch? repair or remove the sample",
+                        c[k - 1],
+                        c[k + 1],
+                        leap / typical
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Refuses an output that is constant in an experiment where an input moves: a dead or
+/// unplugged sensor (a log of zeros) matches no model, and a fit would take it for data.
+fn check_outputs_move(data: &Dataset) -> Result<()> {
+    let constant = |c: nalgebra::DMatrixView<f64>| {
+        let (lo, hi) = (c.min(), c.max());
+        hi - lo <= 1e-12 * lo.abs().max(hi.abs())
+    };
+    for e in &data.experiments {
+        let input_moves = (0..e.u.ncols()).any(|j| !constant(e.u.columns(j, 1)));
+        for (j, name) in data.outputs.iter().enumerate() {
+            if input_moves && e.y.nrows() > 1 && constant(e.y.columns(j, 1)) {
+                return Err(SimError::invalid(
+                    format!("output {name} of {}", e.name),
+                    format!("{} in every sample", e.y[(0, j)]),
+                    "stays constant while the inputs move: a dead or unplugged sensor, or the wrong column; leave the experiment out or repair the channel",
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 fn check_block(
     experiment: &str,
     kind: &str,
@@ -379,6 +571,50 @@ fn same_samples(a: &DMatrix<f64>, b: &DMatrix<f64>) -> bool {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    /// One experiment of 2000 samples whose single output is `y(k)`.
+    fn one_output(y: impl Fn(usize) -> f64) -> Dataset {
+        Dataset {
+            sample_rate_hz: 200.0,
+            inputs: vec!["u".into()],
+            outputs: vec!["angle".into()],
+            experiments: vec![Experiment {
+                name: "e".into(),
+                u: DMatrix::from_fn(2000, 1, |k, _| (k as f64).sin()),
+                y: DMatrix::from_fn(2000, 1, |k, _| y(k)),
+                r: None,
+                periodic: None,
+            }],
+        }
+    }
+
+    /// A slow angle on 4096-count encoder steps is coarse, with its step and stillness; the
+    /// same angle moving several counts per sample, or with white noise after the encoder,
+    /// is not.
+    #[test]
+    fn coarse_quantization_is_found_with_its_step() {
+        let q = std::f64::consts::TAU / 4096.0;
+        let slow = |k: usize| 0.006 * (0.05 * k as f64).sin() + 0.003 * (0.13 * k as f64).cos();
+        let found = one_output(|k| (slow(k) / q).round() * q).coarse_quantization();
+        assert_eq!(found.len(), 1);
+        let f = &found[0];
+        assert!((f.step / q - 1.0).abs() < 1e-9, "{f:?}");
+        assert!(
+            f.still > 0.5 && f.rms_steps > 1.0 && f.rms_steps < 5.0,
+            "{f:?}"
+        );
+        assert!(
+            f.describe().starts_with("angle (step 1.5340e-3"),
+            "{}",
+            f.describe()
+        );
+        let fast = |k: usize| 100.0 * slow(k);
+        assert!(one_output(|k| (fast(k) / q).round() * q)
+            .coarse_quantization()
+            .is_empty());
+        let noisy = |k: usize| (slow(k) / q).round() * q + 1e-4 * ((k * k) as f64).sin();
+        assert!(one_output(noisy).coarse_quantization().is_empty());
+    }
 
     /// `lead` samples of something else, then `n` samples of `pattern` repeated on two channels.
     fn repeated(pattern: &[f64], lead: usize, n: usize) -> DMatrix<f64> {

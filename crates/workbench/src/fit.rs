@@ -238,6 +238,11 @@ fn scaled_free_jacobian(full: &DMatrix<f64>, params: &[Parameter], held: &[bool]
 /// the stiffness, weighing 0.26 against 0.67) is held, not a base parameter fitted before it. A column of zeros (a parameter
 /// without any influence) is returned first.
 fn weakest(j: &DMatrix<f64>, tol: f64) -> Option<usize> {
+    // A derivative that is not finite says nothing of a direction (and would stop the SVD):
+    // that parameter is held first, as one without influence.
+    if let Some(i) = (0..j.ncols()).find(|&i| j.column(i).iter().any(|v| !v.is_finite())) {
+        return Some(i);
+    }
     if j.ncols() == 0 {
         return None;
     }

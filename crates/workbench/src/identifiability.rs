@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use super::fit::{holds, FitOptions};
 use super::model::Model;
-use crate::error::Result;
+use crate::error::{Result, SimError};
 
 /// Singular values below this fraction of the largest count as zero.
 pub const RELATIVE_RANK_TOLERANCE: f64 = 1e-7;
@@ -87,6 +87,13 @@ pub fn analyse(model: &Model, theta: &[f64]) -> Result<Identifiability> {
                 m[(row + 1, i)] = v.im * s;
             }
         }
+    }
+    if let Some(i) = (0..np).find(|&i| m.column(i).iter().any(|v| !v.is_finite())) {
+        return Err(SimError::invalid(
+            "identifiability",
+            &params[i].name,
+            "the FRF's derivative by it is not finite at the documented values (a pole on the frequency grid, or a model that overflows)",
+        ));
     }
     let norms: Vec<f64> = (0..np).map(|i| m.column(i).norm()).collect();
     let biggest = norms.iter().cloned().fold(0.0, f64::max);

@@ -505,6 +505,10 @@ fn observable_part(disc: &Discrete) -> (Discrete, Option<Split>) {
         o.view_mut((i * p, 0), (p, n)).copy_from(&block);
         block = &block * &disc.phi;
     }
+    if o.iter().any(|v| !v.is_finite()) {
+        // Φ^i overflowed: no rank decision; the design's Riccati equation names the problem.
+        return (disc.clone(), None);
+    }
     // Normalise so that the rank decision does not depend on the growth of Φ^i.
     let scale = o.amax().max(1e-300);
     let svd = (o / scale).svd(false, true);
@@ -552,13 +556,22 @@ fn shifted(m: &DMatrix<f64>, s: usize) -> DMatrix<f64> {
 fn gain(disc: &Discrete, q: &DMatrix<f64>, r: &DMatrix<f64>) -> Result<DMatrix<f64>> {
     let phi_t = disc.phi.transpose();
     let c_t = disc.c.transpose();
-    let p = rigid_body::lti::dare(&phi_t, &c_t, q, r).map_err(|e| {
+    // The gain is the same for (Q, R) scaled together, and the Riccati solver's checks have
+    // an absolute floor: signals of 1e-9 units read as a process noise that reaches no mode.
+    let scale = q.amax().max(r.amax());
+    let scale = if scale.is_finite() && scale > 0.0 {
+        scale
+    } else {
+        1.0
+    };
+    let (q, r) = (q / scale, r / scale);
+    let p = rigid_body::lti::dare(&phi_t, &c_t, &q, &r).map_err(|e| {
         SimError::domain(
             "Kalman predictor (is the model detectable from its outputs?)",
             e,
         )
     })?;
-    let s = &disc.c * &p * &c_t + r;
+    let s = &disc.c * &p * &c_t + &r;
     let s_inv = s
         .try_inverse()
         .ok_or_else(|| SimError::invalid("Kalman predictor", "C P C^T + R", "is singular"))?;
@@ -601,6 +614,21 @@ mod tests {
             )
             .unwrap();
             assert!((k[(0, 0)] - a * p / (p + r)).abs() < 1e-10, "{a} {q} {r}");
+        }
+    }
+
+    /// Noise covariances scaled together give the same gain, down to signals of 1e-10
+    /// units (covariances of 1e-20), where the Riccati checks' absolute floor called the
+    /// process noise unable to reach the unstable mode.
+    #[test]
+    fn the_gain_does_not_depend_on_the_signals_units() {
+        let plant = unstable_plant();
+        let q = DMatrix::from_row_slice(2, 2, &[1e-4, 0.0, 0.0, 1e-2]);
+        let r = DMatrix::from_element(1, 1, 1e-6);
+        let k = gain(&plant, &q, &r).unwrap();
+        for scale in [1e-20, 1e20] {
+            let ks = gain(&plant, &(&q * scale), &(&r * scale)).unwrap();
+            assert!((&ks - &k).norm() < 1e-9 * k.norm(), "{scale}: {ks} {k}");
         }
     }
 

@@ -177,6 +177,23 @@ impl Workbench {
         };
         let cost = WeightedCost::new(&frf)?;
         let mut model = Model::new(structure);
+        let silent = model.silent_outputs(&model.documented()?)?;
+        if !silent.is_empty() {
+            return Err(SimError::invalid(
+                "model",
+                model.structure().system(),
+                format!(
+                    "output {} depends on no state and no input at the documented values (its row of C and D{} is zero): the model holds it constant, so no log of it can be compared; check its output expression or C row",
+                    silent.join(", "),
+                    if model.structure().is_nonlinear() {
+                        ", the linearization at the operating point,"
+                    } else {
+                        ""
+                    }
+                ),
+            ));
+        }
+        check_sample_rate(&model, data.sample_rate_hz)?;
         let criterion = options
             .criterion
             .unwrap_or_else(|| Criterion::default_for(&model));
@@ -288,4 +305,39 @@ impl Workbench {
             .with_candidates(discover::Candidates::of(&self.model, false));
         Ok(d)
     }
+}
+
+/// The most e-folds per sample period a model's fastest unstable mode may grow in logs of a
+/// loop that holds it: loops sample an unstable plant many times per time constant (the
+/// magnetic levitator of the README: 0.044 per sample), and a deadbeat loop of a plant growing
+/// twentyfold per sample would multiply its sensor noise as much. A time column in
+/// milliseconds read as seconds makes the period a thousand times too long.
+pub const MAX_GROWTH_PER_SAMPLE: f64 = 3.0;
+
+/// Refuses logs whose sample period is too long for the model at its documented values to be
+/// held by a sampled loop ([`MAX_GROWTH_PER_SAMPLE`]), naming the rate, the mode and the likely
+/// cause (a time column in other units).
+fn check_sample_rate(model: &Model, sample_rate_hz: f64) -> Result<()> {
+    let Ok(ss) = model.state_space(&model.documented()?) else {
+        // The structure's own errors are reported where the model is used.
+        return Ok(());
+    };
+    let fastest =
+        ss.a.complex_eigenvalues()
+            .iter()
+            .map(|l| l.re)
+            .fold(0.0, f64::max);
+    let growth = fastest / sample_rate_hz;
+    if growth > MAX_GROWTH_PER_SAMPLE {
+        return Err(SimError::invalid(
+            "sample rate",
+            format!("{} Hz", load::hz(sample_rate_hz)),
+            format!(
+                "the {} model's fastest unstable mode ({fastest:.4} 1/s at the documented values) grows by a factor e^{growth:.3} per sample period of {:.4} s, more than e^{MAX_GROWTH_PER_SAMPLE}: no sampled loop holds such a plant; is the logs' time column in seconds (milliseconds read as seconds make the period a thousand times too long), and are the documented values right?",
+                model.structure().system(),
+                1.0 / sample_rate_hz
+            ),
+        ));
+    }
+    Ok(())
 }

@@ -139,7 +139,8 @@ fn experiment(
                 found: output.len(),
             });
         }
-        let r = match log.topics.get(&format!("/{system}/excitation")) {
+        let excitation = log.topics.get(&format!("/{system}/excitation"));
+        let r = match excitation {
             Some(t) if t.len() == input.len() => Some(columns(t, inputs, "")?),
             Some(t) => {
                 return Err(SimError::LengthMismatch {
@@ -151,7 +152,22 @@ fn experiment(
             None => None,
         };
         let meta = log.experiment().map(Meta::from_metadata).transpose()?;
+        if let Some(p) = meta.as_ref().and_then(|m| m.periodic.as_ref()) {
+            if let Some(x) = p.excited.iter().find(|x| !inputs.contains(x)) {
+                return Err(SimError::invalid(
+                    format!("experiment metadata `excited` of {name}"),
+                    x,
+                    format!("names no input of the model (inputs {})", inputs.join(", ")),
+                ));
+            }
+        }
         let fs = input.sample_rate(meta.as_ref().map(|m| m.sample_rate_hz), file)?;
+        for (topic, t) in [("output", Some(output)), ("excitation", excitation)]
+            .into_iter()
+            .filter_map(|(topic, t)| Some((topic, t?)))
+        {
+            aligned(&name, &format!("/{system}/{topic}"), &input.t, &t.t, fs)?;
+        }
         let periodic = meta.and_then(|m| m.periodic).map(|p| Periodic {
             period: p.period_samples,
             periods: p.periods,
@@ -168,22 +184,50 @@ fn experiment(
     })
 }
 
-/// The sample rate the experiments share; when they do not, an error that lists each rate with
-/// the experiments recorded at it (the largest group last, so a file in other units stands
-/// out first).
+/// Relative difference below which two logs' sample rates are one: loggers' clocks differ by
+/// tens of parts per million, and a time column's mean step carries its jitter, while a rate
+/// read 0.1 % off moves an FRF line by a thousandth of its frequency.
+pub const SAME_RATE: f64 = 1e-3;
+
+/// Refuses a topic whose messages are not stamped with their input samples' times (within
+/// half a sample period): messages are paired by their order, so an output log that starts
+/// late would pair every input with a later output.
+fn aligned(file: &str, topic: &str, input: &[f64], other: &[f64], fs: f64) -> Result<()> {
+    let half = 0.5 / fs;
+    if let Some((k, (a, b))) = input
+        .iter()
+        .zip(other)
+        .enumerate()
+        .find(|(_, (a, b))| (*a - *b).abs() > half)
+    {
+        return Err(SimError::invalid(
+            format!("{topic} in {file}"),
+            format!("message {k} at t = {b} s"),
+            format!(
+                "its input sample is at t = {a} s: one message per input sample at the same time (within half a sample period, {half:e} s) is needed; the topics were logged with an offset or at other instants"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The sample rate the experiments share (within [`SAME_RATE`], their mean); when they do not,
+/// an error that lists each rate with the experiments recorded at it (the largest group last,
+/// so a file in other units stands out first).
 fn one_rate(experiments: &[Experiment], rates: &[f64]) -> Result<f64> {
     let mut groups: Vec<(f64, Vec<&str>)> = Vec::new();
     for (e, &fs) in experiments.iter().zip(rates) {
         match groups
             .iter_mut()
-            .find(|(r, _)| (r - fs).abs() <= 1e-6 * r.abs())
+            .find(|(r, _)| (*r - fs).abs() <= SAME_RATE * r.abs())
         {
             Some((_, names)) => names.push(&e.name),
             None => groups.push((fs, vec![&e.name])),
         }
     }
     if groups.len() <= 1 {
-        return Ok(groups.first().map_or(0.0, |g| g.0));
+        let mean = rates.iter().sum::<f64>() / rates.len().max(1) as f64;
+        return Ok(if rates.is_empty() { 0.0 } else { mean });
     }
     groups.sort_by_key(|(_, names)| names.len());
     let listed: Vec<String> = groups
@@ -229,4 +273,86 @@ pub fn load(
     };
     data.validate()?;
     Ok(data)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::DMatrix;
+
+    fn experiment(name: &str) -> Experiment {
+        Experiment {
+            name: name.into(),
+            u: DMatrix::zeros(1, 1),
+            y: DMatrix::zeros(1, 1),
+            r: None,
+            periodic: None,
+        }
+    }
+
+    /// A log of the pendulum's topics, 40 samples at 100 Hz, the output stamped `offset` s
+    /// after its input, with `excited` in the metadata when given.
+    fn pendulum_log(name: &str, offset: f64, excited: Option<&str>) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("workbench-load-tests-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(name);
+        let mut log = crate::log::LogWriter::create(&path).unwrap();
+        let mut meta = Meta::new(100.0);
+        meta.periodic = excited.map(|x| crate::log::Periodic {
+            period_samples: 10,
+            periods: 4,
+            transient_samples: 0,
+            excited: vec![x.to_string()],
+        });
+        log.write_metadata(crate::log::EXPERIMENT, meta.to_metadata())
+            .unwrap();
+        let input = log.add_topic("/pend/input", &["T"]).unwrap();
+        let output = log.add_topic("/pend/output", &["theta"]).unwrap();
+        for k in 0..40 {
+            let t = k as f64 / 100.0;
+            let r = ((k % 10) as f64).sin();
+            log.write(input, t, &[r]).unwrap();
+            log.write(output, t + offset, &[0.1 * r]).unwrap();
+        }
+        log.finish().unwrap();
+        path
+    }
+
+    /// Topics are paired message by message, so an output stamped later than its input (by
+    /// more than half a sample) is refused, naming the topic; an `excited` input the model
+    /// does not have is named.
+    #[test]
+    fn misaligned_topics_and_unknown_excited_inputs_are_named() {
+        let (inputs, outputs) = (vec!["T".to_string()], vec!["theta".to_string()]);
+        let ok = pendulum_log("ok.mcap", 0.004, Some("T"));
+        assert!(load("pend", &inputs, &outputs, &[ok]).is_ok());
+        let late = pendulum_log("late.mcap", 0.25, None);
+        let err = load("pend", &inputs, &outputs, &[late])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("/pend/output in") && err.contains("message 0 at t = 0.25 s"),
+            "{err}"
+        );
+        let unknown = pendulum_log("x.mcap", 0.0, Some("X"));
+        let err = load("pend", &inputs, &outputs, &[unknown])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("`excited`")
+                && err.contains("= X: names no input of the model (inputs T)"),
+            "{err}"
+        );
+    }
+
+    /// Logs whose clocks differ by parts per million share their mean rate; a file in
+    /// milliseconds among files in seconds is refused, listed first.
+    #[test]
+    fn rates_within_a_thousandth_are_one() {
+        let e = [experiment("a"), experiment("b"), experiment("c")];
+        let fs = one_rate(&e, &[100.0, 100.001, 99.9995]).unwrap();
+        assert!((fs - 100.000_166_666_7).abs() < 1e-9, "{fs}");
+        let err = one_rate(&e, &[100.0, 0.1, 100.0]).unwrap_err().to_string();
+        assert!(err.contains("0.1 Hz in b; 100 Hz in a, c"), "{err}");
+    }
 }

@@ -403,6 +403,27 @@ impl Model {
             .collect())
     }
 
+    /// The outputs that depend on no state and no input of the model at `theta`: their rows
+    /// of `C` and `D` (a nonlinear model's at its operating point) are zero, so the model
+    /// holds them constant and no log of them can be compared with it (`h.theta = "0*theta"`,
+    /// a `C` row left at zero).
+    pub fn silent_outputs(&self, theta: &[f64]) -> Result<Vec<String>> {
+        let ss = self.state_space(theta)?;
+        Ok(self
+            .structure
+            .outputs()
+            .into_iter()
+            .enumerate()
+            .filter(|(i, _)| {
+                ss.c.row(*i)
+                    .iter()
+                    .chain(ss.d.row(*i).iter())
+                    .all(|v| *v == 0.0)
+            })
+            .map(|(_, name)| name)
+            .collect())
+    }
+
     /// Checks the length of `theta`; returns how many of its entries are the structure's.
     fn check_theta(&self, theta: &[f64]) -> Result<usize> {
         let n_struct = self.structure.parameters(&self.enabled)?.len();

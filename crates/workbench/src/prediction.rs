@@ -23,6 +23,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use super::coherence::locate;
+use super::dataset::Dataset;
 use super::diagnose::{diagnose, LEVEL};
 use super::discover::{
     in_parallel, CandidateScore, Conclusion, Discovery, NestedCosts, Robustness, Step, Verdict,
@@ -959,12 +960,19 @@ impl Workbench {
             .with_candidates(super::discover::Candidates::of(&self.model, true))
             .with_near_misses(&last.candidates)
             .with_test(EXCITATION_TEST)
-            .with_warnings(match &last_model {
-                Some(m) => super::discover::far_from_documented(m, &last.params)?
-                    .into_iter()
-                    .collect(),
-                None => Vec::new(),
-            });
+            .with_warnings(
+                match &last_model {
+                    Some(m) => super::discover::far_from_documented(m, &last.params)?,
+                    None => None,
+                }
+                .into_iter()
+                .chain(
+                    unexplained
+                        .then(|| quantization_warning(&self.data))
+                        .flatten(),
+                )
+                .collect(),
+            );
         Ok(Discovery {
             weighting: weighting.to_string(),
             steps,
@@ -1158,6 +1166,20 @@ impl Search for TimeSearch<'_> {
     fn parallel(&self) -> bool {
         self.wb.model.parallel()
     }
+}
+
+/// Why a misfit verdict may be the logs' quantization rather than the model
+/// ([`Dataset::coarse_quantization`]); `None` when no output is coarsely quantized.
+fn quantization_warning(data: &Dataset) -> Option<String> {
+    let coarse = data.coarse_quantization();
+    (!coarse.is_empty()).then(|| {
+        format!(
+            "{} {} {} logged through a coarse quantizer: the quantization error stays put while an output sits on a count, which the predictor's white sensor noise does not describe, and in closed loop it reaches the inputs; the misfit may be the quantization's (correct double-pendulum logs on 4096-count encoders read misfit on 3 of 3 seeds, explained without the quantization, and explained under the FRF criterion, --criterion frf)",
+            if coarse.len() == 1 { "output" } else { "outputs" },
+            coarse.iter().map(|q| q.describe()).collect::<Vec<_>>().join(" and "),
+            if coarse.len() == 1 { "is" } else { "are" },
+        )
+    })
 }
 
 /// Why a linearization may have lost what the predictor needs: the operating point is no

@@ -68,6 +68,13 @@ impl<'a> Runner<'a> {
         for (j, pw) in powers.iter().enumerate() {
             o.rows_mut(j * ny, ny).copy_from(&(&disc.c * pw));
         }
+        if o.iter().any(|v| !v.is_finite()) {
+            return Err(SimError::invalid(
+                "observability matrix",
+                format!("C Φ^k for k up to {m}"),
+                "overflows: the model grows too fast per sample for its prediction (is the logs' time column in seconds?)",
+            ));
+        }
         let svd = o.svd(true, true);
         let tol = 1e-9 * svd.singular_values.max();
         let o_pinv = svd

@@ -831,3 +831,24 @@ fn a_fit_far_from_the_documented_values_is_named() {
         assert!(!warned, "{criterion:?}: {verdict}");
     }
 }
+
+/// An output the model holds constant (its expression reads no state or input at the
+/// operating point) is refused by name before any fit: its Kalman predictor has no state to
+/// estimate, which panicked in the Riccati check (an empty eigen-decomposition).
+#[test]
+fn an_output_the_model_holds_constant_is_refused_by_name() {
+    let text = PENDULUM.replace(r#"h.theta = "theta""#, r#"h.theta = "0*theta""#);
+    assert_ne!(text, PENDULUM);
+    let err = Workbench::with_options(
+        Arc::new(file(&text).unwrap()),
+        campaign(0.0, 0.0, 1),
+        EstimatorChoice::Auto,
+        DataOptions::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("output theta depends on no state and no input at the documented values"),
+        "{err}"
+    );
+}

@@ -93,6 +93,37 @@ impl ModelStructure for Toy {
     }
 }
 
+/// The toy with its poles mirrored into the right half-plane (2 and 5 1/s): a plant only a
+/// loop holds.
+#[derive(Debug)]
+struct Unstable;
+
+impl ModelStructure for Unstable {
+    fn system(&self) -> &str {
+        "unstable toy"
+    }
+    fn inputs(&self) -> Vec<String> {
+        Toy.inputs()
+    }
+    fn outputs(&self) -> Vec<String> {
+        Toy.outputs()
+    }
+    fn effects(&self) -> Vec<String> {
+        Toy.effects()
+    }
+    fn describe(&self, effect: &str) -> String {
+        Toy.describe(effect)
+    }
+    fn parameters(&self, enabled: &[String]) -> Result<Vec<Parameter>> {
+        Toy.parameters(enabled)
+    }
+    fn state_space(&self, enabled: &[String], theta: &[f64]) -> Result<StateSpace> {
+        let mut ss = Toy.state_space(enabled, theta)?;
+        ss.a = -ss.a;
+        Ok(ss)
+    }
+}
+
 const FS: f64 = 50.0;
 const N: usize = 100;
 const P: usize = 6;
@@ -445,6 +476,59 @@ fn bad_data_gives_named_errors() {
         .to_string();
     assert!(
         msg.contains("y2") && msg.contains("experiment 3") && msg.contains("sample 17"),
+        "{msg}"
+    );
+
+    // A one-sample logging glitch is named with its sample, not fitted; a controller's
+    // response to the excitation's steps is not one.
+    let mut spike = good.clone();
+    spike.experiments[1].y[(40, 0)] = 1e6;
+    let msg = Workbench::new(Arc::new(Toy), spike, EstimatorChoice::Auto)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.contains("output y1 of experiment 2 = 1e6 at sample 40") && msg.contains("glitch"),
+        "{msg}"
+    );
+
+    // A dead sensor (a column of zeros in one record while its inputs move) is refused.
+    let mut dead = good.clone();
+    dead.experiments[3].y.column_mut(1).fill(0.0);
+    let msg = Workbench::new(Arc::new(Toy), dead, EstimatorChoice::Auto)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.contains("output y2 of experiment 4 = 0 in every sample"),
+        "{msg}"
+    );
+
+    // Period metadata the logged excitation contradicts (half the true period) is refused,
+    // naming the period the excitation has.
+    let mut wrong_period = good.clone();
+    wrong_period.experiments[0].periodic = Some(Periodic {
+        period: N / 2,
+        periods: 2 * P,
+        transient: TRANSIENT,
+    });
+    let msg = Workbench::new(Arc::new(Toy), wrong_period, EstimatorChoice::Auto)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.contains(&format!("period_samples of experiment 1 = {}", N / 2))
+            && msg.contains(&format!("it repeats every {N} samples")),
+        "{msg}"
+    );
+
+    // A sample period far beyond the model's unstable time constant (a time column in
+    // milliseconds read as seconds) is named.
+    let mut slow = good.clone();
+    slow.sample_rate_hz = FS / 1000.0;
+    let msg = match Workbench::new(Arc::new(Unstable), slow, EstimatorChoice::Auto) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("a sample period of 1000 unstable time constants was accepted"),
+    };
+    assert!(
+        msg.contains("invalid sample rate") && msg.contains("time column in seconds"),
         "{msg}"
     );
 

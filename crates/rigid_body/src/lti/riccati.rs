@@ -60,12 +60,18 @@ fn validate(
     shaped("R", r, m, m)?;
     symmetric("Q", q)?;
     symmetric("R", r)?;
-    let q_min = symmetrized(q)
-        .symmetric_eigenvalues()
-        .iter()
-        .copied()
-        .fold(f64::INFINITY, f64::min);
-    if n > 0 && q_min < -1e-12 * q.norm() {
+    // nalgebra's eigen-decomposition panics on an empty matrix: a model with no state has
+    // nothing to check.
+    let q_min = if n == 0 {
+        0.0
+    } else {
+        symmetrized(q)
+            .symmetric_eigenvalues()
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min)
+    };
+    if q_min < -1e-12 * q.norm() {
         return Err(Error::NotPositiveSemidefinite {
             name: "Q",
             eigenvalue: q_min,

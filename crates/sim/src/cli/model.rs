@@ -77,6 +77,7 @@ impl CheckArgs {
         let theta: Vec<f64> = params.iter().map(|p| p.value).collect();
         let id = identifiability::analyse(&model, &theta)?;
         let drift = model.drift(&theta)?;
+        let silent = model.silent_outputs(&theta)?;
         let eig = ss.a.complex_eigenvalues();
         let (tolerance, unstable, marginal) = classify(&ss.a, eig.as_slice());
         let show = |ls: &[Complex<f64>]| -> String {
@@ -119,6 +120,13 @@ impl CheckArgs {
                  (a derivative counts above {:.0} % of its row's linear terms)\n",
                 Drift::describe(&drift),
                 100.0 * workbench::model::DRIFT_TOLERANCE
+            ));
+        }
+        if !silent.is_empty() {
+            human.push_str(&format!(
+                "output {} depends on no state and no input (its row of C and D is zero): the \
+                 model holds it constant, and discover, compare and fit refuse it\n",
+                silent.join(", ")
             ));
         }
         human.push_str(&format!("eigenvalues of A: {}\n", eig_text.join(", ")));
@@ -216,6 +224,7 @@ impl CheckArgs {
             "candidates": model.candidates(),
             "identifiability": id,
             "drift": drift,
+            "silent_outputs": silent,
         });
         Ok(Output { human, json })
     }
