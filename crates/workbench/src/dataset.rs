@@ -474,7 +474,7 @@ fn check_spikes(
         let mut steps: Vec<f64> = (1..n).map(|k| (c[k] - c[k - 1]).abs()).collect();
         let mid = steps.len() / 2;
         let typical = *steps.select_nth_unstable_by(mid, f64::total_cmp).1;
-        if !(typical > 0.0) {
+        if typical <= 0.0 || !typical.is_finite() {
             continue;
         }
         for k in 1..n - 1 {

@@ -504,8 +504,8 @@ pub struct Conclusion {
     pub near_misses: Vec<String>,
     /// What qualifies the verdict itself, whatever was added: the estimate it rests on is
     /// biased under feedback, indistinguishable from zero, or distorted
-    /// ([`Conclusion::with_warnings`]). The verdict's sentence ends with them when no effect
-    /// is tentative (a tentative one already names them).
+    /// ([`Conclusion::with_warnings`]). The verdict's sentence ends with those the tentative
+    /// effects' reasons do not already give.
     pub warnings: Vec<String>,
     /// What the verdict's p-value tested, as "for ..." ([`Conclusion::with_test`]).
     #[serde(skip)]
@@ -639,10 +639,16 @@ impl Conclusion {
             }
             _ => sentence,
         };
-        if self.warnings.is_empty() || !self.tentative.is_empty() {
+        let unsaid: Vec<&str> = self
+            .warnings
+            .iter()
+            .filter(|w| self.tentative.is_empty() || !self.caveats.contains(w))
+            .map(String::as_str)
+            .collect();
+        if unsaid.is_empty() {
             return sentence;
         }
-        format!("{sentence}; but {}", self.warnings.join("; "))
+        format!("{sentence}; but {}", unsaid.join("; "))
     }
 
     /// A sentence naming the tentative effects and why; `None` when there are none.
