@@ -45,3 +45,18 @@ def test_correct_logs_name_the_quantization_and_read_explained_under_the_frf_cri
     assert "th1 (step 1.5340e-3" in quantized and "x (step" not in quantized, quantized
     frf = warning(doc, "under the FRF criterion (--criterion frf")
     assert frf.endswith("the same logs read explained, nothing added"), frf
+
+
+def test_an_offset_refit_that_wanders_is_not_kept(tmp_path):
+    # A 0.01 rad offset of the first link's encoder: the final model's refit under its own
+    # predictor went to a cart mass a third of the documented one, where the starting
+    # predictor's cost is nine times the one its effects were chosen at; it is not kept, so
+    # every step's cost falls and the verdict says why.
+    doc = discover(tmp_path, "f")
+    costs = [step["cost"] for step in doc["steps"]]
+    assert all(b < a for a, b in zip(costs, costs[1:])), costs
+    assert "sensor_bias" in doc["found"] + doc["tentative"], doc["verdict_text"]
+    note = warning(doc, "the final model's refit under its own predictor moved")
+    assert "the parameters shown are the selection's" in note, note
+    bias = doc["steps"][-1]["params"]["bias_th1"]
+    assert abs(bias - 0.01) < 0.001, bias
