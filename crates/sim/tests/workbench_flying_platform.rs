@@ -395,10 +395,12 @@ fn clean_closed_loop_without_excitation_finds_nothing() {
             why.contains("biased under feedback") && why.contains("/flying_platform/excitation"),
             "{why}"
         );
-        // The tentative sentence names the bias, so the verdict does not repeat it; with
-        // nothing added (compare) the verdict itself names it (it did not: a misfit read as
-        // one no candidate explains).
-        assert!(!d.conclusion.verdict_sentence().contains("; but"));
+        // The tentative sentence names the bias, so the verdict does not repeat it (it names
+        // the warnings the tentative reasons do not give: here parameters fitted 40-80 times
+        // from their documented values); with nothing added (compare) the verdict itself
+        // names the bias (it did not: a misfit read as one no candidate explains).
+        let sentence = d.conclusion.verdict_sentence();
+        assert!(!sentence.contains("biased under feedback"), "{sentence}");
         let verdict = wb.compared().unwrap().conclusion.verdict_sentence();
         assert!(
             verdict.contains("; but the FRF estimator is")
