@@ -137,8 +137,9 @@ impl Dataset {
             ] {
                 check_spikes(&e.name, kind, names, m, self.sample_rate_hz)?;
             }
+            check_outputs_move(e, &self.outputs)?;
         }
-        check_outputs_move(self)
+        Ok(())
     }
 
     /// The outputs logged through a coarse quantizer: every change between samples is a
@@ -497,26 +498,28 @@ fn check_spikes(
     Ok(())
 }
 
+/// True when column `j` of `m` takes more than one value (beyond rounding): the test of an
+/// input, excitation or output that something moved.
+pub(crate) fn column_moves(m: &DMatrix<f64>, j: usize) -> bool {
+    let c = m.column(j);
+    let (lo, hi) = (c.min(), c.max());
+    hi - lo > 1e-12 * lo.abs().max(hi.abs())
+}
+
 /// Refuses an output that is constant in an experiment where an input moves: a dead or
 /// unplugged sensor (a log of zeros) matches no model, and a fit would take it for data.
-fn check_outputs_move(data: &Dataset) -> Result<()> {
-    let constant = |c: nalgebra::DMatrixView<f64>| {
-        let (lo, hi) = (c.min(), c.max());
-        hi - lo <= 1e-12 * lo.abs().max(hi.abs())
-    };
-    for e in &data.experiments {
-        let input_moves = (0..e.u.ncols()).any(|j| !constant(e.u.columns(j, 1)));
-        for (j, name) in data.outputs.iter().enumerate() {
-            if input_moves && e.y.nrows() > 1 && constant(e.y.columns(j, 1)) {
-                return Err(SimError::invalid(
-                    format!("output {name} of {}", e.name),
-                    format!("{} in every sample", e.y[(0, j)]),
-                    "stays constant while the inputs move: a dead or unplugged sensor, or the wrong column; leave the experiment out or repair the channel",
-                ));
-            }
-        }
+fn check_outputs_move(e: &Experiment, outputs: &[String]) -> Result<()> {
+    if e.y.nrows() < 2 || !(0..e.u.ncols()).any(|j| column_moves(&e.u, j)) {
+        return Ok(());
     }
-    Ok(())
+    match (0..outputs.len()).find(|&j| !column_moves(&e.y, j)) {
+        Some(j) => Err(SimError::invalid(
+            format!("output {} of {}", outputs[j], e.name),
+            format!("{} in every sample", e.y[(0, j)]),
+            "stays constant while the inputs move: a dead or unplugged sensor, or the wrong column; leave the experiment out or repair the channel",
+        )),
+        None => Ok(()),
+    }
 }
 
 fn check_block(

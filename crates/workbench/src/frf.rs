@@ -9,7 +9,7 @@
 use nalgebra::DMatrix;
 use serde::Serialize;
 
-use super::dataset::{Dataset, Periodic};
+use super::dataset::{column_moves, Dataset, Periodic};
 use super::distortion::Distortion;
 use super::spectra::{excited_bins, period_mean, Dft, C64};
 use crate::error::{Result, SimError};
@@ -412,11 +412,6 @@ pub(crate) fn uses_instrumental_variable(data: &Dataset, choice: EstimatorChoice
 /// line's stacking matrix singular, which the estimate could only report as a condition
 /// number at its first line.
 pub(crate) fn check_excited(data: &Dataset, instrumental: bool) -> Result<()> {
-    let moves = |m: &DMatrix<f64>, j: usize| {
-        let c = m.column(j);
-        let (lo, hi) = (c.min(), c.max());
-        hi - lo > 1e-12 * lo.abs().max(hi.abs())
-    };
     let files = || {
         let names: Vec<&str> = data.experiments.iter().map(|e| e.name.as_str()).collect();
         match names.len() {
@@ -425,7 +420,7 @@ pub(crate) fn check_excited(data: &Dataset, instrumental: bool) -> Result<()> {
         }
     };
     for (j, name) in data.inputs.iter().enumerate() {
-        if !data.experiments.iter().any(|e| moves(&e.u, j)) {
+        if !data.experiments.iter().any(|e| column_moves(&e.u, j)) {
             return Err(SimError::invalid(
                 format!("input {name}"),
                 "constant in every experiment",
@@ -439,7 +434,7 @@ pub(crate) fn check_excited(data: &Dataset, instrumental: bool) -> Result<()> {
             && !data
                 .experiments
                 .iter()
-                .any(|e| e.r.as_ref().is_some_and(|r| moves(r, j)))
+                .any(|e| e.r.as_ref().is_some_and(|r| column_moves(r, j)))
         {
             return Err(SimError::invalid(
                 format!("excitation of input {name}"),

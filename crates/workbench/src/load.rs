@@ -226,8 +226,11 @@ fn one_rate(experiments: &[Experiment], rates: &[f64]) -> Result<f64> {
         }
     }
     if groups.len() <= 1 {
-        let mean = rates.iter().sum::<f64>() / rates.len().max(1) as f64;
-        return Ok(if rates.is_empty() { 0.0 } else { mean });
+        return Ok(if rates.is_empty() {
+            0.0
+        } else {
+            rates.iter().sum::<f64>() / rates.len() as f64
+        });
     }
     groups.sort_by_key(|(_, names)| names.len());
     let listed: Vec<String> = groups
