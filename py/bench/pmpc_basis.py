@@ -7,6 +7,8 @@ closes the loop with three families of s functions, independently of stabilis.pm
   * lqr:S:NU        the four closed-loop modes of the unconstrained LQR (so the unconstrained
                     optimum lies in the span exactly) and S - 4 Laguerre functions at NU;
   * mix:S:NU1,NU2   S/2 Laguerre functions at each of two rates;
+  * kau:S:A,W       S Kautz functions of one pole pair -A +- jW (t^k e^{-A t} cos / sin(W t),
+                    k < S/2), a cascade of second-order all-pass sections;
   * pre:S:NU        u = -K x + tau(t)' eta with the unconstrained LQR's K and S Laguerre
                     functions: the plan starts from the LQR's, and all S coefficients are free
                     (the other kinds leave S - 4 free after x(0) = x0), so pre:S has the free
@@ -73,6 +75,27 @@ def lqr_modes(s: int, nu: float) -> tuple[np.ndarray, np.ndarray]:
 def two_rates(s: int, rates: list[float]) -> tuple[np.ndarray, np.ndarray]:
     parts = [laguerre(s // len(rates), nu) for nu in rates]
     return orthonormal(sl.block_diag(*(m for m, _ in parts)), np.concatenate([b for _, b in parts]))
+
+
+def kautz(s: int, decay: float, frequency: float) -> tuple[np.ndarray, np.ndarray]:
+    """s Kautz functions of one pole pair -decay +- j frequency: a cascade of s/2 second-order
+    all-pass sections (s^2 - p s + q) / (s^2 + p s + q), each in input-normal form, so the
+    chain is orthonormal and well conditioned."""
+    p, q = 2 * decay, decay**2 + frequency**2
+    a = np.array([[0.0, 1.0], [-q, -p]])
+    b = np.array([[0.0], [1.0]])
+    c = np.array([[0.0, -2 * p]])
+    chol = np.linalg.cholesky(sl.solve_continuous_lyapunov(a, -b @ b.T))
+    inv = np.linalg.inv(chol)
+    a, b, c = inv @ a @ chol, inv @ b, c @ chol
+    k = s // 2
+    m, start = np.zeros((s, s)), np.zeros(s)
+    for i in range(k):
+        m[2 * i:2 * i + 2, 2 * i:2 * i + 2] = a
+        for j in range(i):
+            m[2 * i:2 * i + 2, 2 * j:2 * j + 2] = b @ c  # section i hears u + sum of c x_j
+        start[2 * i:2 * i + 2] = b[:, 0]
+    return orthonormal(m, start)
 
 
 def closed_loop(m: np.ndarray, tau0: np.ndarray, x0: np.ndarray) -> str:
@@ -147,12 +170,14 @@ def basis(spec: str) -> tuple[np.ndarray, np.ndarray]:
         return lqr_modes(s, rates[0])
     if kind == "mix":
         return two_rates(s, rates)
-    raise SystemExit(f"{spec}: the kind must be lag, lqr, mix or pre")
+    if kind == "kau":
+        return kautz(s, *rates)
+    raise SystemExit(f"{spec}: the kind must be lag, lqr, mix, kau or pre")
 
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("bases", nargs="+", help="lag:S:NU, lqr:S:NU, mix:S:NU1,NU2 or pre:S:NU")
+    parser.add_argument("bases", nargs="+", help="lag:S:NU, lqr:S:NU, mix:S:NU1,NU2, kau:S:A,W or pre:S:NU")
     args = parser.parse_args()
     print("| basis | J_cl, x0 = 0.3 |\n|---|---|")
     x0 = 0.3 * np.ones(N_STATES)

@@ -59,6 +59,10 @@ pub struct CandidateScore {
     /// reported (see [`crate::search::forward_selection`]) and did not keep it: what that
     /// search found.
     pub followed: Option<Followed>,
+    /// Why the search did not choose it although it may have been best: an earlier search
+    /// added it and later effects made it insignificant ([`crate::search::forward_selection`]'s
+    /// backward check).
+    pub set_aside: Option<String>,
 }
 
 /// The search a runner-up led to, against the search kept.
@@ -68,20 +72,31 @@ pub struct Followed {
     pub added: Vec<String>,
     /// Its model's BIC minus the kept model's (the changes of the steps summed).
     pub bic: f64,
-    /// It needed more effects than the kept search, or as many at a BIC worse by
-    /// [`decisive_bic`] or more: the data do choose between the two.
+    /// It ends with a misfit where the kept search explains the data, or it needed more
+    /// effects than the kept search, or as many at a BIC worse by [`decisive_bic`] or more:
+    /// the data do choose between the two.
     pub ruled_out: bool,
+    /// It ends with a misfit where the kept search explains the data.
+    pub unexplained: bool,
 }
 
 impl Followed {
     /// The search that added `added` with BIC change `bic`, against the kept one that added
-    /// `kept` effects with BIC change `kept_bic` from the same step.
-    pub(crate) fn against(added: Vec<String>, bic: f64, kept: usize, kept_bic: f64) -> Self {
+    /// `kept` effects with BIC change `kept_bic` from the same step; `unexplained`: it ends
+    /// with a misfit where the kept one explains the data.
+    pub(crate) fn against(
+        added: Vec<String>,
+        bic: f64,
+        kept: usize,
+        kept_bic: f64,
+        unexplained: bool,
+    ) -> Self {
         let gap = bic - kept_bic;
         Self {
-            ruled_out: added.len() > kept || gap >= decisive_bic(),
+            ruled_out: unexplained || added.len() > kept || gap >= decisive_bic(),
             added,
             bic: gap,
+            unexplained,
         }
     }
 
@@ -201,6 +216,7 @@ impl CandidateScore {
             noise_spread: c.noise_sd,
             scale: c.scale,
             followed: None,
+            set_aside: None,
         }
     }
 
@@ -236,6 +252,7 @@ pub(crate) fn decisive_bic() -> f64 {
 pub(crate) fn is_rival(chosen: &CandidateScore, other: &CandidateScore) -> bool {
     other.effect != chosen.effect
         && other.exceeds_noise
+        && other.set_aside.is_none()
         && rival_p_value(other.cost - chosen.cost, chosen.scale) >= LEVEL
 }
 
@@ -341,6 +358,7 @@ pub struct Step {
 }
 
 /// A fitted model of the discovery loop before its record is built.
+#[derive(Clone)]
 struct Fitted {
     model: Model,
     added: Option<String>,
@@ -533,14 +551,7 @@ pub fn far_from_documented(model: &Model, params: &[ParamEstimate]) -> Result<Op
             (doc != 0.0
                 && p.value != 0.0
                 && !(1.0 / FAR_FROM_DOCUMENTED..=FAR_FROM_DOCUMENTED).contains(&ratio))
-            .then(|| {
-                let how = if ratio > 0.0 && ratio < 1.0 {
-                    format!("1/{:.1}", 1.0 / ratio)
-                } else {
-                    format!("{ratio:.1}")
-                };
-                format!("{} {how} times it", p.name)
-            })
+            .then(|| format!("{} {} times it", p.name, fmt_ratio(ratio)))
         })
         .collect();
     Ok((!far.is_empty()).then(|| {
@@ -549,6 +560,76 @@ pub fn far_from_documented(model: &Model, params: &[ParamEstimate]) -> Result<Op
             far.join(", ")
         )
     }))
+}
+
+/// `x` as `1/3.2` below one and `3.2` above.
+fn fmt_ratio(x: f64) -> String {
+    if x > 0.0 && x < 1.0 {
+        format!("1/{:.1}", 1.0 / x)
+    } else {
+        format!("{x:.1}")
+    }
+}
+
+/// Clock factors a time column in another unit makes (the logs' clock against the model's)
+/// and the confusion each stands for.
+const CLOCK_UNITS: [(f64, &str); 8] = [
+    (60.0, "minutes against seconds"),
+    (3600.0, "hours against seconds"),
+    (1e-3, "milliseconds against seconds"),
+    (1e-6, "microseconds against seconds"),
+    (1.0 / 60.0, "seconds against minutes"),
+    (1.0 / 3600.0, "seconds against hours"),
+    (1e3, "seconds against milliseconds"),
+    (1e6, "seconds against microseconds"),
+];
+
+/// How many times lower than on the logs' own clock the documented model's cost must be on a
+/// rescaled clock before [`Workbench::clock_sentence`] names it.
+const CLOCK_GAIN: f64 = 10.0;
+
+impl Workbench {
+    /// The sentence naming a time column in another unit than the model's: the documented
+    /// model, whose response on the logs' clock misses, fits them [`CLOCK_GAIN`] times better
+    /// with the frequency axis scaled by one of [`CLOCK_UNITS`] (the best). A reactor logged in
+    /// minutes against a model in seconds fitted every rate about 60 times its documented
+    /// value and found an input delay; only the parameters' distance hinted at it.
+    fn clock_sentence(&self) -> Result<Option<String>> {
+        let theta = self.model.documented()?;
+        let hold = self.fit_options().hold;
+        let cost = |c: f64| -> Option<f64> {
+            let freqs: Vec<f64> = self.cost.freqs_hz.iter().map(|f| f / c).collect();
+            let g = self.model.frf(&theta, &freqs, hold.map(|h| h * c)).ok()?;
+            let v = self.cost.cost(&g);
+            v.is_finite().then_some(v)
+        };
+        let Some(own) = cost(1.0) else {
+            return Ok(None);
+        };
+        let best = CLOCK_UNITS
+            .iter()
+            .filter_map(|&(c, what)| Some((cost(c)?, c, what)))
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        Ok(best
+            .filter(|(v, _, _)| *v * CLOCK_GAIN < own)
+            .map(|(v, c, what)| {
+                format!(
+                    "; the documented model fits the logs {} times better (cost {v:.1} against {own:.1}) with their clock scaled by {}: is the time column in the model's time unit ({what}?)",
+                    fmt_ratio(own / v),
+                    fmt_ratio(c)
+                )
+            }))
+    }
+
+    /// The [`far_from_documented`] warning, with the [clock sentence](Self::clock_sentence)
+    /// when the documented model fits the logs better on another clock.
+    pub fn far_warning(&self, model: &Model, params: &[ParamEstimate]) -> Result<Option<String>> {
+        let Some(far) = far_from_documented(model, params)? else {
+            return Ok(None);
+        };
+        let clock = self.clock_sentence()?.unwrap_or_default();
+        Ok(Some(format!("{far}{clock}")))
+    }
 }
 
 /// What the FRF criterion's verdict tests: its remaining cost against the Monte-Carlo
@@ -924,7 +1005,7 @@ impl Workbench {
     }
 
     /// Start vector for `model` from an earlier fit: shared parameters keep their values.
-    fn carry_over(&self, from: &Model, theta: &[f64], to: &Model) -> Result<Vec<f64>> {
+    pub(crate) fn carry_over(&self, from: &Model, theta: &[f64], to: &Model) -> Result<Vec<f64>> {
         let old = from.parameters()?;
         Ok(to
             .parameters()?
@@ -1044,7 +1125,7 @@ impl Workbench {
     /// user gave right.
     fn warnings(&self, model: &Model, params: &[ParamEstimate]) -> Result<Vec<String>> {
         let mut why = self.data_caveats();
-        why.extend(far_from_documented(model, params)?);
+        why.extend(self.far_warning(model, params)?);
         let drift = model.drift(&model.documented()?)?;
         if !drift.is_empty() {
             why.push(format!(
@@ -1302,6 +1383,20 @@ impl Search for FrfSearch<'_> {
         }
     }
 
+    fn removed(&self, at: &Fitted, effect: &str) -> Result<Fitted> {
+        let model = at.model.without_effect(effect);
+        let start = self.0.carry_over(&at.model, &at.r.theta, &model)?;
+        self.0.fitted(&model, None, Some(&start))
+    }
+
+    /// Its cost under its own weighting against the noise reference, as the verdict tests the
+    /// final model's.
+    fn explained(&self, at: &Fitted) -> Option<bool> {
+        let free = at.r.params.iter().filter(|p| !p.held).count();
+        let (mean, _) = self.0.noise.fitted_level(free);
+        Some(matched_sf(at.r.cost, mean, self.0.noise.sd()) >= LEVEL)
+    }
+
     fn parallel(&self) -> bool {
         self.0.model.parallel()
     }
@@ -1361,6 +1456,7 @@ mod tests {
             noise_spread: spread,
             scale: 1.0,
             followed: None,
+            set_aside: None,
         }
     }
 
@@ -1440,7 +1536,7 @@ mod tests {
         // ruled out.
         let delay = |added: &[&str], bic: f64, kept: usize| {
             let added = added.iter().map(|e| e.to_string()).collect();
-            Some(super::Followed::against(added, bic, kept, 0.0))
+            Some(super::Followed::against(added, bic, kept, 0.0, false))
         };
         let mut followed = tried.clone();
         followed[1].followed = delay(&["delay"], 3.0, 1);

@@ -10,7 +10,6 @@ use nalgebra::DMatrix;
 use super::dataset::Dataset;
 use super::dynamics::{DelayedInputs, Dynamics, LaggedInputs, OutputBias};
 use super::model::{Effect, ModelStructure, Parameter, StateSpace};
-use super::prediction::Criterion;
 use crate::error::Result;
 
 /// `x_a' = (u - x_a) / tau` for every input, the plant driven by `x_a`.
@@ -18,26 +17,45 @@ use crate::error::Result;
 pub struct ActuatorLag {
     /// Smallest `tau` searched, s.
     min_tau: f64,
+    /// Longest `tau` searched, s.
+    max_tau: f64,
+    /// Where its fit starts, s.
+    start: f64,
 }
 
 impl Default for ActuatorLag {
-    /// For a model without data (listing its candidates): `tau` from 0.1 ms. The workbench
-    /// sizes the bound to the data's sample period ([`ActuatorLag::nesting`]).
+    /// For a model without data (listing its candidates): `tau` from 0.1 ms to 0.5 s. The
+    /// workbench sizes the bounds to the data ([`ActuatorLag::for_data`]).
     fn default() -> Self {
-        Self { min_tau: 1e-4 }
+        Self {
+            min_tau: 1e-4,
+            max_tau: 0.5,
+            start: 0.01,
+        }
     }
 }
 
 impl ActuatorLag {
-    /// For data at sample period `t`: `tau` from 1e-4 `t`, where the lag shifts the response
-    /// by less than 2.5e-4 rad up to 0.4 times the sample rate, so the lagged model nests the
-    /// one without and its fit can never be worse. (A bound fixed in seconds is not: 0.1 ms
-    /// turns a 400 Hz line of 1 kHz data by 14 degrees. Nor is one of 1/40 sample: a
-    /// lag-free record of 16 000 samples at high signal-to-noise saw it, and the fit with the
-    /// lag ended on the bound with innovations correlated with the input.) The time-domain
-    /// predictor integrates the lag exactly whatever its step, so the shortest is not stiff.
-    pub fn nesting(t: f64) -> Self {
-        Self { min_tau: 1e-4 * t }
+    /// For data at sample period `t` whose closest frequency lines are `resolution` Hz apart:
+    /// `tau` from 1e-4 `t`, where the lag shifts the response by less than 2.5e-4 rad up to
+    /// 0.4 times the sample rate, so the lagged model nests the one without and its fit can
+    /// never be worse. (A bound fixed in seconds is not: 0.1 ms turns a 400 Hz line of 1 kHz
+    /// data by 14 degrees. Nor is one of 1/40 sample: a lag-free record of 16 000 samples at
+    /// high signal-to-noise saw it, and the fit with the lag ended on the bound with
+    /// innovations correlated with the input.) The time-domain predictor integrates the lag
+    /// exactly whatever its step, so the shortest is not stiff. Up to `1 / (2 pi resolution)`,
+    /// the lag whose corner lies at the resolution, below every line the data resolve: a
+    /// longer one only scales the response in the band. (A bound fixed at 0.5 s left a
+    /// reactor's 3 s thermocouple lag at 1 s sampling on the bound.) The fit starts at one
+    /// sample period.
+    pub fn for_data(t: f64, resolution: f64) -> Self {
+        let min_tau = 1e-4 * t;
+        let max_tau = (1.0 / (2.0 * std::f64::consts::PI * resolution)).max(2.0 * t);
+        Self {
+            min_tau,
+            max_tau,
+            start: t,
+        }
     }
 }
 
@@ -46,29 +64,35 @@ impl ActuatorLag {
 pub struct InputDelay {
     /// Longest `td` searched, s.
     max_td: f64,
+    /// Where its fit starts, s.
+    start: f64,
 }
 
 impl Default for InputDelay {
-    /// For a model without data: `td` up to 0.5 s. The workbench bounds it by what the
-    /// frequency lines resolve ([`InputDelay::for_line_spacing`]).
+    /// For a model without data: `td` up to 0.5 s. The workbench bounds it by what the data
+    /// resolve ([`InputDelay::for_data`]).
     fn default() -> Self {
-        Self { max_td: 0.5 }
+        Self {
+            max_td: 0.5,
+            start: 0.01,
+        }
     }
 }
 
 impl InputDelay {
-    /// For FRF lines `spacing` Hz apart at the closest: `td` up to a quarter of `1 / spacing`
-    /// (and 0.5 s). A delay turns neighbouring lines' phases apart by `2 pi spacing td`, so
-    /// delays `1 / spacing` apart fit the same lines, and a Welch segment's spectrum holds
-    /// the delayed relation only for a delay well inside the segment: a longer one fits any
-    /// misfit and makes the residual look like segment-to-segment noise.
-    pub fn for_line_spacing(spacing: f64) -> Self {
-        let max_td = if spacing > 0.0 {
-            (0.25 / spacing).min(0.5)
-        } else {
-            0.5
-        };
-        Self { max_td }
+    /// For data at sample period `t` whose closest frequency lines are `resolution` Hz apart:
+    /// `td` up to a quarter of `1 / resolution`. A delay turns neighbouring lines' phases
+    /// apart by `2 pi resolution td`, so delays `1 / resolution` apart fit the same lines,
+    /// and a Welch segment's spectrum holds the delayed relation only for a delay well inside
+    /// the segment: a longer one fits any misfit and makes the residual look like
+    /// segment-to-segment noise. (A cap fixed at 0.5 s hid a reactor's 3 s coolant delay.)
+    /// The fit starts at one sample period.
+    pub fn for_data(t: f64, resolution: f64) -> Self {
+        let max_td = (0.25 / resolution).max(2.0 * t);
+        Self {
+            max_td,
+            start: t.min(0.5 * max_td),
+        }
     }
 }
 
@@ -169,9 +193,9 @@ impl Effect for ActuatorLag {
     fn parameters(&self) -> Vec<Parameter> {
         vec![Parameter::new(
             "tau",
-            0.01f64.max(self.min_tau),
+            self.start.clamp(self.min_tau, self.max_tau),
             self.min_tau,
-            0.5,
+            self.max_tau,
             "s",
         )]
     }
@@ -220,13 +244,7 @@ impl Effect for InputDelay {
     }
 
     fn parameters(&self) -> Vec<Parameter> {
-        vec![Parameter::new(
-            "td",
-            0.01f64.min(0.5 * self.max_td),
-            0.0,
-            self.max_td,
-            "s",
-        )]
+        vec![Parameter::new("td", self.start, 0.0, self.max_td, "s")]
     }
 
     fn qualified_names(&self) -> bool {
@@ -261,25 +279,34 @@ pub fn for_structure(structure: &dyn ModelStructure) -> Vec<Arc<dyn Effect>> {
 }
 
 /// The generic effects sized to the data, for those `structure` does not declare: the
-/// offsets within each output's logged range (nonlinear structure), the lag's shortest time
-/// constant from the sample period, and under the FRF criterion the delay's longest from the
-/// closest spacing of the lines, `line_spacing` Hz (the time criterion has no lines: the
-/// default bound of [`for_structure`] stands).
+/// offsets within each output's logged range (nonlinear structure), and the lag's and the
+/// delay's ranges from the sample period and the data's frequency resolution: the closest
+/// spacing of the lines, `line_spacing` Hz, or with fewer than two lines one over the
+/// shortest record. Both criteria search the same ranges.
 pub fn for_data(
     structure: &dyn ModelStructure,
     data: &Dataset,
-    criterion: Criterion,
     line_spacing: f64,
 ) -> Vec<Arc<dyn Effect>> {
     let h = 1.0 / data.sample_rate_hz;
+    let resolution = if line_spacing > 0.0 {
+        line_spacing
+    } else {
+        let shortest = data
+            .experiments
+            .iter()
+            .map(|e| e.u.nrows())
+            .min()
+            .unwrap_or(1)
+            .max(1);
+        data.sample_rate_hz / shortest as f64
+    };
     let mut all: Vec<Arc<dyn Effect>> = Vec::new();
     if structure.is_nonlinear() {
         all.push(Arc::new(SensorBias::for_data(data)));
     }
-    all.push(Arc::new(ActuatorLag::nesting(h)));
-    if criterion == Criterion::Frf {
-        all.push(Arc::new(InputDelay::for_line_spacing(line_spacing)));
-    }
+    all.push(Arc::new(ActuatorLag::for_data(h, resolution)));
+    all.push(Arc::new(InputDelay::for_data(h, resolution)));
     undeclared(structure, all)
 }
 
@@ -329,6 +356,40 @@ mod tests {
                 assert!((gd[k][(i, 0)] - g0[k][(i, 0)] * delay).norm() < 1e-12);
             }
         }
+    }
+
+    /// The lag's and the delay's ranges follow the sample period `t` and the resolution `r`:
+    /// tau from 1e-4 t to 1 / (2 pi r), td up to 1 / (4 r), both starting at one sample and
+    /// reaching at least two (closed forms).
+    #[test]
+    fn the_lag_and_delay_ranges_follow_the_data() {
+        let range = |p: Vec<Parameter>| (p[0].value, p[0].lower, p[0].upper);
+        // A reactor sampled at 1 s with 200 s periods: beyond the old 0.5 s.
+        let (v, lo, hi) = range(ActuatorLag::for_data(1.0, 0.005).parameters());
+        assert_eq!((v, lo), (1.0, 1e-4));
+        assert!((hi - 100.0 / std::f64::consts::PI).abs() < 1e-12);
+        assert_eq!(
+            range(InputDelay::for_data(1.0, 0.005).parameters()),
+            (1.0, 0.0, 50.0)
+        );
+        // 1 kHz logs with 0.5 Hz lines.
+        let (v, lo, hi) = range(ActuatorLag::for_data(1e-3, 0.5).parameters());
+        assert_eq!(v, 1e-3);
+        assert!((lo - 1e-7).abs() < 1e-20);
+        assert!((hi - 1.0 / std::f64::consts::PI).abs() < 1e-12);
+        assert_eq!(
+            range(InputDelay::for_data(1e-3, 0.5).parameters()),
+            (1e-3, 0.0, 0.5)
+        );
+        // Lines as coarse as the sample rate still leave two samples of range.
+        assert_eq!(
+            range(InputDelay::for_data(0.01, 100.0).parameters()),
+            (0.01, 0.0, 0.02)
+        );
+        assert_eq!(
+            range(ActuatorLag::for_data(0.01, 100.0).parameters()).2,
+            0.02
+        );
     }
 
     /// A model whose own parameter is called `tau` keeps it; the generic lag's becomes

@@ -204,8 +204,11 @@ impl Workbench {
             .filter(|d| *d > 0.0)
             .fold(f64::INFINITY, f64::min);
         let spacing = if spacing.is_finite() { spacing } else { 0.0 };
-        for effect in generic::for_data(model.structure().as_ref(), &data, criterion, spacing) {
+        for effect in generic::for_data(model.structure().as_ref(), &data, spacing) {
             model = model.with_candidate(effect)?;
+        }
+        if criterion == Criterion::Time {
+            check_operating_point(&model, &data)?;
         }
         if criterion == Criterion::Time && !model.structure().is_nonlinear() {
             return Err(SimError::invalid(
@@ -313,6 +316,74 @@ impl Workbench {
 /// twentyfold per sample would multiply its sensor noise as much. A time column in
 /// milliseconds read as seconds makes the period a thousand times too long.
 pub const MAX_GROWTH_PER_SAMPLE: f64 = 3.0;
+
+/// How far from the operating point's value, relative to it, a channel's logged mean may
+/// lie under the time criterion (which compares absolute values) before the logs are taken
+/// for other units or deviations: Celsius against a model in kelvin is 78 % off, deviation
+/// logs 100 %.
+pub const OFF_OPERATING_POINT: f64 = 0.5;
+
+/// Refuses logs whose inputs or outputs average far from the nonlinear model's operating
+/// point (its inputs, and the outputs `h` gives there): more than [`OFF_OPERATING_POINT`] of
+/// the operating point's value and more than ten times the channel's logged spread. A
+/// reactor logged in Celsius against a model in kelvin fitted a heat-transfer coefficient
+/// 2.5 times off and called it a misfit; logged as deviations its predictor diverged with a
+/// message about the reaction rate. Channels whose operating value is zero are not judged:
+/// there nothing sets a scale.
+fn check_operating_point(model: &Model, data: &Dataset) -> Result<()> {
+    if !model.structure().is_nonlinear() {
+        return Ok(());
+    }
+    let Ok(d) = model.dynamics(&model.documented()?) else {
+        // The structure's own errors are reported where the model is used.
+        return Ok(());
+    };
+    let (x, u) = d.operating_point();
+    let mut y = vec![0.0; d.outputs()];
+    if d.h(&x, &u, &mut y, &mut Vec::new()).is_err() {
+        return Ok(());
+    }
+    let channels = data
+        .inputs
+        .iter()
+        .zip(&u)
+        .enumerate()
+        .map(|(i, (name, op))| (name, *op, "input", i))
+        .chain(
+            data.outputs
+                .iter()
+                .zip(&y)
+                .enumerate()
+                .map(|(i, (name, op))| (name, *op, "output", i)),
+        );
+    for (name, op, kind, i) in channels {
+        let values: Vec<f64> = data
+            .experiments
+            .iter()
+            .flat_map(|e| {
+                let m = if kind == "input" { &e.u } else { &e.y };
+                m.column(i).iter().copied().collect::<Vec<_>>()
+            })
+            .collect();
+        let n = values.len().max(1) as f64;
+        let mean = values.iter().sum::<f64>() / n;
+        let spread = (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
+        let apart = (mean - op).abs();
+        if op != 0.0 && apart > OFF_OPERATING_POINT * op.abs() && apart > 10.0 * spread {
+            return Err(SimError::invalid(
+                "operating point",
+                model.structure().system(),
+                format!(
+                    "the logged {kind} {name} averages {mean:.6} where the operating point {} {op:.6} ({apart:.4} apart, {:.0} % of it and {:.0} times the logged spread): the time criterion compares absolute values; are the logs in the model's units, and absolute rather than deviations from the operating point? If the loop ran there, give that operating point; the FRF criterion (--criterion frf) compares deviations",
+                    if kind == "input" { "holds at" } else { "gives" },
+                    100.0 * apart / op.abs(),
+                    apart / spread.max(f64::MIN_POSITIVE)
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
 
 /// Refuses logs whose sample period is too long for the model at its documented values to be
 /// held by a sampled loop ([`MAX_GROWTH_PER_SAMPLE`]), naming the rate, the mode and the likely

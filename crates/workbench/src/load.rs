@@ -110,6 +110,8 @@ fn experiment(
     Ok(if is_csv {
         let table = read_csv(file)?;
         let fs = table.sample_rate(None, file)?;
+        // The channels first: a log without an input names the input, not its excitation.
+        let (u, y) = (columns(&table, inputs, "")?, columns(&table, outputs, "")?);
         let r = if table.fields.iter().any(|f| f.starts_with("r_")) {
             Some(columns(&table, inputs, "r_")?)
         } else {
@@ -117,8 +119,8 @@ fn experiment(
         };
         let e = Experiment {
             name,
-            u: columns(&table, inputs, "")?,
-            y: columns(&table, outputs, "")?,
+            u,
+            y,
             r,
             periodic: None,
         };
@@ -346,6 +348,25 @@ mod tests {
                 && err.contains("= X: names no input of the model (inputs T)"),
             "{err}"
         );
+    }
+
+    /// A CSV without an input and its excitation column names the input, the channel the
+    /// model needs, not the excitation.
+    #[test]
+    fn a_missing_input_is_named_before_its_excitation() {
+        let dir = std::env::temp_dir().join(format!("workbench-load-csv-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("one_input.csv");
+        let rows: String = (0..20)
+            .map(|k| format!("{},{},{},{}\n", k as f64 * 0.01, k, 2 * k, k % 3))
+            .collect();
+        std::fs::write(&path, format!("t,uL,y,r_uL\n{rows}")).unwrap();
+        let inputs = vec!["uL".to_string(), "uR".to_string()];
+        let err = load("robot", &inputs, &["y".to_string()], &[path])
+            .unwrap_err()
+            .to_string();
+        assert!(err.starts_with("missing field \"uR\""), "{err}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     /// Logs whose clocks differ by parts per million share their mean rate; a file in

@@ -467,6 +467,15 @@ impl Model {
         Ok(m)
     }
 
+    /// The model with `name` disabled (offered again as a candidate); unchanged when it is not
+    /// enabled.
+    pub fn without_effect(&self, name: &str) -> Self {
+        let mut m = self.clone();
+        m.enabled.retain(|e| e != name);
+        m.added.retain(|e| e.name() != name);
+        m
+    }
+
     /// Offers a further effect as a discovery candidate (replacing a generic effect of the same
     /// name); it is not enabled.
     pub fn with_candidate(&self, effect: Arc<dyn Effect>) -> Result<Self> {

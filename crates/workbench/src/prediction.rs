@@ -718,6 +718,7 @@ pub struct PredictionFit {
 }
 
 /// A fitted model of the time-domain discovery.
+#[derive(Clone)]
 struct Fitted {
     model: Model,
     added: Option<String>,
@@ -805,14 +806,7 @@ impl Workbench {
         let with = current.model.with_effect(effect)?;
         let params = with.parameters()?;
         let old = current.model.parameters()?;
-        let mut start: Vec<f64> = params
-            .iter()
-            .map(|p| {
-                old.iter()
-                    .position(|q| q.name == p.name)
-                    .map_or(p.value, |i| current.r.theta[i])
-            })
-            .collect();
+        let mut start = self.carry_over(&current.model, &current.r.theta, &with)?;
         let new: Vec<usize> = (0..params.len())
             .filter(|&i| !old.iter().any(|q| q.name == params[i].name))
             .collect();
@@ -1049,7 +1043,7 @@ impl Workbench {
             .with_test(EXCITATION_TEST)
             .with_warnings(
                 match &last_model {
-                    Some(m) => super::discover::far_from_documented(m, &last.params)?,
+                    Some(m) => self.far_warning(m, &last.params)?,
                     None => None,
                 }
                 .into_iter()
@@ -1248,6 +1242,22 @@ impl Search for TimeSearch<'_> {
 
     fn record_scores(&self, at: &mut Fitted, scores: Vec<CandidateScore>) {
         at.candidates = scores;
+    }
+
+    /// Refitted under the held design, as the candidates are.
+    fn removed(&self, at: &Fitted, effect: &str) -> Result<Fitted> {
+        let model = at.model.without_effect(effect);
+        let params = model.parameters()?;
+        let start = self.wb.carry_over(&at.model, &at.r.theta, &model)?;
+        let pe = PredictionError::new(self.wb, &model, self.design);
+        let mut r = solve(&pe, &params, Some(&start), &self.wb.time_fit_options())?;
+        r.model_frf = model.frf(&r.theta, &self.wb.cost.freqs_hz, self.wb.fit_options().hold)?;
+        Ok(Fitted {
+            model,
+            added: None,
+            r,
+            candidates: Vec::new(),
+        })
     }
 
     fn parallel(&self) -> bool {
@@ -1561,7 +1571,7 @@ mod tests {
         let (model, base) = pendulum();
         let t = 0.01;
         let lagged = model
-            .with_user_effect(Arc::new(crate::generic::ActuatorLag::nesting(t)))
+            .with_user_effect(Arc::new(crate::generic::ActuatorLag::for_data(t, 1.0)))
             .unwrap();
         let samples = 300;
         let u = DMatrix::from_fn(samples, 1, |k, _| {

@@ -136,12 +136,24 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
                     f.bic,
                     if f.same_model(&kept) {
                         "the same model in another order"
+                    } else if f.unexplained {
+                        "ruled out: it ends with a misfit where this one explains the data"
                     } else if f.ruled_out {
                         "ruled out"
                     } else {
                         "the data do not choose"
                     },
                 );
+            }
+        }
+    }
+    // Effects an earlier search added that later ones made redundant, once each.
+    let mut aside: Vec<&str> = Vec::new();
+    for c in d.steps.iter().flat_map(|st| &st.candidates) {
+        if let Some(why) = &c.set_aside {
+            if !aside.contains(&c.effect.as_str()) {
+                aside.push(&c.effect);
+                let _ = writeln!(s, "  set aside: {}: {why}", c.effect);
             }
         }
     }
@@ -1104,16 +1116,17 @@ fn distortion_plot(wb: &Workbench) -> String {
 fn documented(wb: &Workbench, d: &Discovery) -> Vec<Parameter> {
     d.steps
         .last()
-        .and_then(|st| {
-            st.effects
-                .iter()
-                .try_fold(crate::Model::new(wb.model().structure().clone()), |m, e| {
-                    m.with_effect(e)
-                })
-                .ok()
-        })
+        .and_then(|st| with_effects(wb, &st.effects).ok())
         .and_then(|m| m.parameters().ok())
         .unwrap_or_default()
+}
+
+/// The workbench's model with `effects` enabled: its candidates are the ones sized to the data
+/// and offered by the user, so their documented values and bounds are the ones fitted.
+fn with_effects(wb: &Workbench, effects: &[String]) -> Result<crate::Model> {
+    effects
+        .iter()
+        .try_fold(wb.model().clone(), |m, e| m.with_effect(e))
 }
 
 /// Parameters per step: documented value, then value ± standard error per step (held ones
@@ -1208,13 +1221,7 @@ fn time_series(wb: &Workbench, d: &Discovery) -> String {
     );
     let mut predicted = Vec::new();
     for st in [first, last] {
-        let model = st
-            .effects
-            .iter()
-            .try_fold(crate::Model::new(wb.model().structure().clone()), |m, e| {
-                m.with_effect(e)
-            });
-        let series = model
+        let series = with_effects(wb, &st.effects)
             .and_then(|m| m.state_space(&st.theta))
             .and_then(|ss| super::timedomain::kalman_series(data, &ss, k, 0, SERIES_SAMPLES));
         match series {

@@ -8,7 +8,7 @@ use crate::error::{Result, SimError};
 /// What a criterion gives the forward selection.
 pub trait Search: Sync {
     /// A fitted model (with the scores of the candidates tried on it, once recorded).
-    type Fit: Send + Sync;
+    type Fit: Send + Sync + Clone;
     /// What the candidates of one step share (the current model's residuals, say).
     type Context: Sync;
 
@@ -45,9 +45,18 @@ pub trait Search: Sync {
     /// Keeps the scores of the candidates tried on `at`.
     fn record_scores(&self, at: &mut Self::Fit, scores: Vec<CandidateScore>);
 
+    /// The model of `at` without `effect`, refitted (for the backward check).
+    fn removed(&self, at: &Self::Fit, effect: &str) -> Result<Self::Fit>;
+
     /// The fit to go on from once the chosen candidate is added (by default its own fit).
     fn added(&self, chosen: Self::Fit, _effect: &str) -> Result<Self::Fit> {
         Ok(chosen)
+    }
+
+    /// Whether the model of `at` explains the data to the criterion's noise level, where the
+    /// criterion tells it from the fit alone (`None`: it does not).
+    fn explained(&self, _at: &Self::Fit) -> Option<bool> {
+        None
     }
 
     /// Whether the candidates of a step are fitted on threads.
@@ -63,18 +72,80 @@ pub trait Search: Sync {
 /// in the model, where only the true one explains the data. So when a step's chosen candidate
 /// has a runner-up worth following ([`worth_following`]: significant, and a rival or within a
 /// tenth of its cost reduction), the runner-up is followed too, through a search of its own
-/// (which follows no further ones). The search that added fewer effects is kept, of two
-/// that added as many the one of lower BIC (the step's and the later steps' changes summed):
-/// each search admits an effect only by the criterion's tests, and BIC alone would let one
-/// through that the effect-size rule kept out. The loser's score keeps what its search found
-/// ([`CandidateScore::followed`]).
+/// (which follows no further ones). A search that ends explaining the data (where the
+/// criterion tells it from the fit, [`Search::explained`]) is kept over one that ends with a
+/// misfit; otherwise the search that added fewer effects, of two that added as many the one
+/// of lower BIC (the step's and the later steps' changes summed): each search admits an
+/// effect only by the criterion's tests, and BIC alone would let one through that the
+/// effect-size rule kept out. (A two-wheeled robot with a back-EMF and a motor lag kept the
+/// one-effect search that ended with a misfit over the two-effect one that found both.) The
+/// loser's score keeps what its search found ([`CandidateScore::followed`]).
+///
+/// Once a search has added two effects or more, each is checked backwards: the final model
+/// without it is refitted and the effect tried on it again, by the same tests. An effect
+/// that is no longer significant there was made redundant by a later one: an early pick that
+/// only stood in for what the later one explains. The search then runs again with such
+/// effects set aside: tried and scored at every step, never chosen, their scores saying why
+/// ([`CandidateScore::set_aside`]).
 pub fn forward_selection<S: Search>(
     search: &S,
     start: S::Fit,
     progress: &mut dyn FnMut(&str),
 ) -> Result<(Vec<S::Fit>, Vec<String>)> {
-    let path = select(search, start, progress, true)?;
-    Ok((path.steps, path.added))
+    let mut aside: Vec<(String, String)> = Vec::new();
+    loop {
+        let path = select(search, start.clone(), progress, true, &aside)?;
+        let redundant = redundant(search, &path)?;
+        if redundant.is_empty() {
+            return Ok((path.steps, path.added));
+        }
+        for (effect, why) in &redundant {
+            progress(&format!("setting {effect} aside: {why}"));
+        }
+        aside.extend(redundant);
+    }
+}
+
+/// The effects of `path` (when it added two or more) that the criterion would not add to its
+/// final model without them (unless that model then no longer explains the data), with why.
+fn redundant<S: Search>(search: &S, path: &Path<S::Fit>) -> Result<Vec<(String, String)>> {
+    let Some(last) = path.steps.last() else {
+        return Ok(Vec::new());
+    };
+    if path.added.len() < 2 {
+        return Ok(Vec::new());
+    }
+    let mut out = Vec::new();
+    for effect in &path.added {
+        let reduced = search.removed(last, effect)?;
+        // An effect without which the model no longer explains the data stays.
+        if search.explained(last) == Some(true) && search.explained(&reduced) == Some(false) {
+            continue;
+        }
+        let n = search.candidates(&reduced).len();
+        let context = search.context(&reduced)?;
+        let tried = vec![search.try_effect(&reduced, &context, effect, n)?];
+        // The criterion's own choice on the model without it.
+        if search.choose(&mut reduced.clone(), &tried).is_none() {
+            let score = &tried[0].1;
+            let others: Vec<&str> = path
+                .added
+                .iter()
+                .filter(|e| *e != effect)
+                .map(String::as_str)
+                .collect();
+            out.push((
+                effect.clone(),
+                format!(
+                    "an earlier search added it, but with [{}] in the model it lowers the cost by {:.2} % only (p = {:.2e}), not significantly",
+                    others.join(", "),
+                    score.reduction_percent,
+                    score.p_value
+                ),
+            ));
+        }
+    }
+    Ok(out)
 }
 
 /// The steps of one search, the effects it added and the BIC change they made in all.
@@ -90,6 +161,7 @@ fn select<S: Search>(
     mut current: S::Fit,
     progress: &mut dyn FnMut(&str),
     follow: bool,
+    aside: &[(String, String)],
 ) -> Result<Path<S::Fit>> {
     let names = search.candidates(&current);
     let n = names.len();
@@ -101,11 +173,20 @@ fn select<S: Search>(
             move || search.try_effect(at, context, name, n)
         })
         .collect();
-    let tried = in_parallel(search.parallel(), jobs, "candidate fit")?;
-    for (_, score) in &tried {
+    let mut tried = in_parallel(search.parallel(), jobs, "candidate fit")?;
+    for (_, score) in &mut tried {
         progress(&format!("tried {}", score.effect));
+        if let Some((_, why)) = aside.iter().find(|(e, _)| *e == score.effect) {
+            score.significant = false;
+            score.set_aside = Some(why.clone());
+        }
     }
+    // The set-aside candidates go last, out of the choice.
+    let (mut tried, aside_now): (Vec<_>, Vec<_>) = tried
+        .into_iter()
+        .partition(|(_, score)| score.set_aside.is_none());
     let chosen = search.choose(&mut current, &tried);
+    tried.extend(aside_now);
     let (fits, mut scores): (Vec<_>, Vec<_>) = tried.into_iter().unzip();
     let Some(i) = chosen else {
         search.record_scores(&mut current, scores);
@@ -137,7 +218,7 @@ fn select<S: Search>(
         })?;
         let effect = scores[k].effect.clone();
         progress(&format!("adding {effect}"));
-        let rest = select(search, search.added(fit, &effect)?, progress, follow)?;
+        let rest = select(search, search.added(fit, &effect)?, progress, follow, aside)?;
         Ok::<_, SimError>((k, rest.bic + scores[k].delta_bic, rest))
     };
     let mut best = branch(i, follow, progress)?;
@@ -147,8 +228,15 @@ fn select<S: Search>(
             scores[j].effect, scores[i].effect
         ));
         let other = branch(j, false, progress)?;
-        // Fewer effects first, then the lower BIC.
-        let (winner, loser) = if (other.2.added.len(), other.1) < (best.2.added.len(), best.1) {
+        let explained = |p: &Path<S::Fit>| p.steps.last().and_then(|f| search.explained(f));
+        // Explained first, then fewer effects, then the lower BIC.
+        let settled = match (explained(&other.2), explained(&best.2)) {
+            (Some(a), Some(b)) if a != b => Some(a),
+            _ => None,
+        };
+        let other_wins = settled
+            .unwrap_or_else(|| (other.2.added.len(), other.1) < (best.2.added.len(), best.1));
+        let (winner, loser) = if other_wins {
             (other, best)
         } else {
             (best, other)
@@ -160,6 +248,7 @@ fn select<S: Search>(
             loser.1,
             winner.2.added.len() + 1,
             winner.1,
+            settled.is_some(),
         ));
         best = winner;
     }
@@ -184,6 +273,10 @@ mod tests {
         effects: Vec<&'static str>,
         cost: Box<CostOf>,
         significant: Box<SignificantAt>,
+        /// The cost at or below which a model explains the data (`None`: not told).
+        explained_below: Option<f64>,
+        /// The cost of a model refitted from a larger one's estimate (`None`: as `cost`).
+        removed_cost: Option<Box<CostOf>>,
     }
 
     /// The cost of a model with these effects.
@@ -208,6 +301,8 @@ mod tests {
                 significant: Box::new(move |effect: &str, _| {
                     gains.iter().any(|g| g.0 == effect && g.2)
                 }),
+                explained_below: None,
+                removed_cost: None,
             }
         }
 
@@ -229,6 +324,8 @@ mod tests {
                         .map_or(f64::NAN, |(_, c)| *c)
                 }),
                 significant: Box::new(|_, gain| gain > 20.0),
+                explained_below: None,
+                removed_cost: None,
             }
         }
     }
@@ -278,12 +375,26 @@ mod tests {
                 noise_spread: 1.0,
                 scale: 1.0,
                 followed: None,
+                set_aside: None,
             };
             Ok(((effects, cost, Vec::new()), score))
         }
 
         fn record_scores(&self, at: &mut Self::Fit, scores: Vec<CandidateScore>) {
             at.2 = scores;
+        }
+
+        fn removed(&self, at: &Self::Fit, effect: &str) -> Result<Self::Fit> {
+            let effects: Vec<String> = at.0.iter().filter(|e| *e != effect).cloned().collect();
+            let cost = match &self.removed_cost {
+                Some(c) if !c(&effects).is_nan() => c(&effects),
+                _ => (self.cost)(&effects),
+            };
+            Ok((effects, cost, Vec::new()))
+        }
+
+        fn explained(&self, at: &Self::Fit) -> Option<bool> {
+            self.explained_below.map(|c| at.1 <= c)
         }
 
         fn parallel(&self) -> bool {
@@ -325,7 +436,7 @@ mod tests {
     /// more effects loses even at a lower BIC; a runner-up that is neither a rival nor within
     /// a tenth of the chosen one's reduction is not followed.
     #[test]
-    fn a_runner_up_is_followed_and_the_search_of_fewer_effects_then_lower_bic_kept() {
+    fn a_runner_up_is_followed_and_the_explained_search_then_fewer_effects_then_lower_bic_kept() {
         let costs = |delay_friction: f64, gap: f64| {
             Scripted::sets(vec![
                 (&[], 1000.0),
@@ -376,20 +487,26 @@ mod tests {
         let (_, added) =
             forward_selection(&costs(650.0, 28.0), start(), &mut |_: &str| {}).unwrap();
         assert_eq!(added, ["lag", "friction"]);
-        // 40 behind, neither: not followed, the greedy search stands with its superfluous
-        // delay.
+        // 40 behind, neither: not followed, and the greedy search adds delay, friction, lag.
+        // Without the delay that model costs 400 and the delay lowers it by 2 only: the
+        // backward check sets the superfluous delay aside, and the search run again adds the
+        // lag and friction.
         let mut heard = Vec::new();
         let (steps, added) = forward_selection(&costs(650.0, 40.0), start(), &mut |m: &str| {
             heard.push(m.to_string())
         })
         .unwrap();
-        assert_eq!(added, ["delay", "friction", "lag"]);
+        assert_eq!(added, ["lag", "friction"]);
         assert!(steps
             .iter()
             .flat_map(|s| &s.2)
             .all(|c| c.followed.is_none()));
         assert!(
             !heard.iter().any(|m| m.starts_with("following")),
+            "{heard:?}"
+        );
+        assert!(
+            heard.iter().any(|m| m.starts_with("setting delay aside")),
             "{heard:?}"
         );
         // The lag alone, then the delay 15 below it is not significant (20); after the
@@ -411,5 +528,64 @@ mod tests {
             followed(&steps, "delay"),
             (names(&["delay", "lag"]), -10.0, true)
         );
+        // Where only a cost of 690 or less explains the data, the lag alone (700) does not
+        // and the delay's search with the lag (685) does: that one is kept, and the lag's is
+        // ruled out for its misfit.
+        let one = Scripted {
+            explained_below: Some(690.0),
+            ..one
+        };
+        let (steps, added) = forward_selection(&one, start(), &mut |_: &str| {}).unwrap();
+        assert_eq!(added, ["delay", "lag"]);
+        let lag = steps[0].2.iter().find(|c| c.effect == "lag").unwrap();
+        let f = lag.followed.clone().unwrap();
+        assert_eq!(
+            (f.added, f.ruled_out, f.unexplained),
+            (names(&["lag"]), true, true)
+        );
+    }
+
+    /// The lag (300) beats the delay (280) at the start and the delay follows it (60). Refitted
+    /// from the final estimate, the delay alone reaches 641 where its own start left it at 720,
+    /// and the lag then lowers the cost by 1 only (20 is significant): the lag is set aside,
+    /// the search runs again without choosing it and adds the delay alone, and the lag's
+    /// score says why at every step. Where the delay alone stays at 720, both stay.
+    #[test]
+    fn an_effect_a_later_one_makes_redundant_is_set_aside() {
+        let table = |refitted_delay: Option<f64>| Scripted {
+            removed_cost: refitted_delay.map(|c| {
+                Box::new(move |e: &[String]| if e == ["delay"] { c } else { f64::NAN })
+                    as Box<CostOf>
+            }),
+            ..Scripted::sets(vec![
+                (&[], 1000.0),
+                (&["lag"], 700.0),
+                (&["delay"], 720.0),
+                (&["friction"], 990.0),
+                (&["delay", "lag"], 640.0),
+                (&["delay", "friction"], 719.0),
+                (&["lag", "friction"], 699.0),
+                (&["delay", "lag", "friction"], 639.0),
+            ])
+        };
+        let start = || (Vec::new(), 1000.0, Vec::new());
+        let mut heard = Vec::new();
+        let (steps, added) = forward_selection(&table(Some(641.0)), start(), &mut |m: &str| {
+            heard.push(m.to_string())
+        })
+        .unwrap();
+        assert_eq!(added, ["delay"]);
+        assert!(
+            heard.iter().any(|m| m.starts_with("setting lag aside")),
+            "{heard:?}"
+        );
+        for st in &steps {
+            let lag = st.2.iter().find(|c| c.effect == "lag").unwrap();
+            assert!(!lag.significant);
+            let why = lag.set_aside.as_deref().unwrap();
+            assert!(why.contains("with [delay] in the model"), "{why}");
+        }
+        let (_, added) = forward_selection(&table(None), start(), &mut |_: &str| {}).unwrap();
+        assert_eq!(added, ["lag", "delay"]);
     }
 }

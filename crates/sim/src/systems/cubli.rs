@@ -1282,6 +1282,16 @@ impl Search for CubliBench {
         at.candidates = scores;
     }
 
+    fn removed(&self, at: &CubliStep, effect: &str) -> Result<CubliStep> {
+        let effects: Vec<String> = at
+            .effects
+            .iter()
+            .filter(|e| *e != effect)
+            .cloned()
+            .collect();
+        self.step(&effects, None)
+    }
+
     /// Each fit is a small least-squares problem.
     fn parallel(&self) -> bool {
         false
