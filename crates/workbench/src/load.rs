@@ -113,6 +113,28 @@ fn experiment(
         // The channels first: a log without an input names the input, not its excitation.
         let (u, y) = (columns(&table, inputs, "")?, columns(&table, outputs, "")?);
         let r = if table.fields.iter().any(|f| f.starts_with("r_")) {
+            let missing: Vec<String> = inputs
+                .iter()
+                .map(|i| format!("r_{i}"))
+                .filter(|c| !table.fields.contains(c))
+                .collect();
+            if !missing.is_empty() {
+                return Err(SimError::invalid(
+                    "excitation",
+                    &name,
+                    format!(
+                        "has no column {} beside {}: the instrumental variable needs the excitation of every input; log it for each (zeros for an input not excited) or drop every r_ column",
+                        missing.join(", "),
+                        table
+                            .fields
+                            .iter()
+                            .filter(|f| f.starts_with("r_"))
+                            .cloned()
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                ));
+            }
             Some(columns(&table, inputs, "r_")?)
         } else {
             None
@@ -351,7 +373,8 @@ mod tests {
     }
 
     /// A CSV without an input and its excitation column names the input, the channel the
-    /// model needs, not the excitation.
+    /// model needs, not the excitation; one with the excitation of only some inputs names the
+    /// missing columns and the remedy.
     #[test]
     fn a_missing_input_is_named_before_its_excitation() {
         let dir = std::env::temp_dir().join(format!("workbench-load-csv-{}", std::process::id()));
@@ -366,6 +389,20 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.starts_with("missing field \"uR\""), "{err}");
+        // Both inputs logged, the excitation of one: named, with what to do.
+        let both = dir.join("one_excitation.csv");
+        let rows: String = (0..20)
+            .map(|k| format!("{},{},{},{},{}\n", k as f64 * 0.01, k, k % 5, 2 * k, k % 3))
+            .collect();
+        std::fs::write(&both, format!("t,uL,uR,y,r_uL\n{rows}")).unwrap();
+        let err = load("robot", &inputs, &["y".to_string()], &[both])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("has no column r_uR beside r_uL")
+                && err.contains("zeros for an input not excited"),
+            "{err}"
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
