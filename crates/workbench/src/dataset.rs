@@ -192,6 +192,20 @@ impl Dataset {
             .collect()
     }
 
+    /// Every sample of input `j`, experiment after experiment.
+    pub fn input_samples(&self, j: usize) -> impl Iterator<Item = f64> + '_ {
+        self.experiments
+            .iter()
+            .flat_map(move |e| e.u.column(j).into_iter().copied())
+    }
+
+    /// Every sample of output `j`, experiment after experiment.
+    pub fn output_samples(&self, j: usize) -> impl Iterator<Item = f64> + '_ {
+        self.experiments
+            .iter()
+            .flat_map(move |e| e.y.column(j).into_iter().copied())
+    }
+
     /// True when every experiment carries the known excitation.
     pub fn has_excitation(&self) -> bool {
         self.experiments.iter().all(|e| e.r.is_some())

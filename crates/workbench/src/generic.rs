@@ -122,9 +122,7 @@ impl SensorBias {
             .enumerate()
             .map(|(i, name)| {
                 let (lo, hi) = data
-                    .experiments
-                    .iter()
-                    .flat_map(|e| e.y.column(i).iter().copied().collect::<Vec<_>>())
+                    .output_samples(i)
                     .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
                         (a.min(v), b.max(v))
                     });

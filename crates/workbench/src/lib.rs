@@ -343,28 +343,15 @@ fn check_operating_point(model: &Model, data: &Dataset) -> Result<()> {
     if d.h(&x, &u, &mut y, &mut Vec::new()).is_err() {
         return Ok(());
     }
-    let channels = data
-        .inputs
-        .iter()
-        .zip(&u)
-        .enumerate()
-        .map(|(i, (name, op))| (name, *op, "input", i))
-        .chain(
-            data.outputs
-                .iter()
-                .zip(&y)
-                .enumerate()
-                .map(|(i, (name, op))| (name, *op, "output", i)),
-        );
-    for (name, op, kind, i) in channels {
-        let values: Vec<f64> = data
-            .experiments
-            .iter()
-            .flat_map(|e| {
-                let m = if kind == "input" { &e.u } else { &e.y };
-                m.column(i).iter().copied().collect::<Vec<_>>()
-            })
-            .collect();
+    let inputs = (0..u.len().min(data.inputs.len())).map(|j| {
+        let values: Vec<f64> = data.input_samples(j).collect();
+        (&data.inputs[j], u[j], "input", values)
+    });
+    let outputs = (0..y.len().min(data.outputs.len())).map(|j| {
+        let values: Vec<f64> = data.output_samples(j).collect();
+        (&data.outputs[j], y[j], "output", values)
+    });
+    for (name, op, kind, values) in inputs.chain(outputs) {
         let n = values.len().max(1) as f64;
         let mean = values.iter().sum::<f64>() / n;
         let spread = (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();

@@ -115,11 +115,12 @@ fn redundant<S: Search>(search: &S, path: &Path<S::Fit>) -> Result<Vec<(String, 
     if path.added.len() < 2 {
         return Ok(Vec::new());
     }
+    let explained = search.explained(last);
     let mut out = Vec::new();
     for effect in &path.added {
         let reduced = search.removed(last, effect)?;
         // An effect without which the model no longer explains the data stays.
-        if search.explained(last) == Some(true) && search.explained(&reduced) == Some(false) {
+        if explained == Some(true) && search.explained(&reduced) == Some(false) {
             continue;
         }
         let n = search.candidates(&reduced).len();
