@@ -12,7 +12,7 @@
 
 use crate::constraints::Constraints;
 use crate::error::{Error, Result};
-use nalgebra::{DMatrix, DVector, SymmetricEigen};
+use nalgebra::{DMatrix, DVector};
 use rigid_body::laguerre::Laguerre;
 use rigid_body::siqp;
 
@@ -118,13 +118,21 @@ impl Problem {
         )?;
         let cz = DMatrix::from_row_slice(nc * s, big_n, &buf);
 
-        // Full row rank of A_eq and a null-space basis Z from the projector I − V Vᵀ.
+        // Full row rank of A_eq, a null-space basis Z and the pseudo-inverse, from faer's full
+        // SVD A_eq = U Σ Vᵀ (Z = the last (n+m)s − p columns of V). nalgebra's SVD of this wide
+        // matrix can return singular vectors that do not recompose it (error 5e-4 seen).
         if p > big_n {
             return Err(Error::TooFewBasisFunctions { s, n, m });
         }
-        let svd = aeq.clone().svd(true, true);
-        let smax = svd.singular_values.max();
-        let smin = svd.singular_values.min();
+        let svd = faer::Mat::<f64>::from_fn(p, big_n, |i, j| aeq[(i, j)])
+            .svd()
+            .map_err(|e| Error::Solver {
+                solver: "SVD of the equality constraints",
+                status: format!("{e:?}"),
+            })?;
+        let sigma: Vec<f64> = (0..p).map(|i| svd.S().column_vector()[i]).collect();
+        let smax = sigma.iter().copied().fold(0.0, f64::max);
+        let smin = sigma.iter().copied().fold(f64::INFINITY, f64::min);
         if smin <= 1e-10 * smax {
             return Err(Error::RankDeficient(if smax > 0.0 {
                 smin / smax
@@ -132,15 +140,11 @@ impl Problem {
                 0.0
             }));
         }
-        let vt = svd.v_t.as_ref().ok_or(Error::RankDeficient(0.0))?;
-        let u = svd.u.as_ref().ok_or(Error::RankDeficient(0.0))?;
-        let projector = DMatrix::<f64>::identity(big_n, big_n) - vt.transpose() * vt;
-        let eig = SymmetricEigen::new(projector);
-        let keep: Vec<usize> = (0..big_n).filter(|&i| eig.eigenvalues[i] > 0.5).collect();
-        // (n+m)s − (ns + n) for a full-rank A_eq; counted from Z so that Y's width is it.
-        let dof = keep.len();
-        let z = DMatrix::from_fn(big_n, keep.len(), |i, j| eig.eigenvectors[(i, keep[j])]);
-        let y = if keep.is_empty() {
+        let (u, v) = (svd.U(), svd.V());
+        // (n+m)s − (ns + n) for a full-rank A_eq.
+        let dof = big_n - p;
+        let z = DMatrix::from_fn(big_n, dof, |i, j| v[(i, p + j)]);
+        let y = if dof == 0 {
             DMatrix::zeros(big_n, 0)
         } else {
             let reduced = z.transpose() * &h * &z;
@@ -155,12 +159,15 @@ impl Problem {
             yt.transpose()
         };
         let s_mat = &y * y.transpose();
-        // Particular solution of A_eq z = (0, x0) by the pseudo-inverse, projected to the
-        // equality-only minimiser: b̂ = (I − S H) A⁺ (0, x0).
-        let sinv = DMatrix::from_diagonal(&svd.singular_values.map(|v| 1.0 / v));
-        let pinv = vt.transpose() * sinv * u.transpose();
-        let e_x0 = DMatrix::from_fn(p, n, |i, j| if i == n * s + j { 1.0 } else { 0.0 });
-        let g = (DMatrix::<f64>::identity(big_n, big_n) - &s_mat * &h) * pinv * e_x0;
+        // Particular solution of A_eq z = (0, x0) by the pseudo-inverse V₁ Σ⁻¹ Uᵀ, projected
+        // to the equality-only minimiser: b̂ = (I − S H) A⁺ (0, x0). Only the last n columns
+        // of Uᵀ meet (0, x0).
+        let pinv_x0 = DMatrix::from_fn(big_n, n, |i, j| {
+            (0..p)
+                .map(|k| v[(i, k)] / sigma[k] * u[(n * s + j, k)])
+                .sum::<f64>()
+        });
+        let g = (DMatrix::<f64>::identity(big_n, big_n) - &s_mat * &h) * pinv_x0;
         let phi = &cz * &s_mat * cz.transpose();
         let phi = (&phi + phi.transpose()) * 0.5;
         let psi = &cz * &g;

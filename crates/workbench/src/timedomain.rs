@@ -75,11 +75,15 @@ impl<'a> Runner<'a> {
                 "overflows: the model grows too fast per sample for its prediction (is the logs' time column in seconds?)",
             ));
         }
-        let svd = o.svd(true, true);
+        // A short window makes O wide; nalgebra's SVD of a wide matrix can return singular
+        // vectors that do not recompose it, so the tall one of O and Oᵀ is decomposed.
+        let wide = o.nrows() < o.ncols();
+        let svd = if wide { o.transpose() } else { o }.svd(true, true);
         let tol = 1e-9 * svd.singular_values.max();
         let o_pinv = svd
             .pseudo_inverse(tol.max(f64::MIN_POSITIVE))
             .map_err(|e| SimError::invalid("observability matrix", "pseudo-inverse", e))?;
+        let o_pinv = if wide { o_pinv.transpose() } else { o_pinv };
         let pm = &powers[m] * o_pinv;
         let p: Vec<DMatrix<f64>> = (0..=m)
             .map(|j| pm.columns(j * ny, ny).into_owned())
