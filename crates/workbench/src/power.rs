@@ -72,8 +72,11 @@ pub struct StudySpec {
     pub effect: String,
     /// Its parameter set to each value.
     pub parameter: String,
-    /// Values of the parameter, increasing.
+    /// Values of the parameter, increasing; 0 is the effect absent (the nominal model).
     pub values: Vec<f64>,
+    /// The parameter's bounds in the model sized to the logs, which the values are checked
+    /// against (a campaign's discovery sizes the candidates to its own logs again).
+    pub bounds: [f64; 2],
     /// Campaigns per value.
     pub campaigns: usize,
     /// Seed of every campaign's random numbers.
@@ -98,7 +101,7 @@ pub struct StudySpec {
     /// The factors `(process, sensor)` the Kalman estimate's covariances were scaled by so
     /// that the simulated period-to-period noise matches the logs' (`None`: not periodic, not
     /// scaled).
-    pub noise_calibration: Option<(f64, f64)>,
+    pub noise_calibration: Option<(f64, Vec<f64>)>,
 }
 
 impl StudySpec {
@@ -257,7 +260,8 @@ pub fn prepare(
             ))
         }
     };
-    check_values(&options.values, &parameter)?;
+    let bounds = [parameter.lower, parameter.upper];
+    check_values(&options.values, &parameter.name, bounds)?;
     let step = wb.compare()?;
     let ss = nominal_model.state_space(&step.theta)?;
     let disc = ss.discretize(1.0 / wb.data().sample_rate_hz)?;
@@ -284,6 +288,7 @@ pub fn prepare(
         effect: options.effect.clone(),
         parameter: parameter.name,
         values: options.values.clone(),
+        bounds,
         campaigns: options.campaigns,
         seed: options.seed,
         nominal: names.into_iter().zip(step.theta).collect(),
@@ -310,7 +315,10 @@ pub fn prepare(
             .iter_mut()
             .flatten()
             .for_each(|q| *q *= cq);
-        spec.sensor_noise.iter_mut().for_each(|r| *r *= cr);
+        spec.sensor_noise
+            .iter_mut()
+            .zip(&cr)
+            .for_each(|(r, c)| *r *= c);
         spec.noise_calibration = Some((cq, cr));
     }
     Ok(spec)
@@ -341,7 +349,42 @@ pub fn period_noise_rms(data: &Dataset) -> Option<Vec<f64>> {
     )
 }
 
-fn check_values(values: &[f64], p: &super::model::Parameter) -> Result<()> {
+/// Noise factors from each output's simulated variances relative to the logged one, `a` with
+/// process noise alone and `b` with sensor noise alone: `cq` for the process noise and `cr_i`
+/// for output `i`'s sensor noise with `cq a_i + cr_i b_i = 1` wherever `b_i > 0`. The process
+/// factor is the common one that fits best in least squares (it keeps the Kalman estimate's
+/// split between process and sensor noise), lowered where process noise alone would exceed
+/// an output's logged noise; each output's sensor noise makes up the rest. (Two factors for
+/// all outputs left a pitch axis's angle of attack at 37 % of its logged noise.) `None` when
+/// the simulated noise is zero on every output.
+pub fn calibration_factors(a: &[f64], b: &[f64]) -> Option<(f64, Vec<f64>)> {
+    let both: Vec<f64> = a.iter().zip(b).map(|(x, y)| x + y).collect();
+    let norm = both.iter().map(|v| v * v).sum::<f64>();
+    if !(norm > 0.0 && norm.is_finite()) {
+        return None;
+    }
+    let common = both.iter().sum::<f64>() / norm;
+    let cq = a
+        .iter()
+        .filter(|&&x| x > 0.0)
+        .fold(common, |c, &x| c.min(1.0 / x));
+    let cr = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| {
+            if *y > 0.0 {
+                ((1.0 - cq * x) / y).max(0.0)
+            } else {
+                common
+            }
+        })
+        .collect();
+    Some((cq, cr))
+}
+
+/// Values finite, increasing and within `bounds`, or 0: the effect absent, whatever its
+/// bounds (a lag's `tau` starts above 0).
+fn check_values(values: &[f64], name: &str, bounds: [f64; 2]) -> Result<()> {
     if values.is_empty() {
         return Err(SimError::invalid(
             "values",
@@ -350,13 +393,13 @@ fn check_values(values: &[f64], p: &super::model::Parameter) -> Result<()> {
         ));
     }
     for (i, v) in values.iter().enumerate() {
-        if !v.is_finite() || *v < p.lower || *v > p.upper {
+        if *v != 0.0 && !(v.is_finite() && *v >= bounds[0] && *v <= bounds[1]) {
             return Err(SimError::invalid(
                 "values",
                 v,
                 format!(
-                    "{} must be finite and within its bounds [{}, {}]",
-                    p.name, p.lower, p.upper
+                    "{name} must be 0 (the effect absent) or finite and within its bounds [{}, {}]",
+                    bounds[0], bounds[1]
                 ),
             ));
         }
@@ -393,6 +436,8 @@ fn sqrt_factor(s: &DMatrix<f64>) -> DMatrix<f64> {
 pub struct Study {
     spec: StudySpec,
     structure: Arc<ModelFile>,
+    /// The nominal model at its fitted values, simulated for the value 0.
+    nominal: Discrete,
     /// The model with the effect on, and the parameter vector with its slot.
     with: Model,
     theta: Vec<f64>,
@@ -428,7 +473,20 @@ impl Study {
                     .map_or(p.value, |(_, v)| *v)
             })
             .collect();
-        check_values(&spec.values, &params[slot])?;
+        check_values(&spec.values, &spec.parameter, spec.bounds)?;
+        let nominal_theta: Vec<f64> = nominal
+            .parameters()?
+            .iter()
+            .map(|p| {
+                spec.nominal
+                    .iter()
+                    .find(|(n, _)| *n == p.name)
+                    .map_or(p.value, |(_, v)| *v)
+            })
+            .collect();
+        let nominal = nominal
+            .state_space(&nominal_theta)?
+            .discretize(1.0 / spec.sample_rate_hz)?;
         let n = spec.process_noise.len();
         let q = matrix("process_noise", &spec.process_noise, n)?;
         let inputs = super::model::ModelStructure::inputs(structure.as_ref());
@@ -452,6 +510,7 @@ impl Study {
                 spec.sensor_noise.iter().map(|v| v.max(0.0).sqrt()),
             ),
             structure,
+            nominal,
             with,
             theta,
             slot,
@@ -489,12 +548,15 @@ impl Study {
                 format!("the study has {} values", self.spec.values.len()),
             )
         })?;
-        let mut theta = self.theta.clone();
-        theta[self.slot] = value;
-        let disc = self
-            .with
-            .state_space(&theta)?
-            .discretize(1.0 / self.spec.sample_rate_hz)?;
+        let disc = if value == 0.0 {
+            self.nominal.clone()
+        } else {
+            let mut theta = self.theta.clone();
+            theta[self.slot] = value;
+            self.with
+                .state_space(&theta)?
+                .discretize(1.0 / self.spec.sample_rate_hz)?
+        };
         let mut rng = self.rng(value_index, campaign);
         let label = (self.spec.parameter.as_str(), value.to_string());
         self.logs(&disc, &label, &mut rng, &self.noise_factor, &self.sensor_sd)
@@ -573,14 +635,13 @@ impl Study {
         })
     }
 
-    /// Factors `(process, sensor)` that scale the covariances so that the nominal model's
-    /// simulated period-to-period noise matches the logs' per output (`measured` rms): the
-    /// noise enters linearly, so each output's variance is `cq A_i + cr B_i` with `A`, `B` the
-    /// variances simulated with process noise alone and sensor noise alone, averaged over
-    /// [`CALIBRATION_DRAWS`] records each (random stream
-    /// `u64::MAX`, which no campaign uses); `(cq, cr) >= 0` minimise the squared relative
-    /// errors, one common factor unless two halve them.
-    fn calibration(&self, nominal: &Discrete, measured: &[f64]) -> Result<(f64, f64)> {
+    /// Factors `(process, sensor per output)` that scale the covariances so that the nominal
+    /// model's simulated period-to-period noise matches the logs' on every output (`measured`
+    /// rms): the noise enters linearly, so output `i`'s variance is `cq A_i + cr_i B_i` with
+    /// `A`, `B` the variances simulated with process noise alone and sensor noise alone,
+    /// averaged over [`CALIBRATION_DRAWS`] records each (random stream `u64::MAX`, which no
+    /// campaign uses); see [`calibration_factors`].
+    fn calibration(&self, nominal: &Discrete, measured: &[f64]) -> Result<(f64, Vec<f64>)> {
         let mut rng = ChaCha8Rng::seed_from_u64(self.spec.seed);
         rng.set_stream(u64::MAX);
         let none_q = DMatrix::zeros(self.noise_factor.nrows(), self.noise_factor.ncols());
@@ -607,53 +668,13 @@ impl Study {
                 .map(|(x, m)| x / (m * m).max(1e-300))
                 .collect()
         };
-        let (a, b) = (rel(&a), rel(&b));
-        let dot = |x: &[f64], y: &[f64]| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>();
-        let ones = vec![1.0; a.len()];
-        let misfit = |cq: f64, cr: f64| {
-            a.iter()
-                .zip(&b)
-                .map(|(x, y)| (cq * x + cr * y - 1.0).powi(2))
-                .sum::<f64>()
-        };
-        let (aa, ab, bb) = (dot(&a, &a), dot(&a, &b), dot(&b, &b));
-        let det = aa * bb - ab * ab;
-        // One factor for both keeps the estimate's split between process and sensor noise; a
-        // split of its own replaces it only where it halves the misfit (with one output the
-        // split is not identifiable from the period-to-period noise: the common factor fits
-        // exactly, and rounding alone must not pick another split).
-        let both: Vec<f64> = a.iter().zip(&b).map(|(x, y)| x + y).collect();
-        let c = dot(&both, &ones) / dot(&both, &both).max(f64::MIN_POSITIVE);
-        let mut best = (misfit(c, c), c, c);
-        let common = best.0;
-        let exact = common <= 1e-12 * a.len() as f64;
-        let mut consider = |cq: f64, cr: f64| {
-            if !exact && cq >= 0.0 && cr >= 0.0 && cq.is_finite() && cr.is_finite() {
-                let m = misfit(cq, cr);
-                if m < best.0 && m < 0.5 * common {
-                    best = (m, cq, cr);
-                }
-            }
-        };
-        if det > 1e-12 * aa * bb {
-            let (ya, yb) = (dot(&a, &ones), dot(&b, &ones));
-            consider((bb * ya - ab * yb) / det, (aa * yb - ab * ya) / det);
-        }
-        if aa > 0.0 {
-            consider(dot(&a, &ones) / aa, 0.0);
-        }
-        if bb > 0.0 {
-            consider(0.0, dot(&b, &ones) / bb);
-        }
-        if best.0.is_finite() && best.1 + best.2 > 0.0 {
-            Ok((best.1, best.2))
-        } else {
-            Err(SimError::invalid(
+        calibration_factors(&rel(&a), &rel(&b)).ok_or_else(|| {
+            SimError::invalid(
                 "noise calibration",
                 "simulated noise",
                 "is zero on every output",
-            ))
-        }
+            )
+        })
     }
 
     /// One campaign: simulate, discover, and what was found. Never fails: a failure is the
@@ -984,9 +1005,15 @@ pub fn aggregate(spec: &StudySpec, outcomes: &[Outcome]) -> Result<PowerResult> 
             spec.sample_rate_hz,
             spec.experiments.len(),
             spec.noise_calibration
+                .as_ref()
                 .map_or(String::new(), |(cq, cr)| format!(
-                    ", scaled by {cq:.3} (process) and {cr:.3} (sensor) so that the nominal \
-                 model's simulated period-to-period noise matches the logs' per output"
+                    ", scaled by {cq:.3} (process) and {} (sensor, per output) so that the \
+                     nominal model's simulated period-to-period noise matches the logs' on \
+                     every output",
+                    cr.iter()
+                        .map(|c| format!("{c:.3}"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
                 ))
         ),
     })
@@ -1308,6 +1335,51 @@ K = [[4.0, 3.0]]
     }
 
     #[test]
+    fn a_lag_study_takes_zero_and_the_bounds_sized_to_the_logs() {
+        // The logs' lines are 0.2 Hz apart, so `tau` runs to 1 / (2 pi 0.2) = 0.8 s, beyond the
+        // 0.5 s of a model without data; 0 (below tau's lower bound) is the lag absent.
+        let lag = StudyOptions {
+            effect: "actuator_lag".into(),
+            ..options(vec![0.0, 0.6], 1)
+        };
+        let spec = prepare(MODEL, Path::new("cart.toml"), logs(1), &lag).unwrap();
+        assert!(
+            spec.bounds[0] > 0.0 && spec.bounds[1] > 0.6,
+            "{:?}",
+            spec.bounds
+        );
+        let back: StudySpec = serde_json::from_str(&serde_json::to_string(&spec).unwrap()).unwrap();
+        let study = Study::new(back).unwrap();
+        // At 0 the campaign simulates the nominal model: the same logs as a friction study's
+        // at b = 0 (same seed, value and campaign).
+        let friction = prepare(
+            MODEL,
+            Path::new("cart.toml"),
+            logs(1),
+            &options(vec![0.0], 1),
+        );
+        let friction = Study::new(friction.unwrap()).unwrap();
+        assert_eq!(
+            study.simulate(0, 0).unwrap(),
+            friction.simulate(0, 0).unwrap()
+        );
+        assert_ne!(
+            study.simulate(1, 0).unwrap(),
+            friction.simulate(0, 0).unwrap()
+        );
+        let beyond = StudyOptions {
+            effect: "actuator_lag".into(),
+            ..options(vec![0.0, 5.0], 1)
+        };
+        let err = prepare(MODEL, Path::new("cart.toml"), logs(1), &beyond).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("tau must be 0 (the effect absent)"),
+            "{err}"
+        );
+    }
+
+    #[test]
     fn simulated_noise_has_the_estimated_covariances() {
         // With the effect at 0 and no excitation, the measured output is the loop's response
         // to the drawn noise alone; its first differences are dominated by the sensor noise
@@ -1352,6 +1424,36 @@ K = [[4.0, 3.0]]
         );
     }
 
+    proptest::proptest! {
+        /// Every output with sensor noise gets its logged noise back (`cq a_i + cr_i b_i = 1`),
+        /// no factor is negative, and where one common factor fits every output it is kept.
+        #[test]
+        fn calibration_matches_every_output(
+            ab in proptest::collection::vec((0.0f64..10.0, 1e-3f64..10.0), 1..5),
+            shared in 0.01f64..100.0,
+        ) {
+            let (a, b): (Vec<f64>, Vec<f64>) = ab.iter().copied().unzip();
+            let (cq, cr) = calibration_factors(&a, &b).unwrap();
+            proptest::prop_assert!(cq >= 0.0 && cr.iter().all(|c| *c >= 0.0));
+            for i in 0..a.len() {
+                let v = cq * a[i] + cr[i] * b[i];
+                proptest::prop_assert!((v - 1.0).abs() < 1e-9, "output {i}: {v}");
+            }
+            // Variances that one factor fits exactly: that factor for both noises.
+            let t: Vec<f64> = a.iter().zip(&b).map(|(x, y)| 1.0 / (shared * (x + y))).collect();
+            let a2: Vec<f64> = a.iter().zip(&t).map(|(x, t)| x * t).collect();
+            let b2: Vec<f64> = b.iter().zip(&t).map(|(y, t)| y * t).collect();
+            let (cq, cr) = calibration_factors(&a2, &b2).unwrap();
+            proptest::prop_assert!((cq / shared - 1.0).abs() < 1e-9, "{cq} {shared}");
+            proptest::prop_assert!(cr.iter().all(|c| (c / shared - 1.0).abs() < 1e-9), "{cr:?}");
+        }
+    }
+
+    #[test]
+    fn calibration_without_simulated_noise_is_refused() {
+        assert!(calibration_factors(&[0.0, 0.0], &[0.0, 0.0]).is_none());
+    }
+
     fn outcome(v: usize, c: usize, found: bool, estimate: Option<f64>) -> Outcome {
         Outcome {
             value_index: v,
@@ -1372,6 +1474,7 @@ K = [[4.0, 3.0]]
             effect: "friction".into(),
             parameter: "b".into(),
             values,
+            bounds: [0.0, 50.0],
             campaigns,
             seed: 0,
             nominal: Vec::new(),

@@ -175,10 +175,22 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
                 );
                 continue;
             }
+            // What it failed besides the F test and BIC shown: the robustness check (a small p
+            // resting on one line alone) and the effect size.
+            let noise = if c.exceeds_noise {
+                ""
+            } else {
+                "  within the noise spread"
+            };
             let _ = writeln!(
                 s,
-                "  not added: {:<15} reduction {:>6.2}%  +{} params  p = {:.2e}  dBIC {:+.1}",
-                c.effect, c.reduction_percent, c.added_parameters, c.p_value, c.delta_bic,
+                "  not added: {:<15} reduction {:>6.2}%  +{} params  p = {:.2e}  robust p = {:.2e}  dBIC {:+.1}{noise}",
+                c.effect,
+                c.reduction_percent,
+                c.added_parameters,
+                c.p_value,
+                c.robust_p_value,
+                c.delta_bic,
             );
         }
         // The held ones fix the unseen combinations: the other values are conditional on them.
