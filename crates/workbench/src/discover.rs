@@ -584,6 +584,19 @@ const CLOCK_UNITS: [(f64, &str); 8] = [
     (1e6, "seconds against microseconds"),
 ];
 
+/// Factors a channel logged in another unit makes (the logged value against the model's) and
+/// the confusion each stands for.
+const CHANNEL_UNITS: [(f64, &str); 8] = [
+    (180.0 / std::f64::consts::PI, "degrees against radians"),
+    (std::f64::consts::PI / 180.0, "radians against degrees"),
+    (30.0 / std::f64::consts::PI, "rpm against rad/s"),
+    (std::f64::consts::PI / 30.0, "rad/s against rpm"),
+    (1e3, "mm against m, or another milli-unit against its unit"),
+    (1e-3, "m against mm, or another unit against its milli-unit"),
+    (1e6, "um against m, or another micro-unit against its unit"),
+    (1e-6, "m against um, or another unit against its micro-unit"),
+];
+
 /// How many times lower than on the logs' own clock the documented model's cost must be on a
 /// rescaled clock before [`Workbench::clock_sentence`] names it.
 const CLOCK_GAIN: f64 = 10.0;
@@ -621,14 +634,101 @@ impl Workbench {
             }))
     }
 
-    /// The [`far_from_documented`] warning, with the [clock sentence](Self::clock_sentence)
-    /// when the documented model fits the logs better on another clock.
-    pub fn far_warning(&self, model: &Model, params: &[ParamEstimate]) -> Result<Option<String>> {
-        let Some(far) = far_from_documented(model, params)? else {
+    /// The sentence naming channels logged in another unit than the model's: the documented
+    /// model fits the logs [`CLOCK_GAIN`] times better with one output's row of its response
+    /// (or every output's), or one input's column (or every input's), scaled by one of
+    /// [`CHANNEL_UNITS`] (the best). A pitch axis's rate logged in deg/s against a model in
+    /// rad/s fitted M_alpha at 1.4e5 for 3.6 and only the parameters' distance hinted at it.
+    fn unit_sentence(&self) -> Result<Option<String>> {
+        let theta = self.model.documented()?;
+        let Ok(g) = self
+            .model
+            .frf(&theta, &self.cost.freqs_hz, self.fit_options().hold)
+        else {
             return Ok(None);
         };
-        let clock = self.clock_sentence()?.unwrap_or_default();
-        Ok(Some(format!("{far}{clock}")))
+        let own = self.cost.cost(&g);
+        if !own.is_finite() {
+            return Ok(None);
+        }
+        let data = self.data();
+        let (ny, nu) = (data.outputs.len(), data.inputs.len());
+        // (channels named, outputs scaled, inputs scaled): each channel alone, then each side.
+        let mut groups: Vec<(String, Vec<usize>, Vec<usize>)> = Vec::new();
+        for (i, name) in data.outputs.iter().enumerate() {
+            groups.push((format!("output {name}"), vec![i], Vec::new()));
+        }
+        for (j, name) in data.inputs.iter().enumerate() {
+            groups.push((format!("input {name}"), Vec::new(), vec![j]));
+        }
+        if ny > 1 {
+            let all = data.outputs.join(", ");
+            groups.push((format!("outputs {all}"), (0..ny).collect(), Vec::new()));
+        }
+        if nu > 1 {
+            let all = data.inputs.join(", ");
+            groups.push((format!("inputs {all}"), Vec::new(), (0..nu).collect()));
+        }
+        let mut best: Option<(f64, f64, &str, &str)> = None;
+        for (name, rows, cols) in &groups {
+            for &(c, what) in &CHANNEL_UNITS {
+                // A logged output is c times the model's; a logged input c times the model's,
+                // so the response per logged input is 1/c times.
+                let scaled: Vec<_> = g
+                    .iter()
+                    .map(|m| {
+                        let mut m = m.clone();
+                        for &i in rows {
+                            m.row_mut(i).scale_mut(c);
+                        }
+                        for &j in cols {
+                            m.column_mut(j).unscale_mut(c);
+                        }
+                        m
+                    })
+                    .collect();
+                let v = self.cost.cost(&scaled);
+                if v.is_finite() && best.is_none_or(|b| v < b.0) {
+                    best = Some((v, c, what, name));
+                }
+            }
+        }
+        Ok(best
+            .filter(|(v, ..)| *v * CLOCK_GAIN < own)
+            .map(|(v, c, what, name)| {
+                format!(
+                    "; the documented model fits the logs {} times better (cost {v:.1} against {own:.1}) with {name} scaled by {}: {} logged in the model's unit ({what}?)",
+                    fmt_ratio(own / v),
+                    fmt_ratio(c),
+                    if name.contains(", ") { "are they" } else { "is it" }
+                )
+            }))
+    }
+
+    /// The [`far_from_documented`] warning, with the [clock sentence](Self::clock_sentence)
+    /// when the documented model fits the logs better on another clock and the [unit
+    /// sentence](Self::unit_sentence) when it fits them better with channels rescaled; those
+    /// two alone after a verdict of misfit (a cart-pole's angle logged in degrees left a
+    /// misfit 415 times the noise with every parameter near its documented value).
+    pub fn far_warning(
+        &self,
+        model: &Model,
+        params: &[ParamEstimate],
+        unexplained: bool,
+    ) -> Result<Option<String>> {
+        let far = far_from_documented(model, params)?;
+        if far.is_none() && !unexplained {
+            return Ok(None);
+        }
+        let hints = format!(
+            "{}{}",
+            self.clock_sentence()?.unwrap_or_default(),
+            self.unit_sentence()?.unwrap_or_default()
+        );
+        Ok(match far {
+            Some(far) => Some(format!("{far}{hints}")),
+            None => hints.strip_prefix("; ").map(str::to_string),
+        })
     }
 }
 
@@ -1094,7 +1194,8 @@ impl Workbench {
         let verdict = self.verdict(&step);
         let weighting = self.weighting_sentence(&step.effects);
         let unexplained = matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. });
-        let warnings = self.warnings(&self.model, &step.params)?;
+        let mut warnings = self.warnings(&self.model, &step.params, unexplained)?;
+        warnings.extend(Self::dominant_line(&step.diagnosis).filter(|_| unexplained));
         Ok(Discovery {
             steps: vec![step],
             conclusion: Conclusion::settle(Vec::new(), Vec::new(), unexplained, verdict, LEVEL)
@@ -1123,9 +1224,14 @@ impl Workbench {
     /// documented values (the FRF criterion compares the linearization there). The documented
     /// values, not the fitted ones: a fit biased by a missing effect unbalances a point the
     /// user gave right.
-    fn warnings(&self, model: &Model, params: &[ParamEstimate]) -> Result<Vec<String>> {
+    fn warnings(
+        &self,
+        model: &Model,
+        params: &[ParamEstimate],
+        unexplained: bool,
+    ) -> Result<Vec<String>> {
         let mut why = self.data_caveats();
-        why.extend(self.far_warning(model, params)?);
+        why.extend(self.far_warning(model, params, unexplained)?);
         let drift = model.drift(&model.documented()?)?;
         if !drift.is_empty() {
             why.push(format!(
@@ -1172,8 +1278,19 @@ impl Workbench {
             .and_then(|d| d.worst_within_band())
             .filter(|&(_, size)| size > super::distortion::UNDERSTATED)
         {
+            let single = self
+                .frf
+                .distortion
+                .as_ref()
+                .and_then(|d| d.dominant_line())
+                .map_or(String::new(), |(o, hz, share)| {
+                    format!(
+                        "; yet {:.0} % of it lies in {o} at {hz:.2} Hz alone, which a periodic disturbance there gives (a rotor's runout, mains hum: lowering the excitation does not remove it)",
+                        100.0 * share
+                    )
+                });
             why.push(format!(
-                "the loop responds at lines the excitation leaves out (nonlinear distortion, {size:.2}x the FRF's noise reference within the band in {output}): the reference understates the FRF's error there, so the tests were too lenient and an added effect may be absorbing the nonlinearity; model it (a [nonlinear] section under the prediction-error criterion) or lower the excitation's amplitude"
+                "the loop responds at lines the excitation leaves out (nonlinear distortion, {size:.2}x the FRF's noise reference within the band in {output}): the reference understates the FRF's error there, so the tests were too lenient and an added effect may be absorbing the nonlinearity; model it (a [nonlinear] section under the prediction-error criterion) or lower the excitation's amplitude{single}"
             ));
         }
         why
@@ -1236,6 +1353,27 @@ impl Workbench {
                 super::welch::MIN_SEGMENTS,
             )
         }))
+    }
+
+    /// A misfit whose excess over the noise sits at one excited line (at least
+    /// [`DOMINANT_SHARE`](super::distortion::DOMINANT_SHARE) of it): named, as a periodic
+    /// disturbance at that frequency reads so. (A rotor's runout at its spin frequency, an
+    /// excited line, carried 97 % of a magnetic bearing's misfit and bent the stiffness 58 %.)
+    fn dominant_line(diagnosis: &Diagnosis) -> Option<String> {
+        let excess = |g: &super::diagnose::GroupMisfit| (g.misfit - g.expected).max(0.0);
+        let lines = &diagnosis.lines;
+        let total: f64 = lines.iter().map(excess).sum();
+        let top = lines
+            .iter()
+            .max_by(|a, b| excess(a).total_cmp(&excess(b)))?;
+        let share = excess(top) / total;
+        (top.flagged && share >= super::distortion::DOMINANT_SHARE).then(|| {
+            format!(
+                "{:.0} % of the misfit beyond the noise lies at the line {} alone: a periodic disturbance at that frequency (a rotor's runout, mains hum) or a narrow resonance there gives that",
+                100.0 * share,
+                top.label
+            )
+        })
     }
 
     fn verdict(&self, step: &Step) -> Verdict {
@@ -1303,10 +1441,7 @@ impl Workbench {
         let (mut done, found) = forward_selection(&FrfSearch(self), start, progress)?;
         self.common_weighting(&mut done)?;
         let smoothing = self.smoothing_caveat(done.last())?;
-        let warnings = match done.last() {
-            Some(f) => self.warnings(&f.model, &f.r.params)?,
-            None => self.data_caveats(),
-        };
+        let last_fit = done.last().map(|f| (f.model.clone(), f.r.params.clone()));
         let steps = self.records(done)?;
         let last = steps
             .last()
@@ -1320,6 +1455,11 @@ impl Workbench {
                 .map(|s| (s.added.as_deref(), s.candidates.as_slice())),
         ));
         let unexplained = matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. });
+        let mut warnings = match &last_fit {
+            Some((model, params)) => self.warnings(model, params, unexplained)?,
+            None => self.data_caveats(),
+        };
+        warnings.extend(Self::dominant_line(&last.diagnosis).filter(|_| unexplained));
         let conclusion = Conclusion::settle(found, caveats, unexplained, verdict, LEVEL)
             .with_candidates(Candidates::of(&self.model, true))
             .with_near_misses(&last.candidates)
@@ -1433,6 +1573,40 @@ where
 mod tests {
     use super::{rival_p_value, rivals, CandidateScore, Candidates, Conclusion, Verdict};
     use proptest::prelude::*;
+
+    /// A misfit whose excess over the noise sits at one flagged line (95 of 100) is named with
+    /// its share; spread over three lines, or at a line not flagged, it is not.
+    #[test]
+    fn a_misfit_at_one_line_is_named() {
+        use crate::diagnose::{Diagnosis, GroupMisfit};
+        let diagnosis = |misfits: &[(f64, bool)]| Diagnosis {
+            lines: misfits
+                .iter()
+                .enumerate()
+                .map(|(k, &(misfit, flagged))| GroupMisfit {
+                    label: format!("{:.2} Hz", k as f64),
+                    misfit,
+                    expected: 10.0,
+                    p_value: if flagged { 0.0 } else { 0.5 },
+                    flagged,
+                })
+                .collect(),
+            outputs: Vec::new(),
+            worst_entries: Vec::new(),
+            band_hz: None,
+            fit_percent: Vec::new(),
+        };
+        let one = diagnosis(&[(12.0, false), (105.0, true), (13.0, false), (8.0, false)]);
+        let said = crate::Workbench::dominant_line(&one).unwrap();
+        assert!(
+            said.starts_with("95 % of the misfit beyond the noise lies at the line 1.00 Hz alone"),
+            "{said}"
+        );
+        let spread = diagnosis(&[(50.0, true), (60.0, true), (50.0, true)]);
+        assert!(crate::Workbench::dominant_line(&spread).is_none());
+        let unflagged = diagnosis(&[(10.0, false), (105.0, false)]);
+        assert!(crate::Workbench::dominant_line(&unflagged).is_none());
+    }
 
     /// A scored candidate: `cost` from `before`, F-test p-value `p` (its tests pass below 1 %
     /// over two candidates), the noise-only spread of a cost of 129 200 unit-variance

@@ -35,6 +35,11 @@ const LEFT_OUT: f64 = 1e-8;
 /// reference, and the tests built on it, too lenient to confirm an effect of a linear model.
 pub const UNDERSTATED: f64 = 0.25;
 
+/// The share of an output's response beyond the noise at the lines the excitation leaves out
+/// (or of the misfit beyond the noise at the excited lines) above which one line is named as
+/// a possible periodic disturbance.
+pub const DOMINANT_SHARE: f64 = 0.8;
+
 /// One detection line of one output.
 #[derive(Debug, Clone, Serialize)]
 pub struct DetectionLine {
@@ -94,6 +99,24 @@ impl Distortion {
             .max_by(|a, b| a.1.total_cmp(&b.1))
     }
 
+    /// The one line that carries at least [`DOMINANT_SHARE`] of the flagged output's response
+    /// beyond the noise (`F - 1` summed over its detection lines): `(output, Hz, share)`.
+    /// Distortion spreads over the harmonics and intermodulation lines; a single line is more
+    /// likely a periodic disturbance (a rotor's runout, mains hum), which does not scale with
+    /// the excitation.
+    pub fn dominant_line(&self) -> Option<(&str, f64, f64)> {
+        self.outputs
+            .iter()
+            .filter(|o| !o.flagged_hz.is_empty())
+            .filter_map(|o| {
+                let top = o.largest.as_ref()?;
+                let total: f64 = o.lines.iter().map(|l| (l.ratio - 1.0).max(0.0)).sum();
+                let share = (top.ratio - 1.0).max(0.0) / total;
+                (share >= DOMINANT_SHARE).then_some((o.output.as_str(), top.hz, share))
+            })
+            .max_by(|a, b| a.2.total_cmp(&b.2))
+    }
+
     /// One line for a summary: what was found, where, and how large.
     pub fn sentence(&self) -> String {
         let flagged: Vec<String> = self
@@ -130,8 +153,14 @@ impl Distortion {
             ),
             None => "; no unexcited line lies within the band, so its size there is unknown (leave lines out of the multisine, e.g. excite odd lines only, to measure it)".to_string(),
         };
+        let single = self.dominant_line().map_or(String::new(), |(o, hz, share)| {
+            format!(
+                "; {:.0} % of it in {o} at {hz:.2} Hz alone: a periodic disturbance at that frequency (a rotor's runout, mains hum) reads the same and, unlike distortion, does not grow with the excitation",
+                100.0 * share
+            )
+        });
         format!(
-            "nonlinear distortion: the loop responds at lines the excitation leaves out, {}{size}",
+            "nonlinear distortion: the loop responds at lines the excitation leaves out, {}{size}{single}",
             flagged.join("; ")
         )
     }
@@ -392,6 +421,63 @@ mod tests {
             (mean - 1.0).abs() < 0.12,
             "mean estimate / noise-free {mean}"
         );
+    }
+
+    /// One line carrying 90 % of an output's response beyond the noise is named; the same
+    /// response spread over five lines (distortion's harmonics) is not, nor is an output the
+    /// test does not flag.
+    #[test]
+    fn one_dominant_line_is_named_and_a_spread_response_is_not() {
+        let output = |ratios: &[f64], flagged: bool| {
+            let lines: Vec<DetectionLine> = ratios
+                .iter()
+                .enumerate()
+                .map(|(k, &ratio)| DetectionLine {
+                    hz: k as f64,
+                    ratio,
+                })
+                .collect();
+            let top = lines
+                .iter()
+                .max_by(|a, b| a.ratio.total_cmp(&b.ratio))
+                .cloned();
+            OutputDistortion {
+                output: "y".into(),
+                flagged_hz: if flagged {
+                    vec![top.as_ref().unwrap().hz]
+                } else {
+                    Vec::new()
+                },
+                largest: top,
+                within_band: Some(1.0),
+                lines,
+            }
+        };
+        let test = |ratios: &[f64], flagged: bool| Distortion {
+            lines_tested: ratios.len(),
+            lines_within_band: ratios.len(),
+            dof: (8, 16),
+            flag_above: 10.0,
+            outputs: vec![output(ratios, flagged)],
+        };
+        // Excess 90 at line 2 against 10 over the others (1.0 is no excess).
+        let one = test(&[3.5, 1.0, 91.0, 3.5, 3.5, 3.5, 0.5], true);
+        let (o, hz, share) = one.dominant_line().unwrap();
+        assert_eq!((o, hz), ("y", 2.0));
+        assert!((share - 0.9).abs() < 1e-12, "{share}");
+        assert!(
+            one.sentence().contains("90 % of it in y at 2.00 Hz alone"),
+            "{}",
+            one.sentence()
+        );
+        let spread = test(&[21.0, 21.0, 31.0, 21.0, 21.0], true);
+        assert!(spread.dominant_line().is_none());
+        assert!(
+            !spread.sentence().contains("alone"),
+            "{}",
+            spread.sentence()
+        );
+        assert!(test(&[3.5, 1.0, 91.0], false).dominant_line().is_none());
     }
 
     #[test]

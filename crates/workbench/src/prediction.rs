@@ -1043,7 +1043,7 @@ impl Workbench {
             .with_test(EXCITATION_TEST)
             .with_warnings(
                 match &last_model {
-                    Some(m) => self.far_warning(m, &last.params)?,
+                    Some(m) => self.far_warning(m, &last.params, unexplained)?,
                     None => None,
                 }
                 .into_iter()

@@ -126,23 +126,29 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
             .collect();
         for c in &pair[0].candidates {
             if let Some(f) = &c.followed {
+                let verdict = if f.same_model(&kept) {
+                    "the same model in another order".to_string()
+                } else if f.unexplained {
+                    "ruled out: it ends with a misfit where this one explains the data".to_string()
+                } else if f.ruled_out && f.added.len() > kept.len() {
+                    format!(
+                        "ruled out: it needs {} effects where this one needs {} (fewer effects come first, whatever the BIC)",
+                        f.added.len(),
+                        kept.len()
+                    )
+                } else if f.ruled_out {
+                    "ruled out: its BIC is decisively worse".to_string()
+                } else {
+                    "the data do not choose".to_string()
+                };
                 let _ = writeln!(
                     s,
                     "  followed: {} in place of {added} at step {}: its search added [{}], BIC \
-                     {:+.1} against this one; {}",
+                     {:+.1} against this one; {verdict}",
                     c.effect,
                     i + 1,
                     f.added.join(", "),
                     f.bic,
-                    if f.same_model(&kept) {
-                        "the same model in another order"
-                    } else if f.unexplained {
-                        "ruled out: it ends with a misfit where this one explains the data"
-                    } else if f.ruled_out {
-                        "ruled out"
-                    } else {
-                        "the data do not choose"
-                    },
                 );
             }
         }
@@ -432,9 +438,15 @@ fn time_domain_table(s: &mut String, d: &Discovery, nonlinear: bool) {
         if !coloured.is_empty()
             && matches!(d.conclusion.verdict, Verdict::ExplainedToNoiseLevel { .. })
         {
+            // What the verdict and the parameters rest on is the criterion's own.
+            let rests = if d.conclusion.test == crate::discover::COST_TEST {
+                "The verdict rests on the FRF's remaining cost against noise alone and the parameters on the FRF fit, neither of which assumes white innovations; the predictor's fit % and these tests do"
+            } else {
+                "The verdict rests on the correlation with the excitation (or past inputs), which a right model passes whatever the noise model; but in closed loop a noise model that does not fit biases the fitted parameters a little, and the standard errors assume white innovations and may be too small"
+            };
             let _ = writeln!(
                 s,
-                "  (not white in [{}] beside the verdict \"explained\": the disturbances' spectrum is not the one the predictor's noise model assumes. The verdict rests on the correlation with the excitation (or past inputs), which a right model passes whatever the noise model; but in closed loop a noise model that does not fit biases the fitted parameters a little, and the standard errors assume white innovations and may be too small)",
+                "  (not white in [{}] beside the verdict \"explained\": the disturbances' spectrum is not the one the predictor's noise model assumes. {rests})",
                 coloured.join(", ")
             );
         }
