@@ -464,28 +464,22 @@ impl Study {
             .iter()
             .position(|p| p.name == spec.parameter)
             .ok_or_else(|| SimError::invalid("parameter", &spec.parameter, "not in the model"))?;
-        let theta = params
-            .iter()
-            .map(|p| {
-                spec.nominal
-                    .iter()
-                    .find(|(n, _)| *n == p.name)
-                    .map_or(p.value, |(_, v)| *v)
-            })
-            .collect();
+        // Each parameter at its fitted nominal value, the effect's own at its default.
+        let fitted = |params: &[super::model::Parameter]| -> Vec<f64> {
+            params
+                .iter()
+                .map(|p| {
+                    spec.nominal
+                        .iter()
+                        .find(|(n, _)| *n == p.name)
+                        .map_or(p.value, |(_, v)| *v)
+                })
+                .collect()
+        };
+        let theta = fitted(&params);
         check_values(&spec.values, &spec.parameter, spec.bounds)?;
-        let nominal_theta: Vec<f64> = nominal
-            .parameters()?
-            .iter()
-            .map(|p| {
-                spec.nominal
-                    .iter()
-                    .find(|(n, _)| *n == p.name)
-                    .map_or(p.value, |(_, v)| *v)
-            })
-            .collect();
         let nominal = nominal
-            .state_space(&nominal_theta)?
+            .state_space(&fitted(&nominal.parameters()?))?
             .discretize(1.0 / spec.sample_rate_hz)?;
         let n = spec.process_noise.len();
         let q = matrix("process_noise", &spec.process_noise, n)?;
