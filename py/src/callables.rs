@@ -11,7 +11,7 @@ use nalgebra::DMatrix;
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyMappingProxy};
 use workbench::dynamics::Dynamics;
 use workbench::model::StateSpace;
 
@@ -122,12 +122,15 @@ fn call_checked(
     } else {
         ("f", "states")
     };
+    // A read-only view: the dict serves every call at this parameter vector, and a callable
+    // that wrote to it (p["k"] = ...) silently changed the next call's parameters.
+    let view = PyMappingProxy::new(py, params.as_mapping());
     let value = func.call1(
         py,
         (
             PyArray1::from_slice(py, x),
             PyArray1::from_slice(py, u),
-            params,
+            view,
         ),
     )?;
     let value = value.bind(py);

@@ -117,7 +117,9 @@ impl Effect {
                 Parameter::new(p, value, lower, upper, unit)
             })
             .collect();
-        workbench::model::check_parameters(&params).map_err(to_py_err)?;
+        // A ValueError naming the effect, as a model's parameters get.
+        workbench::model::check_parameters(&params)
+            .map_err(|e| PyValueError::new_err(format!("effect {name}: {e}")))?;
         match (&func, &f, &h) {
             (Some(_), None, None) | (None, Some(_), _) | (None, None, Some(_)) => {}
             (None, None, None) => {
@@ -1199,8 +1201,9 @@ impl Workbench {
     }
 }
 
-/// Runs `f` without the GIL; a failure caused by a user effect re-raises that effect's Python
-/// exception (kept in `error`).
+/// Runs `f` without the GIL; an exception a user's callable raised during the run (a model's
+/// `f`/`h`, an effect's) is re-raised unchanged, whether or not the run failed (kept in
+/// `error`).
 fn run_with<T: Send>(
     error: &Mutex<Option<PyErr>>,
     py: Python<'_>,
@@ -1211,9 +1214,12 @@ fn run_with<T: Send>(
     }
     let result = py.detach(f);
     let stashed = error.lock().ok().and_then(|mut slot| slot.take());
+    // A user's exception reaches the caller even when the run went on without it: a fit
+    // takes a failed evaluation for a step too far and backs off, which turned an effect
+    // that raised (or returned NaN) beyond some value into a plausible misfit verdict.
     match (result, stashed) {
-        (Ok(v), _) => Ok(v),
-        (Err(_), Some(err)) => Err(err),
+        (_, Some(err)) => Err(err),
+        (Ok(v), None) => Ok(v),
         (Err(e), None) => Err(to_py_err(e)),
     }
 }

@@ -82,6 +82,18 @@ impl Dataset {
             ));
         }
         for (i, e) in self.experiments.iter().enumerate() {
+            // Named before the checks that would read an empty record as an unexcited one.
+            if e.u.nrows() < 2 {
+                return Err(SimError::invalid(
+                    "data",
+                    &e.name,
+                    format!(
+                        "has {} sample{}: a record needs at least 2",
+                        e.u.nrows(),
+                        if e.u.nrows() == 1 { "" } else { "s" }
+                    ),
+                ));
+            }
             check_block(&e.name, "input", &self.inputs, &e.u, e.u.nrows())?;
             check_block(&e.name, "output", &self.outputs, &e.y, e.u.nrows())?;
             if let Some(r) = &e.r {
@@ -872,6 +884,23 @@ mod tests {
             msg.contains("expected 28") && msg.contains("found 20"),
             "{msg}"
         );
+    }
+
+    /// An empty or one-sample record is named as such, not as an input nothing excites.
+    #[test]
+    fn names_a_record_without_samples() {
+        for n in [0, 1] {
+            let mut d = small();
+            d.experiments[0].u = DMatrix::zeros(n, 1);
+            d.experiments[0].y = DMatrix::zeros(n, 1);
+            d.experiments[0].r = None;
+            let msg = d.validate().unwrap_err().to_string();
+            assert!(
+                msg.contains("e1") && msg.contains(&format!("has {n} sample")),
+                "{msg}"
+            );
+            assert!(msg.contains("at least 2"), "{msg}");
+        }
     }
 
     #[test]
