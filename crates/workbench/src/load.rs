@@ -271,7 +271,13 @@ fn one_rate(experiments: &[Experiment], rates: &[f64]) -> Result<f64> {
 /// A rate for a message: ten significant digits, so that 200.00000000000003 (the mean step
 /// of a log's time column) reads 200.
 pub fn hz(v: f64) -> String {
-    format!("{v:.9e}").parse::<f64>().unwrap_or(v).to_string()
+    let rounded = format!("{v:.9e}").parse::<f64>().unwrap_or(v);
+    // Rust prints every f64 in positional notation: 1e-300 would take 300 digits.
+    if rounded != 0.0 && !(1e-4..1e9).contains(&rounded.abs()) {
+        format!("{rounded:e}")
+    } else {
+        rounded.to_string()
+    }
 }
 
 /// Loads experiments of `system` with the given channel names from `paths`.
@@ -315,6 +321,17 @@ mod tests {
             r: None,
             periodic: None,
         }
+    }
+
+    /// Rates read as a person writes them: ten significant digits, positional but for
+    /// extremes (1e-300 Hz printed 300 digits).
+    #[test]
+    fn rates_print_short() {
+        assert_eq!(hz(200.00000000000003), "200");
+        assert_eq!(hz(0.5), "0.5");
+        assert_eq!(hz(1e-300), "1e-300");
+        assert_eq!(hz(2.5e12), "2.5e12");
+        assert_eq!(hz(0.0), "0");
     }
 
     /// A log of the pendulum's topics, 40 samples at 100 Hz, the output stamped `offset` s
