@@ -40,7 +40,15 @@ pub struct Diagnosis {
     pub band_hz: Option<(f64, f64)>,
     /// Time-domain fit % per output (periodic steady state on the excited lines).
     pub fit_percent: Vec<(String, f64)>,
+    /// Of the worst entries, `(output, input)` where the misfit is at least
+    /// [`UNMODELLED_RATIO`] times the noise's and the model's response is zero at every line:
+    /// a path the data show and the model lacks (axes a gyroscopic effect couples).
+    pub unmodelled_paths: Vec<(String, String)>,
 }
+
+/// How many times its noise-alone mean an entry's misfit must be before a path the model
+/// lacks is named.
+pub const UNMODELLED_RATIO: f64 = 2.0;
 
 impl Diagnosis {
     /// Names of the flagged outputs.
@@ -138,12 +146,31 @@ pub fn diagnose(
         (Some(a), Some(b)) => Some((*a, *b)),
         _ => None,
     };
+    // Zero relative to the model's largest response anywhere (exact zeros in practice: the
+    // structure has no path).
+    let largest = model
+        .iter()
+        .flat_map(|g| g.iter().map(|v| v.norm()))
+        .fold(0.0, f64::max);
+    let unmodelled_paths = entries
+        .iter()
+        .filter(|(_, _, ratio)| *ratio >= UNMODELLED_RATIO)
+        .filter(|(o, i, _)| {
+            let (r, c) = (
+                frf.outputs.iter().position(|n| n == o).unwrap_or(0),
+                frf.inputs.iter().position(|n| n == i).unwrap_or(0),
+            );
+            model.iter().all(|g| g[(r, c)].norm() <= 1e-12 * largest)
+        })
+        .map(|(o, i, _)| (o.clone(), i.clone()))
+        .collect();
     Diagnosis {
         lines,
         outputs,
         worst_entries: entries,
         band_hz,
         fit_percent: fit_percent(frf, model),
+        unmodelled_paths,
     }
 }
 

@@ -1196,6 +1196,7 @@ impl Workbench {
         let unexplained = matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. });
         let mut warnings = self.warnings(&self.model, &step.params, unexplained)?;
         warnings.extend(Self::dominant_line(&step.diagnosis).filter(|_| unexplained));
+        warnings.extend(Self::unmodelled_paths(&step.diagnosis).filter(|_| unexplained));
         Ok(Discovery {
             steps: vec![step],
             conclusion: Conclusion::settle(Vec::new(), Vec::new(), unexplained, verdict, LEVEL)
@@ -1376,6 +1377,23 @@ impl Workbench {
         })
     }
 
+    /// The paths the data show and the model lacks ([`Diagnosis::unmodelled_paths`]), named.
+    /// (A magnetic bearing's gyroscopic coupling left its misfit in `ix->ys` and `iy->xs`,
+    /// which an uncoupled model's response is zero in, and nothing said so.)
+    fn unmodelled_paths(diagnosis: &Diagnosis) -> Option<String> {
+        let paths: Vec<String> = diagnosis
+            .unmodelled_paths
+            .iter()
+            .map(|(o, i)| format!("{i}->{o}"))
+            .collect();
+        (!paths.is_empty()).then(|| {
+            format!(
+                "the model has no path {} (its response there is zero at every line), where the data show one: an effect that couples them is missing",
+                paths.join(", ")
+            )
+        })
+    }
+
     fn verdict(&self, step: &Step) -> Verdict {
         let p_value = self.noise_p_value(step);
         if p_value >= LEVEL {
@@ -1460,6 +1478,7 @@ impl Workbench {
             None => self.data_caveats(),
         };
         warnings.extend(Self::dominant_line(&last.diagnosis).filter(|_| unexplained));
+        warnings.extend(Self::unmodelled_paths(&last.diagnosis).filter(|_| unexplained));
         let conclusion = Conclusion::settle(found, caveats, unexplained, verdict, LEVEL)
             .with_candidates(Candidates::of(&self.model, true))
             .with_near_misses(&last.candidates)
@@ -1595,6 +1614,7 @@ mod tests {
             worst_entries: Vec::new(),
             band_hz: None,
             fit_percent: Vec::new(),
+            unmodelled_paths: Vec::new(),
         };
         let one = diagnosis(&[(12.0, false), (105.0, true), (13.0, false), (8.0, false)]);
         let said = crate::Workbench::dominant_line(&one).unwrap();
