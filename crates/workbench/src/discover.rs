@@ -7,7 +7,7 @@ use serde::Serialize;
 use super::cost::WeightedCost;
 use super::diagnose::{diagnose, matched_sf, Diagnosis, LEVEL};
 use super::fit::{fit, FitResult, ParamEstimate};
-use super::frf::Estimator;
+use super::frf::{CMatrix, Estimator};
 use super::model::{Drift, Model};
 use super::residual::{residual_tests, ResidualTests, DEFAULT_LAGS};
 use super::search::{forward_selection, Search};
@@ -607,31 +607,27 @@ impl Workbench {
     /// with the frequency axis scaled by one of [`CLOCK_UNITS`] (the best). A reactor logged in
     /// minutes against a model in seconds fitted every rate about 60 times its documented
     /// value and found an input delay; only the parameters' distance hinted at it.
-    fn clock_sentence(&self) -> Result<Option<String>> {
-        let theta = self.model.documented()?;
+    /// `theta` the documented values, `own` their cost on the logs' clock.
+    fn clock_sentence(&self, theta: &[f64], own: f64) -> Option<String> {
         let hold = self.fit_options().hold;
         let cost = |c: f64| -> Option<f64> {
             let freqs: Vec<f64> = self.cost.freqs_hz.iter().map(|f| f / c).collect();
-            let g = self.model.frf(&theta, &freqs, hold.map(|h| h * c)).ok()?;
+            let g = self.model.frf(theta, &freqs, hold.map(|h| h * c)).ok()?;
             let v = self.cost.cost(&g);
             v.is_finite().then_some(v)
-        };
-        let Some(own) = cost(1.0) else {
-            return Ok(None);
         };
         let best = CLOCK_UNITS
             .iter()
             .filter_map(|&(c, what)| Some((cost(c)?, c, what)))
             .min_by(|a, b| a.0.total_cmp(&b.0));
-        Ok(best
-            .filter(|(v, _, _)| *v * CLOCK_GAIN < own)
+        best.filter(|(v, _, _)| *v * CLOCK_GAIN < own)
             .map(|(v, c, what)| {
                 format!(
                     "; the documented model fits the logs {} times better (cost {v:.1} against {own:.1}) with their clock scaled by {}: is the time column in the model's time unit ({what}?)",
                     fmt_ratio(own / v),
                     fmt_ratio(c)
                 )
-            }))
+            })
     }
 
     /// The sentence naming channels logged in another unit than the model's: the documented
@@ -639,18 +635,8 @@ impl Workbench {
     /// (or every output's), or one input's column (or every input's), scaled by one of
     /// [`CHANNEL_UNITS`] (the best). A pitch axis's rate logged in deg/s against a model in
     /// rad/s fitted M_alpha at 1.4e5 for 3.6 and only the parameters' distance hinted at it.
-    fn unit_sentence(&self) -> Result<Option<String>> {
-        let theta = self.model.documented()?;
-        let Ok(g) = self
-            .model
-            .frf(&theta, &self.cost.freqs_hz, self.fit_options().hold)
-        else {
-            return Ok(None);
-        };
-        let own = self.cost.cost(&g);
-        if !own.is_finite() {
-            return Ok(None);
-        }
+    /// `g` the documented model's response on the logs' lines, `own` its cost.
+    fn unit_sentence(&self, g: &[CMatrix], own: f64) -> Option<String> {
         let data = self.data();
         let (ny, nu) = (data.outputs.len(), data.inputs.len());
         // (channels named, outputs scaled, inputs scaled): each channel alone, then each side.
@@ -693,8 +679,7 @@ impl Workbench {
                 }
             }
         }
-        Ok(best
-            .filter(|(v, ..)| *v * CLOCK_GAIN < own)
+        best.filter(|(v, ..)| *v * CLOCK_GAIN < own)
             .map(|(v, c, what, name)| {
                 format!(
                     "; the documented model fits the logs {} times better (cost {v:.1} against {own:.1}) with {name} scaled by {}: {} logged in the model's unit ({what}?)",
@@ -702,7 +687,7 @@ impl Workbench {
                     fmt_ratio(c),
                     if name.contains(", ") { "are they" } else { "is it" }
                 )
-            }))
+            })
     }
 
     /// The [`far_from_documented`] warning, with the [clock sentence](Self::clock_sentence)
@@ -720,11 +705,25 @@ impl Workbench {
         if far.is_none() && !unexplained {
             return Ok(None);
         }
-        let hints = format!(
-            "{}{}",
-            self.clock_sentence()?.unwrap_or_default(),
-            self.unit_sentence()?.unwrap_or_default()
-        );
+        // The documented model's response and cost on the logs' own clock and units, which
+        // both sentences compare against.
+        let theta = self.model.documented()?;
+        let documented = self
+            .model
+            .frf(&theta, &self.cost.freqs_hz, self.fit_options().hold)
+            .ok()
+            .map(|g| {
+                let own = self.cost.cost(&g);
+                (g, own)
+            })
+            .filter(|(_, own)| own.is_finite());
+        let hints = documented.map_or(String::new(), |(g, own)| {
+            format!(
+                "{}{}",
+                self.clock_sentence(&theta, own).unwrap_or_default(),
+                self.unit_sentence(&g, own).unwrap_or_default()
+            )
+        });
         Ok(match far {
             Some(far) => Some(format!("{far}{hints}")),
             None => hints.strip_prefix("; ").map(str::to_string),
@@ -1194,9 +1193,7 @@ impl Workbench {
         let verdict = self.verdict(&step);
         let weighting = self.weighting_sentence(&step.effects);
         let unexplained = matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. });
-        let mut warnings = self.warnings(&self.model, &step.params, unexplained)?;
-        warnings.extend(Self::dominant_line(&step.diagnosis).filter(|_| unexplained));
-        warnings.extend(Self::unmodelled_paths(&step.diagnosis).filter(|_| unexplained));
+        let warnings = self.warnings(&self.model, &step.params, &step.diagnosis, unexplained)?;
         Ok(Discovery {
             steps: vec![step],
             conclusion: Conclusion::settle(Vec::new(), Vec::new(), unexplained, verdict, LEVEL)
@@ -1229,10 +1226,15 @@ impl Workbench {
         &self,
         model: &Model,
         params: &[ParamEstimate],
+        diagnosis: &Diagnosis,
         unexplained: bool,
     ) -> Result<Vec<String>> {
         let mut why = self.data_caveats();
         why.extend(self.far_warning(model, params, unexplained)?);
+        if unexplained {
+            why.extend(Self::dominant_line(diagnosis));
+            why.extend(Self::unmodelled_paths(diagnosis));
+        }
         let drift = model.drift(&model.documented()?)?;
         if !drift.is_empty() {
             why.push(format!(
@@ -1473,12 +1475,10 @@ impl Workbench {
                 .map(|s| (s.added.as_deref(), s.candidates.as_slice())),
         ));
         let unexplained = matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. });
-        let mut warnings = match &last_fit {
-            Some((model, params)) => self.warnings(model, params, unexplained)?,
+        let warnings = match &last_fit {
+            Some((model, params)) => self.warnings(model, params, &last.diagnosis, unexplained)?,
             None => self.data_caveats(),
         };
-        warnings.extend(Self::dominant_line(&last.diagnosis).filter(|_| unexplained));
-        warnings.extend(Self::unmodelled_paths(&last.diagnosis).filter(|_| unexplained));
         let conclusion = Conclusion::settle(found, caveats, unexplained, verdict, LEVEL)
             .with_candidates(Candidates::of(&self.model, true))
             .with_near_misses(&last.candidates)

@@ -398,7 +398,8 @@ impl Predictor {
             // units, which may differ by orders of magnitude.
             let rows: Vec<f64> = (0..k.nrows())
                 .map(|i| k.row(i).amax())
-                .map(|a| if a > 0.0 { a } else { k.amax().max(1e-300) })
+                .map(|a| if a > 0.0 { a } else { k.amax() })
+                .map(|a| if a > 0.0 { a } else { 1.0 })
                 .collect();
             for j in 0..entries {
                 let step = 1e-6 * (k[j].abs() + 1e-3 * rows[j % k.nrows()]);

@@ -386,14 +386,6 @@ fn check_sample_rate(model: &Model, sample_rate_hz: f64) -> Result<()> {
             .map(|l| l.re)
             .fold(0.0, f64::max);
     let growth = fastest / sample_rate_hz;
-    // Positional notation but for extremes (a rate of 1e-300 Hz would print 300 digits).
-    let readable = |v: f64, digits: usize| {
-        if (1e-4..1e9).contains(&v.abs()) {
-            format!("{v:.digits$}")
-        } else {
-            format!("{v:.digits$e}")
-        }
-    };
     if growth > MAX_GROWTH_PER_SAMPLE {
         return Err(SimError::invalid(
             "sample rate",
@@ -401,8 +393,8 @@ fn check_sample_rate(model: &Model, sample_rate_hz: f64) -> Result<()> {
             format!(
                 "the {} model's fastest unstable mode ({fastest:.4} 1/s at the documented values) grows by a factor e^{} per sample period of {} s, more than e^{MAX_GROWTH_PER_SAMPLE}: no sampled loop holds such a plant; is the logs' time column in seconds (milliseconds read as seconds make the period a thousand times too long), and are the documented values right?",
                 model.structure().system(),
-                readable(growth, 3),
-                readable(1.0 / sample_rate_hz, 4)
+                load::readable(growth, 3),
+                load::readable(1.0 / sample_rate_hz, 4)
             ),
         ));
     }

@@ -272,11 +272,25 @@ fn one_rate(experiments: &[Experiment], rates: &[f64]) -> Result<f64> {
 /// of a log's time column) reads 200.
 pub fn hz(v: f64) -> String {
     let rounded = format!("{v:.9e}").parse::<f64>().unwrap_or(v);
-    // Rust prints every f64 in positional notation: 1e-300 would take 300 digits.
-    if rounded != 0.0 && !(1e-4..1e9).contains(&rounded.abs()) {
-        format!("{rounded:e}")
-    } else {
+    if positional(rounded) {
         rounded.to_string()
+    } else {
+        format!("{rounded:e}")
+    }
+}
+
+/// Whether a number reads best in positional notation: all but the extremes (Rust prints
+/// every f64 positionally, and 1e-300 would take 300 digits).
+fn positional(v: f64) -> bool {
+    v == 0.0 || (1e-4..1e9).contains(&v.abs())
+}
+
+/// `v` with `digits` decimals, in exponent notation at the extremes (see [`hz`]).
+pub fn readable(v: f64, digits: usize) -> String {
+    if positional(v) {
+        format!("{v:.digits$}")
+    } else {
+        format!("{v:.digits$e}")
     }
 }
 
