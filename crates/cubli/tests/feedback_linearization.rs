@@ -10,8 +10,9 @@ use cubli::{
     GuidingController, JumpConfig, JumpControllers, JumpReference, Measurement, Params, Plant,
     ReducedState, SampledController, TiltPolynomial,
 };
-use nalgebra::{SMatrix, UnitQuaternion, Vector2, Vector3};
+use nalgebra::{SMatrix, Unit, UnitQuaternion, Vector2, Vector3};
 use proptest::prelude::*;
+use std::f64::consts::PI;
 
 /// x + a ẋ for the full model under `torque` (quaternion renormalized).
 fn advance(p: &Params, x: &FullState, torque: &Vector3<f64>, a: f64) -> FullState {
@@ -27,11 +28,24 @@ proptest! {
     /// Spec test 23: the input transformation gives y⃛ = w and ᴵω̇_h,3 = v3; (1.40)–(1.41) are the
     /// derivatives of y and ẏ.
     #[test]
-    fn linearizing_input(att in attitude(), ph in vec3(0.2), pw in vec3(0.2), w in vec3(5.0), ) {
+    /// The attitudes are drawn where the transformation is defined, `(R m)_z > 0.2 |m|`: m
+    /// turned onto a direction uniform on that cap, then about itself by any angle. (Drawing
+    /// every attitude and rejecting the rest discarded 62 % of them and hit proptest's limit
+    /// of rejects at 2000 cases.)
+    #[test]
+    fn linearizing_input(
+        cos_tilt in 0.2f64..1.0, azimuth in -PI..PI, spin in -PI..PI,
+        ph in vec3(0.2), pw in vec3(0.2), w in vec3(5.0),
+    ) {
         let p = Params::reference();
         let fl = FeedbackLinearization::new(p);
+        let sin_tilt = (1.0 - cos_tilt * cos_tilt).sqrt();
+        let target = Vector3::new(sin_tilt * azimuth.cos(), sin_tilt * azimuth.sin(), cos_tilt);
+        let m_dir = p.m().normalize();
+        let att = UnitQuaternion::rotation_between(&m_dir, &target).unwrap()
+            * UnitQuaternion::from_axis_angle(&Unit::new_normalize(m_dir), spin);
+        prop_assert!(((att * p.m())[2] - cos_tilt * p.m().norm()).abs() < 1e-12);
         let x = FullState { attitude: att, p_h: ph, p_w: pw };
-        prop_assume!((att * p.m())[2] > 0.2 * p.m().norm());
         let t = fl.torque_from_virtual(&x, &Vector2::new(w[0], w[1]), w[2]).unwrap();
         let eps = 1e-6;
         let (plus, minus) = (advance(&p, &x, &t, eps), advance(&p, &x, &t, -eps));
