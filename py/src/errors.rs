@@ -27,7 +27,7 @@ create_exception!(
     stabilis,
     SimError,
     Error,
-    "A simulation was given invalid options or diverged."
+    "Invalid options or values, or data the workbench refuses (an unknown effect, logs in other units than the model's or far from its operating point), or a computation that diverged."
 );
 
 /// A Rust error that knows which Python exception it becomes.

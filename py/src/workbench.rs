@@ -1,7 +1,8 @@
-//! Python bindings of the model workbench: `stabilis.Workbench(system, data)` with
-//! `compare`, `diagnose`, `discover`, `add`, `fit`, `report` (flying platform: FRF-based, plus
-//! the measured FRF as numpy; Cubli: time-domain prediction error), and `stabilis.Effect`, a
-//! user-defined effect whose Python callable returns the extra terms of the state-space model.
+//! Python bindings of the model workbench: `stabilis.Workbench(system, data, model=...)` with
+//! `compare`, `diagnose`, `discover`, `add`, `fit`, `report` and the measured FRF as numpy, for
+//! any model (a model file, a Python model, a shipped system) under the FRF or the time-domain
+//! criterion, or the Cubli's own time-domain workbench; and `stabilis.Effect`, a user-defined
+//! effect whose Python callables return the terms it adds to the model.
 use std::collections::HashMap;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
@@ -1082,21 +1083,28 @@ fn check_rate(given: Option<f64>, data_hz: f64) -> PyResult<()> {
 
 /// What a workbench works on.
 enum Inner {
-    /// FRF-based (flying platform).
+    /// Any model (a model file, a Python model, the flying platform) under the FRF or the
+    /// time-domain criterion.
     Frf {
         wb: Box<workbench::Workbench>,
         last: Option<Discovery>,
     },
-    /// Time-domain prediction error (Cubli).
+    /// The Cubli's own time-domain prediction error (`system="cubli"`).
     Cubli {
         bench: Box<CubliBench>,
         last: Option<CubliDiscovery>,
     },
 }
 
-/// Workbench on one system's measurements (for the flying platform, the embedded dataset when
-/// `data` is None; the Cubli needs logs). `sample_rate_hz` is required for data given as
-/// arrays; logs carry their own rate, and a different `sample_rate_hz` is a `ValueError`.
+/// Workbench on one system's measurements. `model` is a `stabilis.Model` or the path of a
+/// model file; without it, `system` names a shipped one ("flying_platform", whose embedded
+/// dataset is used when `data` is None, or "cubli", which needs logs). `data` is a list of log
+/// paths (MCAP or CSV) or of dicts `{"u", "y", "r"}` of arrays (samples in rows, `r` the
+/// logged excitation, optional). `criterion` is "frf" (the linearization against the measured
+/// FRF) or "time" (the nonlinear model's prediction error); the default is "time" for a
+/// nonlinear model and "frf" otherwise. `estimator` is the FRF estimator: "auto", "ls" or
+/// "iv". `sample_rate_hz` is required for data given as arrays; logs carry their own rate, and
+/// a different `sample_rate_hz` is a `ValueError`.
 #[pyclass(name = "Workbench", module = "stabilis._stabilis.workbench")]
 struct Workbench {
     inner: Inner,
@@ -1462,9 +1470,13 @@ impl Workbench {
         to_dict(py, &value)
     }
 
-    /// Where the current model fails. Flying platform: misfit per line and output against the
-    /// noise level, time-domain fit % and the residual whiteness / input-correlation tests.
-    /// Cubli: per residual channel the RMS over the noise level and the probe test.
+    /// Where the current model fails, as a dict: the current model fitted to the measured FRF
+    /// (for a nonlinear model, its linearization at the operating point, whatever the
+    /// criterion), with its misfit per line, per output and per FRF entry against the noise
+    /// level (`lines`, `outputs`, `worst_entries`), `time_fit` (fit % of the simulation and
+    /// the k-step prediction) and `residual_tests` (whiteness and input correlation of the
+    /// simulation residual). The Cubli's workbench (`system="cubli"`) gives per residual
+    /// channel the RMS over the noise level and the probe test (`channels`) with its verdict.
     fn diagnose<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let value = match &self.inner {
             Inner::Frf { wb, .. } => {
@@ -1504,10 +1516,13 @@ impl Workbench {
         to_dict(py, &value)
     }
 
-    /// Enables an effect: a name (flying platform: `momentum_drag`, `fan_gyroscopic`,
-    /// `actuator_lag`, `input_delay`; Cubli: `wheel_viscous_friction`,
-    /// `wheel_coulomb_friction`, `gyro_bias`, `torque_constant`) or a [`Effect`] (flying
-    /// platform), which is evaluated once at its documented values to catch errors now.
+    /// Enables an effect: the name of one the model knows (those declared in its model file's
+    /// `[effects]` or given to `stabilis.Model`, the generic `sensor_bias`, `actuator_lag`
+    /// and `input_delay`, or a shipped system's own; an unknown name raises
+    /// `stabilis.SimError` listing the known ones), or a `stabilis.Effect`, which is
+    /// evaluated once at its documented values to catch errors now: in matrix form
+    /// (`func(params, model)`) for a linear model or under the FRF criterion, in nonlinear
+    /// form (`f=`, `h=`) for a nonlinear Python model. The Cubli's workbench takes names only.
     ///
     /// A bare callable is wrapped as `Effect(name or func.__name__, params, func, bounds,
     /// units)`.

@@ -571,17 +571,25 @@ fn fmt_ratio(x: f64) -> String {
     }
 }
 
-/// Clock factors a time column in another unit makes (the logs' clock against the model's)
-/// and the confusion each stands for.
-const CLOCK_UNITS: [(f64, &str); 8] = [
-    (60.0, "minutes against seconds"),
-    (3600.0, "hours against seconds"),
-    (1e-3, "milliseconds against seconds"),
-    (1e-6, "microseconds against seconds"),
-    (1.0 / 60.0, "seconds against minutes"),
-    (1.0 / 3600.0, "seconds against hours"),
-    (1e3, "seconds against milliseconds"),
-    (1e6, "seconds against microseconds"),
+/// A rate to four significant digits (1000/60 Hz as 16.67).
+fn significant(hz: f64) -> String {
+    super::load::hz(format!("{hz:.3e}").parse().unwrap_or(hz))
+}
+
+/// Clock factors (the logs' clock against the model's) and the mistake each stands for: a time
+/// column in another unit, or a declared sample rate a decade off (1 kHz logs declared as
+/// 100 Hz once read as seconds against minutes, the nearest factor then tried).
+const CLOCK_UNITS: [(f64, &str); 10] = [
+    (60.0, "a time unit of minutes against seconds?"),
+    (3600.0, "a time unit of hours against seconds?"),
+    (1e-3, "a time unit of milliseconds against seconds?"),
+    (1e-6, "a time unit of microseconds against seconds?"),
+    (1.0 / 60.0, "a time unit of seconds against minutes?"),
+    (1.0 / 3600.0, "a time unit of seconds against hours?"),
+    (1e3, "a time unit of seconds against milliseconds?"),
+    (1e6, "a time unit of seconds against microseconds?"),
+    (0.1, "a sample rate 10 times the declared one?"),
+    (10.0, "a sample rate a tenth of the declared one?"),
 ];
 
 /// Factors a channel logged in another unit makes (the logged value against the model's) and
@@ -597,46 +605,58 @@ const CHANNEL_UNITS: [(f64, &str); 8] = [
     (1e-6, "m against um, or another unit against its micro-unit"),
 ];
 
-/// How many times lower than on the logs' own clock the documented model's cost must be on a
-/// rescaled clock before [`Workbench::clock_sentence`] names it.
+/// How many times lower than on the logs' own clock and units the documented model's cost
+/// must be with a rescaling before [`Workbench::rescaled_sentence`] names it.
 const CLOCK_GAIN: f64 = 10.0;
 
+/// How many times the cost of noise alone the documented model's cost may be with a rescaling
+/// that [`Workbench::rescaled_sentence`] names: the rescaling must explain the logs, up to
+/// documented values a little off, not merely fit them less badly (1 kHz logs declared as
+/// 100 Hz fitted 109 times better on a clock scaled by 1/60 and still cost 760 times the
+/// noise; the rescalings that explain logs measured 1 to 2.3 times it).
+const NEAR_NOISE: f64 = 10.0;
+
+/// A rescaling of the logs that the documented model fits better: its cost and the sentence.
+type Rescaled = (f64, String);
+
 impl Workbench {
-    /// The sentence naming a time column in another unit than the model's: the documented
-    /// model, whose response on the logs' clock misses, fits them [`CLOCK_GAIN`] times better
-    /// with the frequency axis scaled by one of [`CLOCK_UNITS`] (the best). A reactor logged in
-    /// minutes against a model in seconds fitted every rate about 60 times its documented
-    /// value and found an input delay; only the parameters' distance hinted at it.
-    /// `theta` the documented values, `own` their cost on the logs' clock.
-    fn clock_sentence(&self, theta: &[f64], own: f64) -> Option<String> {
+    /// The clock rescaling under which the documented model fits the logs best, among
+    /// [`CLOCK_UNITS`]. A reactor logged in minutes against a model in seconds fitted every
+    /// rate about 60 times its documented value and found an input delay; only the
+    /// parameters' distance hinted at it. `theta` the documented values, `own` their cost on
+    /// the logs' clock.
+    fn clock_rescaled(&self, theta: &[f64], own: f64) -> Option<Rescaled> {
         let hold = self.fit_options().hold;
+        let fs = self.data().sample_rate_hz;
         let cost = |c: f64| -> Option<f64> {
             let freqs: Vec<f64> = self.cost.freqs_hz.iter().map(|f| f / c).collect();
             let g = self.model.frf(theta, &freqs, hold.map(|h| h * c)).ok()?;
             let v = self.cost.cost(&g);
             v.is_finite().then_some(v)
         };
-        let best = CLOCK_UNITS
+        let (v, c, what) = CLOCK_UNITS
             .iter()
             .filter_map(|&(c, what)| Some((cost(c)?, c, what)))
-            .min_by(|a, b| a.0.total_cmp(&b.0));
-        best.filter(|(v, _, _)| *v * CLOCK_GAIN < own)
-            .map(|(v, c, what)| {
-                format!(
-                    "; the documented model fits the logs {} times better (cost {v:.1} against {own:.1}) with their clock scaled by {}: is the time column in the model's time unit ({what}?)",
-                    fmt_ratio(own / v),
-                    fmt_ratio(c)
-                )
-            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))?;
+        Some((
+            v,
+            format!(
+                "{} with their clock scaled by {}, as if sampled at {} Hz rather than {} Hz: {what}",
+                self.better(v, own),
+                fmt_ratio(c),
+                significant(fs / c),
+                significant(fs)
+            ),
+        ))
     }
 
-    /// The sentence naming channels logged in another unit than the model's: the documented
-    /// model fits the logs [`CLOCK_GAIN`] times better with one output's row of its response
-    /// (or every output's), or one input's column (or every input's), scaled by one of
-    /// [`CHANNEL_UNITS`] (the best). A pitch axis's rate logged in deg/s against a model in
-    /// rad/s fitted M_alpha at 1.4e5 for 3.6 and only the parameters' distance hinted at it.
-    /// `g` the documented model's response on the logs' lines, `own` its cost.
-    fn unit_sentence(&self, g: &[CMatrix], own: f64) -> Option<String> {
+    /// The channel rescaling under which the documented model fits the logs best: one
+    /// output's row of its response (or every output's), or one input's column (or every
+    /// input's), scaled by one of [`CHANNEL_UNITS`]. A pitch axis's rate logged in deg/s
+    /// against a model in rad/s fitted M_alpha at 1.4e5 for 3.6 and only the parameters'
+    /// distance hinted at it. `g` the documented model's response on the logs' lines, `own`
+    /// its cost.
+    fn unit_rescaled(&self, g: &[CMatrix], own: f64) -> Option<Rescaled> {
         let data = self.data();
         let (ny, nu) = (data.outputs.len(), data.inputs.len());
         // (channels named, outputs scaled, inputs scaled): each channel alone, then each side.
@@ -679,22 +699,51 @@ impl Workbench {
                 }
             }
         }
-        best.filter(|(v, ..)| *v * CLOCK_GAIN < own)
-            .map(|(v, c, what, name)| {
-                format!(
-                    "; the documented model fits the logs {} times better (cost {v:.1} against {own:.1}) with {name} scaled by {}: {} logged in the model's unit ({what}?)",
-                    fmt_ratio(own / v),
-                    fmt_ratio(c),
-                    if name.contains(", ") { "are they" } else { "is it" }
-                )
-            })
+        let (v, c, what, name) = best?;
+        Some((
+            v,
+            format!(
+                "{} with {name} scaled by {}: {} logged in the model's unit ({what}?)",
+                self.better(v, own),
+                fmt_ratio(c),
+                if name.contains(", ") {
+                    "are they"
+                } else {
+                    "is it"
+                }
+            ),
+        ))
     }
 
-    /// The [`far_from_documented`] warning, with the [clock sentence](Self::clock_sentence)
-    /// when the documented model fits the logs better on another clock and the [unit
-    /// sentence](Self::unit_sentence) when it fits them better with channels rescaled; those
-    /// two alone after a verdict of misfit (a cart-pole's angle logged in degrees left a
-    /// misfit 415 times the noise with every parameter near its documented value).
+    /// "the documented model fits the logs N times better (...)", rescaled cost `v` against
+    /// `own`, with the cost of noise alone they both stand against.
+    fn better(&self, v: f64, own: f64) -> String {
+        format!(
+            "the documented model fits the logs {} times better (cost {v:.1} against {own:.1}, noise alone {:.1})",
+            fmt_ratio(own / v),
+            self.noise.mean()
+        )
+    }
+
+    /// The sentence naming the logs' clock or channels in another unit than the model's: the
+    /// better of the [clock](Self::clock_rescaled) and the [channel](Self::unit_rescaled)
+    /// rescaling (rival explanations of one misfit), when it fits the logs [`CLOCK_GAIN`]
+    /// times better than none and to within [`NEAR_NOISE`] times the cost of noise alone.
+    /// `theta` the documented values, `g` their response on the logs' lines, `own` its cost.
+    fn rescaled_sentence(&self, theta: &[f64], g: &[CMatrix], own: f64) -> Option<String> {
+        [self.clock_rescaled(theta, own), self.unit_rescaled(g, own)]
+            .into_iter()
+            .flatten()
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .filter(|(v, _)| *v * CLOCK_GAIN < own && *v <= NEAR_NOISE * self.noise.mean())
+            .map(|(_, sentence)| sentence)
+    }
+
+    /// The [`far_from_documented`] warning, with the [sentence](Self::rescaled_sentence)
+    /// naming a clock or channels in another unit when the documented model fits the logs
+    /// rescaled; that sentence alone after a verdict of misfit (a cart-pole's angle logged in
+    /// degrees left a misfit 415 times the noise with every parameter near its documented
+    /// value).
     pub fn far_warning(
         &self,
         model: &Model,
@@ -706,27 +755,21 @@ impl Workbench {
             return Ok(None);
         }
         // The documented model's response and cost on the logs' own clock and units, which
-        // both sentences compare against.
+        // the rescalings compare against.
         let theta = self.model.documented()?;
-        let documented = self
+        let rescaled = self
             .model
             .frf(&theta, &self.cost.freqs_hz, self.fit_options().hold)
             .ok()
-            .map(|g| {
+            .and_then(|g| {
                 let own = self.cost.cost(&g);
-                (g, own)
-            })
-            .filter(|(_, own)| own.is_finite());
-        let hints = documented.map_or(String::new(), |(g, own)| {
-            format!(
-                "{}{}",
-                self.clock_sentence(&theta, own).unwrap_or_default(),
-                self.unit_sentence(&g, own).unwrap_or_default()
-            )
-        });
-        Ok(match far {
-            Some(far) => Some(format!("{far}{hints}")),
-            None => hints.strip_prefix("; ").map(str::to_string),
+                own.is_finite()
+                    .then(|| self.rescaled_sentence(&theta, &g, own))
+                    .flatten()
+            });
+        Ok(match (far, rescaled) {
+            (Some(far), Some(rescaled)) => Some(format!("{far}; {rescaled}")),
+            (far, rescaled) => far.or(rescaled),
         })
     }
 }
@@ -1807,6 +1850,115 @@ mod tests {
                 prop_assert!(c.caveats.is_empty());
             }
             prop_assert_eq!(c.unexplained, unexplained);
+        }
+    }
+
+    /// A first-order loop logged at 100 Hz, `y' = -a y + b u` with `b` fixed (so no fitted
+    /// rate absorbs a rescaled clock) under `u = r - y`, declared at 10 Hz and at 1 kHz: the
+    /// sample rate a decade off is named in both directions and no time or channel unit is
+    /// (1 kHz logs declared as 100 Hz once read as seconds against minutes and degrees against
+    /// radians); declared right, or at a sixth (a factor none stands for), nothing is named. 4
+    /// seeds each.
+    #[test]
+    fn a_sample_rate_a_decade_off_is_named() {
+        use crate::{Dataset, EstimatorChoice, Experiment, ModelFile, Periodic, Workbench};
+        use nalgebra::DMatrix;
+        use rand::{Rng, SeedableRng};
+        use rand_chacha::ChaCha8Rng;
+        use rand_distr::StandardNormal;
+        use std::sync::Arc;
+
+        const MODEL: &str = r#"
+name = "lag"
+states = ["y"]
+inputs = ["u"]
+outputs = ["y"]
+[parameters]
+a = { value = 5.0, min = 0.01, max = 1000.0 }
+b = { value = 5.0, fixed = true }
+[linear]
+A = [["-a"]]
+B = [["b"]]
+C = [[1]]
+"#;
+        const FS: f64 = 100.0;
+        let (period, periods, transient) = (200, 5, 100);
+        let logs = |declared_hz: f64, seed: u64| {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let phi = (-5.0 / FS).exp();
+            let gamma = 1.0 - phi; // b (1 - phi) / a with a = b
+            let samples = transient + period * periods;
+            let experiments = (0..2)
+                .map(|e| {
+                    let phases: Vec<f64> = (0..30)
+                        .map(|_| rng.random::<f64>() * std::f64::consts::TAU)
+                        .collect();
+                    let r = DMatrix::from_fn(samples, 1, |k, _| {
+                        let t = (k % period) as f64 / period as f64;
+                        phases
+                            .iter()
+                            .enumerate()
+                            .map(|(l, ph)| (std::f64::consts::TAU * (l + 1) as f64 * t + ph).cos())
+                            .sum::<f64>()
+                            * 0.2
+                    });
+                    let (mut u, mut y) = (DMatrix::zeros(samples, 1), DMatrix::zeros(samples, 1));
+                    let mut x = 0.0;
+                    for k in 0..samples {
+                        y[(k, 0)] = x + 0.01 * rng.sample::<f64, _>(StandardNormal);
+                        u[(k, 0)] = r[(k, 0)] - y[(k, 0)];
+                        x = phi * x + gamma * u[(k, 0)];
+                    }
+                    Experiment {
+                        name: format!("experiment {e}"),
+                        u,
+                        y,
+                        r: Some(r),
+                        periodic: Some(Periodic {
+                            period,
+                            periods,
+                            transient,
+                        }),
+                    }
+                })
+                .collect();
+            Dataset {
+                sample_rate_hz: declared_hz,
+                inputs: vec!["u".into()],
+                outputs: vec!["y".into()],
+                experiments,
+            }
+        };
+        let structure =
+            Arc::new(ModelFile::parse(MODEL, std::path::Path::new("lag.toml")).unwrap());
+        let warnings = |declared_hz: f64, seed: u64| {
+            let wb = Workbench::new(
+                structure.clone(),
+                logs(declared_hz, seed),
+                EstimatorChoice::Auto,
+            )
+            .unwrap();
+            wb.compared().unwrap().conclusion.warnings.join("; ")
+        };
+        for seed in 0..4 {
+            for (declared, named) in [
+                (10.0, "with their clock scaled by 1/10.0, as if sampled at 100 Hz rather than 10 Hz: a sample rate 10 times the declared one?"),
+                (1000.0, "with their clock scaled by 10.0, as if sampled at 100 Hz rather than 1000 Hz: a sample rate a tenth of the declared one?"),
+            ] {
+                let said = warnings(declared, seed);
+                assert!(said.contains(named), "seed {seed}, {declared} Hz: {said}");
+                assert!(
+                    !said.contains("a time unit of") && !said.contains("logged in the model's unit"),
+                    "seed {seed}, {declared} Hz: {said}"
+                );
+            }
+            for declared in [FS, FS / 6.0] {
+                let said = warnings(declared, seed);
+                assert!(
+                    !said.contains("documented model fits"),
+                    "seed {seed}, {declared} Hz: {said}"
+                );
+            }
         }
     }
 }

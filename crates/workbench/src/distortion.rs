@@ -17,7 +17,7 @@
 //! random-phase multisine the distortion at an excited line is about as large as at the
 //! unexcited lines between excited ones (the stochastic part of the best linear
 //! approximation), so their mean excess says by how much the reference understates the error.
-//! Lines above the band hold harmonics only and say nothing about its inside.
+//! Lines below or above the band say nothing about its inside.
 use nalgebra::DMatrix;
 use serde::Serialize;
 
@@ -71,6 +71,8 @@ pub struct OutputDistortion {
 pub struct Distortion {
     /// Lines the excitation leaves out, tested in each output.
     pub lines_tested: usize,
+    /// Of those, the ones below the lowest excited line.
+    pub lines_below_band: usize,
     /// Of those, the ones between the lowest and the highest excited line.
     pub lines_within_band: usize,
     /// Degrees of freedom of the ratio, `(2E, 2D)`.
@@ -117,6 +119,22 @@ impl Distortion {
             .max_by(|a, b| a.2.total_cmp(&b.2))
     }
 
+    /// Where the tested lines lie against the band: "(2 below the band, 0 within it, 1048
+    /// above it, so its inside is not tested)".
+    fn placement(&self) -> String {
+        let above = self.lines_tested - self.lines_below_band - self.lines_within_band;
+        format!(
+            "({} below the band, {} within it, {above} above it{})",
+            self.lines_below_band,
+            self.lines_within_band,
+            if self.lines_within_band == 0 {
+                ", so its inside is not tested"
+            } else {
+                ""
+            }
+        )
+    }
+
     /// One line for a summary: what was found, where, and how large.
     pub fn sentence(&self) -> String {
         let flagged: Vec<String> = self
@@ -136,14 +154,11 @@ impl Distortion {
             })
             .collect();
         if flagged.is_empty() {
-            let inside = if self.lines_within_band == 0 {
-                " above the band (none lies within it, so its inside is not tested)"
-            } else {
-                ""
-            };
             return format!(
-                "no response at the {} lines the excitation leaves out{inside}: none above the threshold of {:.1}x the noise beside it, no sign of nonlinear distortion",
-                self.lines_tested, self.flag_above
+                "no response at the {} lines the excitation leaves out {}: none above the threshold of {:.1}x the noise beside it, no sign of nonlinear distortion",
+                self.lines_tested,
+                self.placement(),
+                self.flag_above
             );
         }
         let size = match self.worst_within_band() {
@@ -160,7 +175,8 @@ impl Distortion {
             )
         });
         format!(
-            "nonlinear distortion: the loop responds at lines the excitation leaves out, {}{size}{single}",
+            "nonlinear distortion: the loop responds at lines the excitation leaves out {}, {}{size}{single}",
+            self.placement(),
             flagged.join("; ")
         )
     }
@@ -273,6 +289,7 @@ pub(crate) fn test(
         .collect();
     Some(Distortion {
         lines_tested: left_out.len(),
+        lines_below_band: left_out.iter().filter(|&&k| k < lowest).count(),
         lines_within_band: within.len(),
         dof: (2 * ne, 2 * dof),
         flag_above,
@@ -366,6 +383,7 @@ mod tests {
         let mut sizes = Vec::new();
         for seed in 0..200 {
             let d = distortion(&records(0.0, 0.05, seed)).unwrap();
+            assert_eq!(d.lines_below_band, 0);
             assert_eq!(d.lines_within_band, 14);
             assert_eq!(d.lines_tested, 63 - 15);
             flagged += usize::from(d.flagged());
@@ -455,6 +473,7 @@ mod tests {
         };
         let test = |ratios: &[f64], flagged: bool| Distortion {
             lines_tested: ratios.len(),
+            lines_below_band: 0,
             lines_within_band: ratios.len(),
             dof: (8, 16),
             flag_above: 10.0,
@@ -478,6 +497,54 @@ mod tests {
             spread.sentence()
         );
         assert!(test(&[3.5, 1.0, 91.0], false).dominant_line().is_none());
+    }
+
+    /// A multisine over 0.2-20 Hz on a 0.1 Hz grid leaves out the line below it and 1049
+    /// above it: the sentence places them there, flagged (at 0.10 Hz) or not, and says the
+    /// band's inside is not tested; with lines left out inside it, it counts those.
+    #[test]
+    fn the_sentence_places_the_tested_lines_against_the_band() {
+        let test = |within: usize, flagged: bool| {
+            let lines = vec![
+                DetectionLine {
+                    hz: 0.1,
+                    ratio: if flagged { 41.1 } else { 1.2 },
+                },
+                DetectionLine {
+                    hz: 20.1,
+                    ratio: 0.9,
+                },
+            ];
+            Distortion {
+                lines_tested: 1050 + within,
+                lines_below_band: 1,
+                lines_within_band: within,
+                dof: (8, 16),
+                flag_above: 10.0,
+                outputs: vec![OutputDistortion {
+                    output: "x".into(),
+                    flagged_hz: if flagged { vec![0.1] } else { Vec::new() },
+                    largest: Some(lines[0].clone()),
+                    within_band: (within > 0).then_some(0.0),
+                    lines,
+                }],
+            }
+        };
+        let quiet = test(0, false).sentence();
+        assert!(
+            quiet.starts_with("no response at the 1050 lines the excitation leaves out (1 below the band, 0 within it, 1049 above it, so its inside is not tested): "),
+            "{quiet}"
+        );
+        let flagged = test(0, true).sentence();
+        assert!(
+            flagged.starts_with("nonlinear distortion: the loop responds at lines the excitation leaves out (1 below the band, 0 within it, 1049 above it, so its inside is not tested), x at 1 of 1050 lines, largest 0.10 Hz (41.1x noise)"),
+            "{flagged}"
+        );
+        let inside = test(99, false).sentence();
+        assert!(
+            inside.contains("leaves out (1 below the band, 99 within it, 1049 above it): "),
+            "{inside}"
+        );
     }
 
     #[test]

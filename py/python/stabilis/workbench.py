@@ -7,11 +7,15 @@ missing physical effect, add it and watch the weighted error fall.
 >>> result["found"]
 ['momentum_drag', 'fan_gyroscopic']
 
-``stabilis.Workbench("cubli", data=[...])`` works on Cubli balancing logs (time-domain
-prediction error). A user-defined effect for the flying platform is a
-:class:`stabilis.Effect`: a Python callable ``func(params, model)`` that receives the parameter
-values ``{name: float}`` and the model's matrices ``{"A", "B", "C", "D"}`` (numpy) and returns
-the extra terms ``{"A": dA, ...}`` (same shapes) that are added to them::
+The workbench takes any model: ``stabilis.Workbench(model="plant.toml", data=[...])`` (a
+model file, or a :class:`stabilis.Model` of Python callables), or a shipped system by name
+(``stabilis.Workbench("cubli", data=[...])`` works on Cubli balancing logs by time-domain
+prediction error). A user-defined effect is a :class:`stabilis.Effect`. In nonlinear form
+(a nonlinear Python model) ``Effect(name, params, f=f, h=h)`` returns the terms added to the
+model's ``f`` and ``h``. In matrix form (a linear model, or any model under
+``criterion="frf"``) a Python callable ``func(params, model)`` receives the parameter values
+``{name: float}`` and the model's matrices ``{"A", "B", "C", "D"}`` (numpy) and returns the
+extra terms ``{"A": dA, ...}`` (same shapes) that are added to them::
 
     def vz_drag(p, m):
         dA = np.zeros_like(m["A"])
@@ -23,7 +27,8 @@ the extra terms ``{"A": dA, ...}`` (same shapes) that are added to them::
 
 A model file with a ``[nonlinear]`` section (``stabilis.Model.from_file``) is fitted and tested
 by the one-step prediction error of its extended Kalman predictor in absolute units
-(``criterion="time"``, the default for such a file; ``criterion="frf"`` uses its linearization),
+(``stabilis.Workbench(..., criterion="time")``, the default for such a file; the constructor's
+``criterion="frf"`` uses its linearization; ``discover()`` and the others take no arguments),
 which tells dry from viscous friction and sees sensor offsets (the generic ``sensor_bias``).
 
 Exceptions raised inside the callable reach the caller unchanged; a wrong shape or a
