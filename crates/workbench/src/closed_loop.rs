@@ -109,6 +109,48 @@ pub fn controller_rate(controller: &Controller) -> f64 {
     }
 }
 
+/// The experimenter's controller between samples. It acts on deviations from the operating
+/// point: `u = -K x` on the plant's state, or `xc[k+1] = A xc[k] + B y[k]`,
+/// `u[k] = C xc[k] + D y[k]` on the measured outputs, from zero controller states.
+#[derive(Debug)]
+pub struct ControllerState<'a> {
+    controller: &'a Controller,
+    xc: DVector<f64>,
+}
+
+impl<'a> ControllerState<'a> {
+    /// The controller at zero state.
+    pub fn new(controller: &'a Controller) -> Self {
+        let xc = match controller {
+            Controller::Discrete { a, .. } => DVector::zeros(a.nrows()),
+            Controller::StateFeedback { .. } => DVector::zeros(0),
+        };
+        Self { controller, xc }
+    }
+
+    /// The input of one sample (the excitation not included) from the plant's state `x` and
+    /// the measured outputs `y`, then the controller's next state.
+    pub fn step(&mut self, x: &[f64], y: &DVector<f64>) -> DVector<f64> {
+        match self.controller {
+            Controller::StateFeedback { k: gain, .. } => {
+                // The gain acts on the file's states, which come first in the fitted model
+                // (a lag's states are appended).
+                let nk = gain.ncols().min(x.len());
+                -(gain.columns(0, nk) * DVector::from_column_slice(&x[..nk]))
+            }
+            Controller::Discrete { a, b, c, d, .. } => {
+                let out = c * &self.xc + d * y;
+                self.xc = a * &self.xc + b * y;
+                out
+            }
+        }
+    }
+}
+
+/// A simulated loop's inputs and measured outputs (samples in rows), or the sample after
+/// which the plant's state was no longer finite.
+pub type LoopRun = Result<(DMatrix<f64>, DMatrix<f64>), usize>;
+
 /// Runs the sampled model `disc` in closed loop with `controller`, driven by the excitation
 /// `r` (samples x inputs), from zero plant and controller states; returns the inputs and the
 /// measured outputs, samples in rows. `noise(w, v)` may add process noise `w` (states) to each
@@ -120,14 +162,11 @@ pub fn run_loop(
     controller: &Controller,
     r: &DMatrix<f64>,
     noise: &mut dyn FnMut(&mut DVector<f64>, &mut DVector<f64>),
-) -> Result<(DMatrix<f64>, DMatrix<f64>), usize> {
+) -> LoopRun {
     let (n, m, p) = (disc.phi.nrows(), disc.gamma0.ncols(), disc.c.nrows());
     let samples = r.nrows();
     let mut x = DVector::zeros(n);
-    let mut xc = match controller {
-        Controller::Discrete { a, .. } => DVector::zeros(a.nrows()),
-        Controller::StateFeedback { .. } => DVector::zeros(0),
-    };
+    let mut control = ControllerState::new(controller);
     let (mut w, mut v) = (DVector::zeros(n), DVector::zeros(p));
     let mut u = DMatrix::zeros(samples, m);
     let mut y = DMatrix::zeros(samples, p);
@@ -139,19 +178,7 @@ pub fn run_loop(
         if k >= disc.d_shift {
             yk += &disc.d * u.row(k - disc.d_shift).transpose();
         }
-        let uk = match controller {
-            Controller::StateFeedback { k: gain, .. } => {
-                // The gain acts on the file's states, which come first in the fitted model
-                // (a lag's states are appended).
-                let nk = gain.ncols().min(n);
-                -(gain.columns(0, nk) * x.rows(0, nk))
-            }
-            Controller::Discrete { a, b, c, d, .. } => {
-                let out = c * &xc + d * &yk;
-                xc = a * &xc + b * &yk;
-                out
-            }
-        } + r.row(k).transpose();
+        let uk = control.step(x.as_slice(), &yk) + r.row(k).transpose();
         u.row_mut(k).copy_from(&uk.transpose());
         y.row_mut(k).copy_from(&yk.transpose());
         let mut next = &disc.phi * &x + &w;
