@@ -530,6 +530,37 @@ pub struct Conclusion {
     pub test: &'static str,
 }
 
+/// A sentence per effect of `model` whose every fitted parameter is held at its documented
+/// value ([`ParamEstimate::held`]): the data show the effect but cannot size it apart from the
+/// rest, and the other values are then scaled to that documented size. (A cart-pole whose
+/// masses, length, motor constant and back-EMF all scale together read "found: cart_coulomb,
+/// explained" with the friction held at 0.3 N for 0.4 and the cart's mass 37 % low, the
+/// verdict silent about it.)
+pub(crate) fn unmeasured_effects(model: &Model, params: &[ParamEstimate]) -> Result<Vec<String>> {
+    let mut why = Vec::new();
+    for effect in model.enabled() {
+        let others: Vec<String> = model
+            .without_effect(&effect)
+            .parameters()?
+            .into_iter()
+            .map(|p| p.name)
+            .collect();
+        // Its own parameters that were fitted or held (not fixed in the model).
+        let own: Vec<&ParamEstimate> = params
+            .iter()
+            .filter(|p| !others.contains(&p.name) && (p.held || p.std.is_some()))
+            .collect();
+        if !own.is_empty() && own.iter().all(|p| p.held) {
+            let names: Vec<&str> = own.iter().map(|p| p.name.as_str()).collect();
+            why.push(format!(
+                "the size of {effect} is not measured: {} held at the documented value (the data cannot separate it from the other parameters), and the other values hold only given it; fix or measure one of the parameters it trades against",
+                names.join(", ")
+            ));
+        }
+    }
+    Ok(why)
+}
+
 /// How many times its documented value (either way) a fitted parameter may lie before the
 /// verdict says so ([`far_from_documented`]): an order of magnitude.
 pub const FAR_FROM_DOCUMENTED: f64 = 10.0;
@@ -1274,6 +1305,7 @@ impl Workbench {
     ) -> Result<Vec<String>> {
         let mut why = self.data_caveats();
         why.extend(self.far_warning(model, params, unexplained)?);
+        why.extend(unmeasured_effects(model, params)?);
         if unexplained {
             why.extend(Self::dominant_line(diagnosis));
             why.extend(Self::unmodelled_paths(diagnosis));
@@ -1633,7 +1665,10 @@ where
 
 #[cfg(test)]
 mod tests {
-    use super::{rival_p_value, rivals, CandidateScore, Candidates, Conclusion, Verdict};
+    use super::{
+        rival_p_value, rivals, unmeasured_effects, CandidateScore, Candidates, Conclusion,
+        ParamEstimate, Verdict,
+    };
     use proptest::prelude::*;
 
     /// A misfit whose excess over the noise sits at one flagged line (95 of 100) is named with
@@ -1960,5 +1995,51 @@ C = [[1]]
                 );
             }
         }
+    }
+
+    /// An effect whose parameters are all held is named as unmeasured; one with a fitted
+    /// parameter, or a model without effects, is not (the pendulum example's joint friction).
+    #[test]
+    fn an_effect_held_whole_is_named_unmeasured() {
+        use crate::{Model, ModelFile};
+        use std::sync::Arc;
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../examples/models/pendulum.toml");
+        let base = Model::new(Arc::new(ModelFile::from_path(&path).unwrap()));
+        let model = base.with_effect("joint_friction").unwrap();
+        let estimates = |held_b: bool| -> Vec<ParamEstimate> {
+            model
+                .parameters()
+                .unwrap()
+                .into_iter()
+                .map(|p| {
+                    let held = p.name == "b" && held_b;
+                    ParamEstimate {
+                        std: (!held).then_some(0.1),
+                        name: p.name,
+                        value: p.value,
+                        unit: p.unit,
+                        held,
+                        at_bound: false,
+                        poorly_determined: false,
+                    }
+                })
+                .collect()
+        };
+        let why = unmeasured_effects(&model, &estimates(true)).unwrap();
+        assert_eq!(why.len(), 1, "{why:?}");
+        assert!(
+            why[0].starts_with("the size of joint_friction is not measured: b held"),
+            "{}",
+            why[0]
+        );
+        assert!(unmeasured_effects(&model, &estimates(false))
+            .unwrap()
+            .is_empty());
+        let plain: Vec<ParamEstimate> = estimates(false)
+            .into_iter()
+            .filter(|p| p.name != "b")
+            .collect();
+        assert!(unmeasured_effects(&base, &plain).unwrap().is_empty());
     }
 }

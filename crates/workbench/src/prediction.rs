@@ -1127,6 +1127,10 @@ impl Workbench {
                     None => None,
                 }
                 .into_iter()
+                .chain(match &last_model {
+                    Some(m) => super::discover::unmeasured_effects(m, &last.params)?,
+                    None => Vec::new(),
+                })
                 .chain(
                     unexplained
                         .then(|| quantization_warning(&self.data))
