@@ -12,6 +12,7 @@ use workbench::power::{self, Outcome, Study, StudyOptions, StudySpec};
 
 use crate::errors::to_py_err;
 use crate::real::Real;
+use crate::workbench::criterion_of;
 
 fn spec_of(text: &str) -> PyResult<StudySpec> {
     serde_json::from_str(text)
@@ -25,7 +26,7 @@ fn to_text<T: serde::Serialize>(value: &T) -> PyResult<String> {
 /// Fits the nominal model of the model file `model` to the logs `data`, estimates their noise
 /// and returns the study as JSON text.
 #[pyfunction]
-#[pyo3(signature = (model, data, effect, values, campaigns, seed, estimator = "auto"))]
+#[pyo3(signature = (model, data, effect, values, campaigns, seed, estimator = "auto", criterion = None))]
 #[allow(clippy::too_many_arguments)]
 fn prepare(
     py: Python<'_>,
@@ -36,7 +37,9 @@ fn prepare(
     campaigns: usize,
     seed: u64,
     estimator: &str,
+    criterion: Option<&str>,
 ) -> PyResult<String> {
+    let criterion = criterion_of(criterion)?;
     let spec = py
         .detach(|| {
             let text = std::fs::read_to_string(&model).map_err(|e| sim::SimError::io(&model, e))?;
@@ -54,6 +57,7 @@ fn prepare(
                     seed,
                     estimator: estimator.to_string(),
                     band_hz: None,
+                    criterion,
                 },
             )
         })

@@ -1066,6 +1066,18 @@ fn dataset_from_arrays(
     Ok(data)
 }
 
+/// The criterion a Python caller names: `"frf"`, `"time"` or `None` (the model's default).
+pub(crate) fn criterion_of(name: Option<&str>) -> PyResult<Option<workbench::Criterion>> {
+    match name {
+        None => Ok(None),
+        Some("frf") => Ok(Some(workbench::Criterion::Frf)),
+        Some("time") => Ok(Some(workbench::Criterion::Time)),
+        Some(other) => Err(PyValueError::new_err(format!(
+            "unknown criterion {other:?}; use \"frf\" or \"time\" (default: time for a nonlinear model)"
+        ))),
+    }
+}
+
 /// `ValueError` when the `sample_rate_hz` given in Python contradicts the rate the data carry
 /// (logs and the embedded dataset have their own; a matching value is accepted).
 fn check_rate(given: Option<f64>, data_hz: f64) -> PyResult<()> {
@@ -1280,16 +1292,7 @@ impl Workbench {
         criterion: Option<&str>,
     ) -> PyResult<Self> {
         let sample_rate_hz = sample_rate_hz.map(|fs| fs.0);
-        let criterion = match criterion {
-            None => None,
-            Some("frf") => Some(workbench::Criterion::Frf),
-            Some("time") => Some(workbench::Criterion::Time),
-            Some(other) => {
-                return Err(PyValueError::new_err(format!(
-                    "unknown criterion {other:?}; use \"frf\" or \"time\" (default: time for a nonlinear model)"
-                )))
-            }
-        };
+        let criterion = criterion_of(criterion)?;
         let choice = match estimator {
             "auto" => EstimatorChoice::Auto,
             "ls" => EstimatorChoice::LeastSquares,

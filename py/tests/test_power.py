@@ -177,6 +177,25 @@ def test_a_nonlinear_model_file_simulates_its_equations_and_finds_its_effect(log
     assert all(0.85 < x < 1.15 for x in r["noise_ratio"]), r["noise_ratio"]
 
 
+def test_the_criterion_of_a_study_is_the_users_choice(logs):
+    # Under the FRF criterion the file's smoothed dry friction, linearized at rest, is a
+    # viscous friction too: the two are rivals the data cannot tell apart, so the viscous
+    # friction that the time criterion finds in 6 of 6 campaigns is found in none (tentative),
+    # while the nominal campaigns stay explained.
+    r = stabilis.power(NONLINEAR, [logs], effect="cart_viscous", values=[0.0, 0.5],
+                       campaigns=6, seed=11, threads=2, progress=False, criterion="frf")
+    assert r["policy"].endswith("under the FRF criterion"), r["policy"]
+    zero, half = r["values"]
+    assert zero["unexplained_rate"] == 0 and zero["false_discovery_rate"] == 0, zero
+    assert half["detection_rate"] == 0 and half["unexplained_rate"] == 0, half
+    with pytest.raises(stabilis.SimError, match="needs a nonlinear model"):
+        stabilis.power(MODEL, [logs], effect="cart_friction", values=[0.0], campaigns=1,
+                       progress=False, criterion="time")
+    with pytest.raises(ValueError, match="unknown criterion"):
+        stabilis.power(MODEL, [logs], effect="cart_friction", values=[0.0], campaigns=1,
+                       progress=False, criterion="FRF")
+
+
 def test_false_discovery_rate_at_zero_is_within_the_level_and_monte_carlo_error(logs):
     n = 100
     r = stabilis.power(MODEL, [logs], effect="cart_friction", values=[0.0], campaigns=n,

@@ -42,7 +42,7 @@ use super::prediction::simulate_closed_loop;
 use super::report::fmt_num;
 use super::stats::clopper_pearson;
 use super::timedomain::{demeaned, Discrete};
-use super::{DataOptions, EstimatorChoice, Workbench};
+use super::{Criterion, DataOptions, EstimatorChoice, Workbench};
 use crate::error::{Result, SimError};
 
 /// Power the reverse question asks for: the smallest value detected this often.
@@ -96,6 +96,10 @@ pub struct StudySpec {
     pub estimator: String,
     /// Welch band of the discovery, if the user fixed one.
     pub band_hz: Option<(f64, f64)>,
+    /// The discovery's criterion, if the user chose one (`None`: the default for the model,
+    /// the prediction error for a nonlinear one).
+    #[serde(default)]
+    pub criterion: Option<Criterion>,
     /// Period-to-period noise rms per output of the logs ([`period_noise_rms`]), to compare
     /// the simulated campaigns' with; `None` for logs that are not periodic.
     pub measured_noise_rms: Option<Vec<f64>>,
@@ -178,6 +182,8 @@ pub struct StudyOptions {
     pub estimator: String,
     /// Welch band, Hz, when the user fixes one.
     pub band_hz: Option<(f64, f64)>,
+    /// The discovery's criterion; `None`: its default for the model.
+    pub criterion: Option<Criterion>,
 }
 
 /// Prepares a study from the model file's text (`model_path` names it in messages) and the
@@ -228,7 +234,7 @@ pub fn prepare(
         estimator_choice(&options.estimator)?,
         DataOptions {
             band_hz: options.band_hz,
-            ..DataOptions::default()
+            criterion: options.criterion,
         },
     )?;
     let nominal_model = wb.model().clone();
@@ -307,6 +313,7 @@ pub fn prepare(
             .collect(),
         estimator: options.estimator.clone(),
         band_hz: options.band_hz,
+        criterion: options.criterion,
         measured_noise_rms: period_noise_rms(data),
         noise_calibration: None,
     };
@@ -741,7 +748,7 @@ impl Study {
                 estimator_choice(&self.spec.estimator)?,
                 DataOptions {
                     band_hz: self.spec.band_hz,
-                    ..DataOptions::default()
+                    criterion: self.spec.criterion,
                 },
             )?
             .discover()
@@ -1045,7 +1052,7 @@ pub fn aggregate(spec: &StudySpec, outcomes: &[Outcome]) -> Result<PowerResult> 
              {} at {} Hz, in closed loop with the model file's controller from zero {}, driven \
              by the logged excitation of each of the {} experiments, with white Gaussian \
              process and sensor noise of the covariances the Kalman predictor estimated from \
-             the logs{}; then the full discovery",
+             the logs{}; then the full discovery under the {} criterion",
             spec.effect,
             spec.parameter,
             if nonlinear {
@@ -1071,7 +1078,13 @@ pub fn aggregate(spec: &StudySpec, outcomes: &[Outcome]) -> Result<PowerResult> 
                         .map(|c| format!("{c:.3}"))
                         .collect::<Vec<_>>()
                         .join(", ")
-                ))
+                )),
+            match spec.criterion {
+                Some(Criterion::Time) => "time",
+                Some(Criterion::Frf) => "FRF",
+                None if nonlinear => "time",
+                None => "FRF",
+            },
         ),
     })
 }
@@ -1371,6 +1384,7 @@ K = [[4.0, 3.0]]
             seed: 3,
             estimator: "auto".into(),
             band_hz: None,
+            criterion: None,
         }
     }
 
@@ -1563,6 +1577,7 @@ K = [[4.0, 3.0]]
             experiments: Vec::new(),
             estimator: "auto".into(),
             band_hz: None,
+            criterion: None,
             measured_noise_rms: None,
             noise_calibration: None,
         }

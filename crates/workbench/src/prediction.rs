@@ -41,7 +41,7 @@ use super::Workbench;
 use crate::error::{Result, SimError};
 
 /// Which criterion a workbench fits and tests with.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Criterion {
     /// The variance-weighted FRF misfit (linear models, and nonlinear ones linearized).

@@ -69,13 +69,13 @@ def _model_path(model) -> str:
 
 
 def prepare(model, data, *, effect: str, values, campaigns: int = 100, seed: int = 1,
-            estimator: str = "auto") -> str:
+            estimator: str = "auto", criterion: str | None = None) -> str:
     """Fits the nominal model to the logs, estimates their noise; returns the study (JSON text)."""
     if isinstance(data, (str, os.PathLike)):
         data = [data]
     return _native.prepare(_model_path(model), [os.fspath(p) for p in data], effect,
                            [real_scalar(v, "values") for v in values], int(campaigns), int(seed),
-                           estimator)
+                           estimator, criterion)
 
 
 def run_study(spec: str, *, client=None, batch: int | None = None, threads: int | None = None,
@@ -110,7 +110,7 @@ def run_study(spec: str, *, client=None, batch: int | None = None, threads: int 
 
 def power(model, data, *, effect: str, values, campaigns: int = 100, seed: int = 1,
           client=None, batch: int | None = None, threads: int | None = None, progress=True,
-          estimator: str = "auto", report=None) -> dict:
+          estimator: str = "auto", criterion: str | None = None, report=None) -> dict:
     """Monte-Carlo power study of the workbench for the effect ``effect`` at each of ``values``.
 
     ``model`` is a model file with a ``[controller]``, ``data`` the logs (paths or directories)
@@ -120,10 +120,11 @@ def power(model, data, *, effect: str, values, campaigns: int = 100, seed: int =
     "min_detectable": {"value", "ci"}, "failures": [...], ...}`` (the JSON of ``stabilis power``).
     ``client``: a ``dask.distributed.Client`` to run the campaigns on, ``batch`` campaigns per
     task; ``progress``: True prints on stderr, or a callable ``(done, total)``; ``report``: a
-    directory for the HTML report.
+    directory for the HTML report; ``criterion``: ``"frf"`` or ``"time"`` for the nominal fit
+    and every campaign's discovery (default: time for a nonlinear model file, as ``discover``).
     """
     spec = prepare(model, data, effect=effect, values=values, campaigns=campaigns, seed=seed,
-                   estimator=estimator)
+                   estimator=estimator, criterion=criterion)
     batches = run_study(spec, client=client, batch=batch, threads=threads, progress=progress)
     return json.loads(_native.aggregate(spec, batches,
                                         None if report is None else os.fspath(Path(report))))

@@ -13,7 +13,7 @@ use std::process::{Command, Stdio};
 use std::sync::Mutex;
 use std::time::Instant;
 
-use super::workbench::EstimatorArg;
+use super::workbench::{CriterionArg, EstimatorArg};
 use super::Output;
 use crate::error::{Result, SimError};
 use crate::progress::Progress;
@@ -57,6 +57,10 @@ pub struct Args {
     /// Non-parametric estimator of each campaign's discovery.
     #[arg(long, value_enum, default_value = "auto")]
     pub estimator: EstimatorArg,
+    /// Criterion of the nominal fit and of each campaign's discovery: frf or time; default:
+    /// time for a nonlinear model file, frf otherwise (as `discover`).
+    #[arg(long, value_enum)]
+    pub criterion: Option<CriterionArg>,
     /// Write an HTML report (power against the value with its bands) into this directory.
     #[arg(long)]
     pub report: Option<PathBuf>,
@@ -95,6 +99,7 @@ impl Args {
                 seed: self.seed,
                 estimator: estimator.into(),
                 band_hz: None,
+                criterion: self.criterion.map(Into::into),
             },
         )?;
         let outcomes = match &self.scheduler {

@@ -62,6 +62,15 @@ pub enum CriterionArg {
     Time,
 }
 
+impl From<CriterionArg> for Criterion {
+    fn from(arg: CriterionArg) -> Self {
+        match arg {
+            CriterionArg::Frf => Criterion::Frf,
+            CriterionArg::Time => Criterion::Time,
+        }
+    }
+}
+
 /// Options of `stabilis discover`.
 #[derive(Debug, Clone, PartialEq, clap::Args)]
 pub struct DiscoverArgs {
@@ -151,10 +160,7 @@ impl Common {
                 ))
             }
         };
-        let criterion = self.criterion.map(|c| match c {
-            CriterionArg::Frf => Criterion::Frf,
-            CriterionArg::Time => Criterion::Time,
-        });
+        let criterion = self.criterion.map(Criterion::from);
         Workbench::with_options(structure, data, choice, DataOptions { band_hz, criterion })
     }
 
