@@ -426,6 +426,21 @@ def test_the_nonlinear_file_through_the_frf_path_is_its_linearisation(campaigns,
         assert got == pytest.approx(ref, rel=1e-4), (name, got, ref)
 
 
+@pytest.mark.parametrize("seed", SEEDS["viscous"])
+def test_a_candidate_the_data_cannot_separate_is_not_scored(campaigns, seed):
+    # Under the FRF criterion the smoothed dry friction, linearized at rest, is a viscous
+    # friction: beside the viscous one its parameter is held, so its cost is that of the
+    # documented value and no test applies; the line says so instead of a reduction.
+    done = cli("discover", "--model", MODEL, "--data", campaigns("viscous", seed),
+               "--criterion", "frf")
+    assert done.returncode == 0, done.stderr
+    held = [line for line in done.stdout.splitlines()
+            if line.startswith("  not added:") and "+0 params" in line]
+    assert held, done.stdout
+    for line in held:
+        assert "not testable at this fit" in line and "reduction" not in line, line
+
+
 def test_model_check_of_the_nonlinear_file_names_the_unstable_pole():
     # Its linearisation is the linear file's, so the same eigenvalues +-p.
     check_names_the_unstable_pole(MODEL)

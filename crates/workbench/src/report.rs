@@ -181,6 +181,19 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
                 );
                 continue;
             }
+            if c.added_parameters == 0 {
+                // Every parameter held at its documented value: the cost is of that value,
+                // not of a fit, and no test applies (a smoothed dry friction linearized at
+                // rest beside a viscous one read "reduction -141045.76%").
+                let _ = writeln!(
+                    s,
+                    "  not added: {:<15} not testable at this fit: the data cannot tell its \
+                     parameters from the model's, so they were held at their documented values \
+                     (+0 params; cost {:+.2}% there)",
+                    c.effect, -c.reduction_percent,
+                );
+                continue;
+            }
             // What it failed besides the F test and BIC shown: the robustness check (a small p
             // resting on one line alone) and the effect size.
             let noise = if c.exceeds_noise {
