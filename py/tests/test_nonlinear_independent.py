@@ -446,6 +446,24 @@ def test_model_check_of_the_nonlinear_file_names_the_unstable_pole():
     check_names_the_unstable_pole(MODEL)
 
 
+def test_model_check_names_the_frictions_the_linearization_cannot_tell_apart(tmp_path):
+    # Linearized at rest, the smoothed dry friction is a viscous one (-fc/eps xdot): the
+    # check says so before any data; a file whose base model has the same damping term
+    # (the viscous friction written into the force) makes both candidates its aliases.
+    done = cli("model", "check", MODEL, "--json")
+    assert done.returncode == 0, done.stderr
+    doc = json.loads(done.stdout)
+    assert doc["rival_pairs"] == [["cart_viscous", "cart_coulomb"]], doc["rival_pairs"]
+    assert doc["aliases"] == []
+    damped = tmp_path / "damped.toml"
+    damped.write_text(MODEL.read_text().replace('Fc = "F"', 'Fc = "F - 0.3*c0*xdot"').replace(
+        "[parameters]\n", '[parameters]\nc0 = { value = 1.0, min = 0.0, max = 10.0 }\n'))
+    done = cli("model", "check", damped)
+    assert done.returncode == 0, done.stderr
+    for effect, p in (("cart_viscous", "b"), ("cart_coulomb", "fc")):
+        assert f"effect {effect}: {p} trades against c0" in done.stdout, done.stdout
+
+
 # --- the same model as Python callables -------------------------------------------------------
 
 

@@ -156,6 +156,102 @@ pub fn analyse(model: &Model, theta: &[f64]) -> Result<Identifiability> {
     })
 }
 
+/// A candidate effect whose parameters the outputs cannot tell from the model it would join.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Alias {
+    /// The effect.
+    pub effect: String,
+    /// Its parameters that the outputs do not see apart (or at all).
+    pub parameters: Vec<String>,
+    /// The model's parameters they trade against (empty when they do not act on the outputs).
+    pub with: Vec<String>,
+}
+
+/// The candidates of `model` the FRF can test ([`Model::frf_candidates`]) whose parameters,
+/// added at the documented values, act on the outputs not at all or only in a combination
+/// with the model's own that the model alone does not already leave unseen: discovery can
+/// then add them only in place of those (a viscous friction on a cart whose back-EMF term is
+/// the same `-c xdot`). A candidate whose analysis fails (a derivative not finite at the
+/// documented values) is left out: the check of the model itself reports such failures.
+pub fn aliases(model: &Model) -> Result<Vec<Alias>> {
+    let base: Vec<String> = model.parameters()?.into_iter().map(|p| p.name).collect();
+    let base_id = analyse(model, &model.documented()?)?;
+    let mut found = Vec::new();
+    for effect in model.frf_candidates() {
+        let Ok(with) = model.with_effect(&effect) else {
+            continue;
+        };
+        let Ok(id) = with.documented().and_then(|theta| analyse(&with, &theta)) else {
+            continue;
+        };
+        let own: Vec<String> = with
+            .parameters()?
+            .into_iter()
+            .map(|p| p.name)
+            .filter(|n| !base.contains(n))
+            .collect();
+        let mut parameters: Vec<String> = own
+            .iter()
+            .filter(|p| id.no_effect.contains(p))
+            .cloned()
+            .collect();
+        let mut partners: Vec<String> = Vec::new();
+        for group in id
+            .unseparated
+            .iter()
+            .filter(|g| !base_id.unseparated.contains(g) && g.iter().any(|n| own.contains(n)))
+        {
+            for name in group {
+                let list = if own.contains(name) {
+                    &mut parameters
+                } else {
+                    &mut partners
+                };
+                if !list.contains(name) {
+                    list.push(name.clone());
+                }
+            }
+        }
+        if !parameters.is_empty() {
+            found.push(Alias {
+                effect,
+                parameters,
+                with: partners,
+            });
+        }
+    }
+    Ok(found)
+}
+
+/// Pairs of candidates the outputs cannot tell apart: with the first in the model, the
+/// second's parameters trade against the first's ([`aliases`]). A smoothed dry friction
+/// linearized at rest is a viscous one: a discovery that adds either names the other its
+/// rival.
+pub fn rival_pairs(model: &Model) -> Result<Vec<(String, String)>> {
+    let base: Vec<String> = model.parameters()?.into_iter().map(|p| p.name).collect();
+    let candidates = model.frf_candidates();
+    let mut pairs = Vec::new();
+    for (i, first) in candidates.iter().enumerate() {
+        let Ok(with) = model.with_effect(first) else {
+            continue;
+        };
+        let own: Vec<String> = with
+            .parameters()?
+            .into_iter()
+            .map(|p| p.name)
+            .filter(|n| !base.contains(n))
+            .collect();
+        for alias in aliases(&with)? {
+            if candidates[i + 1..].contains(&alias.effect)
+                && alias.with.iter().any(|n| own.contains(n))
+            {
+                pairs.push((first.clone(), alias.effect));
+            }
+        }
+    }
+    Ok(pairs)
+}
+
 #[cfg(test)]
 mod tests {
     use std::path::Path;
@@ -163,6 +259,63 @@ mod tests {
 
     use super::*;
     use crate::ModelFile;
+
+    /// A cart whose damping `c` the file already has: effects adding another `-b v / m` are
+    /// aliases of c, a spring to ground is not, and neither are the generic input lag and
+    /// delay. Without c in the file, the two extra dampings are rivals of each other instead.
+    #[test]
+    fn an_effect_that_repeats_a_term_of_the_model_is_its_alias() {
+        let text = r#"
+name = "cart"
+states = ["x", "v"]
+inputs = ["F"]
+outputs = ["x"]
+[parameters]
+m = { value = 1.0, min = 0.1, max = 10.0 }
+c = { value = 0.5, min = 0.0, max = 10.0 }
+[linear]
+A = [[0, 1], [0, "-c/m"]]
+B = [[0], ["1/m"]]
+C = [[1, 0]]
+[effects.belt_damping]
+description = "the belt's viscous damping"
+parameters = { b = { value = 0.2, min = 0.0, max = 10.0 } }
+A = { "v,v" = "-b/m" }
+[effects.bearing_damping]
+description = "the bearings' viscous damping"
+parameters = { d = { value = 0.1, min = 0.0, max = 10.0 } }
+A = { "v,v" = "-d/m" }
+[effects.spring]
+description = "a spring to ground"
+parameters = { k = { value = 2.0, min = 0.0, max = 10.0 } }
+A = { "v,x" = "-k/m" }
+"#;
+        let model = |text: &str| {
+            Model::new(Arc::new(
+                ModelFile::parse(text, Path::new("cart.toml")).unwrap(),
+            ))
+        };
+        let damped = model(text);
+        let alias = |effect: &str, p: &str| Alias {
+            effect: effect.into(),
+            parameters: vec![p.into()],
+            with: vec!["c".into()],
+        };
+        assert_eq!(
+            aliases(&damped).unwrap(),
+            vec![alias("belt_damping", "b"), alias("bearing_damping", "d")]
+        );
+        let undamped = model(
+            &text
+                .replace(r#"[0, "-c/m"]"#, "[0, 0]")
+                .replace("c = { value = 0.5, min = 0.0, max = 10.0 }\n", ""),
+        );
+        assert!(aliases(&undamped).unwrap().is_empty());
+        assert_eq!(
+            rival_pairs(&undamped).unwrap(),
+            vec![("belt_damping".to_string(), "bearing_damping".to_string())]
+        );
+    }
 
     /// `G = (1/Jp) / (s^2 - m g l / Jp)` with `Jp = J + m l^2`: the response fixes two
     /// combinations of m, l, J, so the three are one unseparated group; a parameter that enters

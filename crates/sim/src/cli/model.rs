@@ -209,6 +209,33 @@ impl CheckArgs {
         if id.no_effect.is_empty() && id.unseparated.is_empty() {
             human.push_str("every free parameter is locally identifiable from the outputs\n");
         }
+        let linearized = if file.is_nonlinear() {
+            " linearized at the operating point (the FRF criterion; the time criterion sees the \
+             nonlinear form, which may tell them apart)"
+        } else {
+            ""
+        };
+        let aliases = identifiability::aliases(&model)?;
+        let rivals = identifiability::rival_pairs(&model)?;
+        for a in &aliases {
+            let against = if a.with.is_empty() {
+                "acts on no output".to_string()
+            } else {
+                format!("trades against {}", a.with.join(", "))
+            };
+            human.push_str(&format!(
+                "effect {}: {} {against}: the outputs cannot tell it from the model{linearized}, \
+                 so discovery can add it only in their place, at its documented value\n",
+                a.effect,
+                a.parameters.join(", "),
+            ));
+        }
+        for (first, second) in &rivals {
+            human.push_str(&format!(
+                "effects {first} and {second}: the outputs cannot tell them apart{linearized}; \
+                 discovery may add one, naming the other its rival\n"
+            ));
+        }
         let json = json!({
             "system": file.system(),
             "file": self.file.display().to_string(),
@@ -223,6 +250,8 @@ impl CheckArgs {
             "eigenvalue_tolerance": tolerance,
             "candidates": model.candidates(),
             "identifiability": id,
+            "aliases": aliases,
+            "rival_pairs": rivals,
             "drift": drift,
             "silent_outputs": silent,
         });
