@@ -177,6 +177,22 @@ def test_a_nonlinear_model_file_simulates_its_equations_and_finds_its_effect(log
     assert all(0.85 < x < 1.15 for x in r["noise_ratio"]), r["noise_ratio"]
 
 
+@pytest.mark.parametrize("seed", [11, 12])
+def test_an_effect_seen_but_not_confirmed_is_counted_tentative(logs, seed):
+    # At 100 Hz a lag of a fifth of a sample fits the logs as a delay does: the discovery
+    # adds one and names the other its rival, so the effect is seen but not found (measured:
+    # 4 of 8 tentative at 2 ms for both seeds, none found; at 8 ms 8 of 8 and 6 of 8 found,
+    # the rest tentative; nothing at 0).
+    r = stabilis.power(MODEL, [logs], effect="actuator_lag", values=[0.0, 0.002, 0.008],
+                       campaigns=8, seed=seed, threads=2, progress=False)
+    zero, small, large = r["values"]
+    assert zero["tentative_rate"] == 0 and zero["detection_rate"] == 0, zero
+    assert small["tentative_rate"] >= 0.25 and small["detection_rate"] <= 0.25, small
+    assert large["detection_rate"] >= 0.5, large
+    for v in r["values"]:
+        assert v["detection_rate"] + v["tentative_rate"] <= 1, v
+
+
 def test_the_criterion_of_a_study_is_the_users_choice(logs):
     # Under the FRF criterion the file's smoothed dry friction, linearized at rest, is a
     # viscous friction too: the two are rivals the data cannot tell apart, so the viscous

@@ -155,7 +155,7 @@ impl Distortion {
             .collect();
         if flagged.is_empty() {
             return format!(
-                "no response at the {} lines the excitation leaves out {}: none above the threshold of {:.1}x the noise beside it, no sign of nonlinear distortion",
+                "no response at the {} lines the excitation leaves out {}: none above the threshold of {:.1}x the noise beside it, no sign of distortion the excitation drives (a limit or friction the noise drives as much leaves no mark on these lines)",
                 self.lines_tested,
                 self.placement(),
                 self.flag_above

@@ -131,6 +131,10 @@ pub struct Outcome {
     pub other_found: Vec<String>,
     /// The discovery reported an unexplained structured misfit.
     pub unexplained: bool,
+    /// The discovery added the studied effect but left it tentative (a rival fits as well, or
+    /// a caveat speaks against it): seen, not confirmed.
+    #[serde(default)]
+    pub tentative: bool,
     /// The studied parameter's estimate when the effect was found.
     pub estimate: Option<f64>,
     /// Why the campaign failed (a diverged loop, a failed fit); the rest is then empty.
@@ -736,6 +740,7 @@ impl Study {
             found: false,
             other_found: Vec::new(),
             unexplained: false,
+            tentative: false,
             estimate: None,
             error: None,
             noise_rms: None,
@@ -765,6 +770,7 @@ impl Study {
                     .cloned()
                     .collect();
                 out.unexplained = d.conclusion.unexplained;
+                out.tentative = d.conclusion.tentative.contains(&self.spec.effect);
                 out.estimate = out
                     .found
                     .then(|| {
@@ -818,6 +824,7 @@ pub fn run(
                 found: false,
                 other_found: Vec::new(),
                 unexplained: false,
+                tentative: false,
                 estimate: None,
                 error: Some("the campaign's thread failed".into()),
                 noise_rms: None,
@@ -839,6 +846,9 @@ pub struct ValueSummary {
     pub other_found_rate: f64,
     /// Campaigns whose discovery reported an unexplained misfit.
     pub unexplained_rate: f64,
+    /// Campaigns whose discovery added the effect but left it tentative: the data show it,
+    /// the tests cannot confirm it (a lag and a delay of a millisecond fit a 250 Hz rig alike).
+    pub tentative_rate: f64,
     /// Mean of the parameter's estimate where the effect was found.
     pub estimate_mean: Option<f64>,
     /// Its sample standard deviation (two estimates at least).
@@ -990,6 +1000,7 @@ pub fn aggregate(spec: &StudySpec, outcomes: &[Outcome]) -> Result<PowerResult> 
             ci: [lo, hi],
             other_found_rate: rate(ok.iter().filter(|o| !o.other_found.is_empty()).count()),
             unexplained_rate: rate(ok.iter().filter(|o| o.unexplained).count()),
+            tentative_rate: rate(ok.iter().filter(|o| o.tentative).count()),
             estimate_mean,
             estimate_std,
             false_discovery_rate: at_zero.then(|| rate(any)),
@@ -1097,10 +1108,11 @@ impl PowerResult {
             self.effect, self.parameter, self.campaigns, self.seed, self.interval
         );
         s.push_str(&format!(
-            "{:>12} {:>9} {:>17} {:>7} {:>11} {:>12} {:>10} {:>6}\n",
+            "{:>12} {:>9} {:>17} {:>9} {:>7} {:>11} {:>12} {:>10} {:>6}\n",
             self.parameter,
             "detected",
             "95% CI",
+            "tentative",
             "other",
             "unexplained",
             "estimate",
@@ -1110,11 +1122,12 @@ impl PowerResult {
         let opt = |v: Option<f64>| v.map_or("-".to_string(), fmt_num);
         for v in &self.values {
             s.push_str(&format!(
-                "{:>12} {:>8.1}% {:>8.1}-{:>6.1}% {:>6.1}% {:>10.1}% {:>12} {:>10} {:>6}\n",
+                "{:>12} {:>8.1}% {:>8.1}-{:>6.1}% {:>8.1}% {:>6.1}% {:>10.1}% {:>12} {:>10} {:>6}\n",
                 fmt_num(v.value),
                 100.0 * v.detection_rate,
                 100.0 * v.ci[0],
                 100.0 * v.ci[1],
+                100.0 * v.tentative_rate,
                 100.0 * v.other_found_rate,
                 100.0 * v.unexplained_rate,
                 opt(v.estimate_mean),
@@ -1230,10 +1243,11 @@ impl PowerResult {
             &[power, target],
         ));
         body.push_str(&chart(
-            "other effects found and unexplained misfit (%)",
+            "the effect added but tentative, other effects found, unexplained misfit (%)",
             XAxis::linear(&label),
             "%",
             &[
+                series("tentative", 2, &|v| v.tentative_rate),
                 series("other found", 1, &|v| v.other_found_rate),
                 series("unexplained", 4, &|v| v.unexplained_rate),
             ],
@@ -1554,6 +1568,7 @@ K = [[4.0, 3.0]]
             found,
             other_found: Vec::new(),
             unexplained: false,
+            tentative: false,
             estimate,
             error: None,
             noise_rms: None,
@@ -1598,9 +1613,12 @@ K = [[4.0, 3.0]]
             }
             out.push(o);
         }
-        // Value 1: 2 of 4 found, estimates 0.9 and 1.3. Value 2: all found.
+        // Value 1: 2 of 4 found, estimates 0.9 and 1.3, one more added but tentative (its
+        // estimate is not a found one's). Value 2: all found.
         for c in 0..4 {
-            out.push(outcome(1, c, c < 2, (c < 2).then(|| [0.9, 1.3][c])));
+            let mut o = outcome(1, c, c < 2, (c < 2).then(|| [0.9, 1.3][c]));
+            o.tentative = c == 2;
+            out.push(o);
             out.push(outcome(2, c, true, Some(2.0)));
         }
         let in_order = aggregate(&spec, &out).unwrap();
@@ -1616,6 +1634,7 @@ K = [[4.0, 3.0]]
         assert_eq!(r.failures[0].error, "diverged");
         let v1 = &r.values[1];
         assert_eq!(v1.detection_rate, 0.5);
+        assert_eq!((v0.tentative_rate, v1.tentative_rate), (0.0, 0.25));
         assert_eq!(v1.ci, {
             let (a, b) = clopper_pearson(2, 4, 0.05);
             [a, b]
