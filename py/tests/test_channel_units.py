@@ -53,3 +53,30 @@ def test_a_channel_in_another_unit_is_named(tmp_path, case, seed):
     else:
         assert doc["unexplained"] is True, text
         assert sentence in text, text
+
+
+@pytest.mark.parametrize("seed", (1, 2))
+def test_some_outputs_in_another_unit_are_named_together(tmp_path, seed):
+    # The double pendulum's two link angles logged in degrees, its cart in metres: neither
+    # one angle alone nor every output explains the logs, the two angles together do (cost 6
+    # times the noise's against 3300 times without). Its independent simulator, FRF criterion.
+    import independent_double_pendulum as dp
+
+    si = dp.campaign(tmp_path / "si", seed, "a", quantized=False)
+    deg = tmp_path / "deg"
+    deg.mkdir()
+    for f in sorted(si.glob("*.csv")):
+        header = f.read_text().splitlines()[0]
+        table = np.loadtxt(f, delimiter=",", skiprows=1)
+        for name in ("th1", "th2"):
+            table[:, header.split(",").index(name)] *= 180.0 / math.pi
+        np.savetxt(deg / f.name, table, delimiter=",", header=header, comments="", fmt="%.12g")
+    model = Path(__file__).parent / "data" / "double_pendulum.toml"
+    for data, named in ((si, False), (deg, True)):
+        out = tmp_path / f"{data.name}.json"
+        done = run_cli("discover", "--model", str(model), "--data", str(data),
+                       "--criterion", "frf", "--json", str(out))
+        assert done.returncode == 0, done.stderr
+        text = json.loads(out.read_text())["verdict_text"]
+        sentence = "with outputs th1, th2 scaled by 57.3: are they logged in the model's unit"
+        assert (sentence in text) is named, text

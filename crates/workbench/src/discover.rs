@@ -682,8 +682,8 @@ impl Workbench {
     }
 
     /// The channel rescaling under which the documented model fits the logs best: one
-    /// output's row of its response (or every output's), or one input's column (or every
-    /// input's), scaled by one of [`CHANNEL_UNITS`]. A pitch axis's rate logged in deg/s
+    /// output's row of its response (or every output's, or those that each fit better under
+    /// one factor), or one input's column (likewise), scaled by one of [`CHANNEL_UNITS`]. A pitch axis's rate logged in deg/s
     /// against a model in rad/s fitted M_alpha at 1.4e5 for 3.6 and only the parameters'
     /// distance hinted at it. `g` the documented model's response on the logs' lines, `own`
     /// its cost.
@@ -706,25 +706,49 @@ impl Workbench {
             let all = data.inputs.join(", ");
             groups.push((format!("inputs {all}"), Vec::new(), (0..nu).collect()));
         }
+        // A logged output is c times the model's; a logged input c times the model's, so the
+        // response per logged input is 1/c times.
+        let cost = |rows: &[usize], cols: &[usize], c: f64| -> f64 {
+            let scaled: Vec<_> = g
+                .iter()
+                .map(|m| {
+                    let mut m = m.clone();
+                    for &i in rows {
+                        m.row_mut(i).scale_mut(c);
+                    }
+                    for &j in cols {
+                        m.column_mut(j).unscale_mut(c);
+                    }
+                    m
+                })
+                .collect();
+            self.cost.cost(&scaled)
+        };
+        // The channels of one side that each fit better scaled by one factor, scaled together:
+        // three gyros of six outputs logged in deg/s, which neither one channel nor the whole
+        // side explains.
+        let names = |side: &[String], idx: &[usize]| -> String {
+            idx.iter()
+                .map(|&i| side[i].as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        for &(c, _) in &CHANNEL_UNITS {
+            let rows: Vec<usize> = (0..ny).filter(|&i| cost(&[i], &[], c) < own).collect();
+            if rows.len() > 1 && rows.len() < ny {
+                let label = format!("outputs {}", names(&data.outputs, &rows));
+                groups.push((label, rows, Vec::new()));
+            }
+            let cols: Vec<usize> = (0..nu).filter(|&j| cost(&[], &[j], c) < own).collect();
+            if cols.len() > 1 && cols.len() < nu {
+                let label = format!("inputs {}", names(&data.inputs, &cols));
+                groups.push((label, Vec::new(), cols));
+            }
+        }
         let mut best: Option<(f64, f64, &str, &str)> = None;
         for (name, rows, cols) in &groups {
             for &(c, what) in &CHANNEL_UNITS {
-                // A logged output is c times the model's; a logged input c times the model's,
-                // so the response per logged input is 1/c times.
-                let scaled: Vec<_> = g
-                    .iter()
-                    .map(|m| {
-                        let mut m = m.clone();
-                        for &i in rows {
-                            m.row_mut(i).scale_mut(c);
-                        }
-                        for &j in cols {
-                            m.column_mut(j).unscale_mut(c);
-                        }
-                        m
-                    })
-                    .collect();
-                let v = self.cost.cost(&scaled);
+                let v = cost(rows, cols, c);
                 if v.is_finite() && best.is_none_or(|b| v < b.0) {
                     best = Some((v, c, what, name));
                 }
