@@ -798,16 +798,16 @@ impl Workbench {
     /// naming a clock or channels in another unit when the documented model fits the logs
     /// rescaled; that sentence alone after a verdict of misfit (a cart-pole's angle logged in
     /// degrees left a misfit 415 times the noise with every parameter near its documented
-    /// value).
+    /// value). The flag says whether a rescaling was named: it then explains the misfit.
     pub fn far_warning(
         &self,
         model: &Model,
         params: &[ParamEstimate],
         unexplained: bool,
-    ) -> Result<Option<String>> {
+    ) -> Result<(Option<String>, bool)> {
         let far = far_from_documented(model, params)?;
         if far.is_none() && !unexplained {
-            return Ok(None);
+            return Ok((None, false));
         }
         // The documented model's response and cost on the logs' own clock and units, which
         // the rescalings compare against.
@@ -822,10 +822,14 @@ impl Workbench {
                     .then(|| self.rescaled_sentence(&theta, &g, own))
                     .flatten()
             });
-        Ok(match (far, rescaled) {
-            (Some(far), Some(rescaled)) => Some(format!("{far}; {rescaled}")),
-            (far, rescaled) => far.or(rescaled),
-        })
+        let named = rescaled.is_some();
+        Ok((
+            match (far, rescaled) {
+                (Some(far), Some(rescaled)) => Some(format!("{far}; {rescaled}")),
+                (far, rescaled) => far.or(rescaled),
+            },
+            named,
+        ))
     }
 }
 
@@ -1328,9 +1332,13 @@ impl Workbench {
         unexplained: bool,
     ) -> Result<Vec<String>> {
         let mut why = self.data_caveats();
-        why.extend(self.far_warning(model, params, unexplained)?);
+        let (far, rescaled) = self.far_warning(model, params, unexplained)?;
+        why.extend(far);
         why.extend(unmeasured_effects(model, params)?);
-        if unexplained {
+        // A rescaling that explains the logs is the reason for the misfit: a path or a line
+        // it leaves is its by-product (theta in degrees read "the model has no path
+        // Tz->theta ... an effect that couples them is missing" after naming the degrees).
+        if unexplained && !rescaled {
             why.extend(Self::dominant_line(diagnosis));
             why.extend(Self::unmodelled_paths(diagnosis));
         }

@@ -1127,7 +1127,7 @@ impl Workbench {
             .with_test(EXCITATION_TEST)
             .with_warnings(
                 match &last_model {
-                    Some(m) => self.far_warning(m, &last.params, unexplained)?,
+                    Some(m) => self.far_warning(m, &last.params, unexplained)?.0,
                     None => None,
                 }
                 .into_iter()
