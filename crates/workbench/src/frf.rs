@@ -499,7 +499,7 @@ pub(crate) fn invert(a: &CMatrix, what: &str, freq_hz: f64) -> Result<CMatrix> {
         return Err(SimError::invalid(
             format!("{what} at {freq_hz:.3} Hz"),
             format!("condition number {:.3e}", max / min.max(f64::MIN_POSITIVE)),
-            "the inputs are not independently excited at this line (need experiments whose excitations span all inputs)",
+            "the inputs are not independently excited at this line: the experiments' excitations there must span all inputs (each input on lines of its own, or with shared lines a different mix per experiment, e.g. the line sets rotated between experiments, at least one experiment per input)",
         ));
     }
     a.clone().try_inverse().ok_or_else(|| {
