@@ -184,12 +184,7 @@ pub fn aliases(model: &Model) -> Result<Vec<Alias>> {
         let Ok(id) = with.documented().and_then(|theta| analyse(&with, &theta)) else {
             continue;
         };
-        let own: Vec<String> = with
-            .parameters()?
-            .into_iter()
-            .map(|p| p.name)
-            .filter(|n| !base.contains(n))
-            .collect();
+        let own = added_names(&base, &with)?;
         let mut parameters: Vec<String> = own
             .iter()
             .filter(|p| id.no_effect.contains(p))
@@ -223,6 +218,16 @@ pub fn aliases(model: &Model) -> Result<Vec<Alias>> {
     Ok(found)
 }
 
+/// The parameter names of `with` that `base` does not have: an added effect's own.
+fn added_names(base: &[String], with: &Model) -> Result<Vec<String>> {
+    Ok(with
+        .parameters()?
+        .into_iter()
+        .map(|p| p.name)
+        .filter(|n| !base.contains(n))
+        .collect())
+}
+
 /// Pairs of candidates the outputs cannot tell apart: with the first in the model, the
 /// second's parameters trade against the first's ([`aliases`]). A smoothed dry friction
 /// linearized at rest is a viscous one: a discovery that adds either names the other its
@@ -235,12 +240,7 @@ pub fn rival_pairs(model: &Model) -> Result<Vec<(String, String)>> {
         let Ok(with) = model.with_effect(first) else {
             continue;
         };
-        let own: Vec<String> = with
-            .parameters()?
-            .into_iter()
-            .map(|p| p.name)
-            .filter(|n| !base.contains(n))
-            .collect();
+        let own = added_names(&base, &with)?;
         for alias in aliases(&with)? {
             if candidates[i + 1..].contains(&alias.effect)
                 && alias.with.iter().any(|n| own.contains(n))
