@@ -539,16 +539,11 @@ pub struct Conclusion {
 pub(crate) fn unmeasured_effects(model: &Model, params: &[ParamEstimate]) -> Result<Vec<String>> {
     let mut why = Vec::new();
     for effect in model.enabled() {
-        let others: Vec<String> = model
-            .without_effect(&effect)
-            .parameters()?
-            .into_iter()
-            .map(|p| p.name)
-            .collect();
+        let names = model.effect_parameters(&effect)?;
         // Its own parameters that were fitted or held (not fixed in the model).
         let own: Vec<&ParamEstimate> = params
             .iter()
-            .filter(|p| !others.contains(&p.name) && (p.held || p.std.is_some()))
+            .filter(|p| names.contains(&p.name) && (p.held || p.std.is_some()))
             .collect();
         if !own.is_empty() && own.iter().all(|p| p.held) {
             let names: Vec<&str> = own.iter().map(|p| p.name.as_str()).collect();
@@ -683,9 +678,9 @@ impl Workbench {
 
     /// The channel rescaling under which the documented model fits the logs best: one
     /// output's row of its response (or every output's, or those that each fit better under
-    /// one factor), or one input's column (likewise), scaled by one of [`CHANNEL_UNITS`]. A pitch axis's rate logged in deg/s
-    /// against a model in rad/s fitted M_alpha at 1.4e5 for 3.6 and only the parameters'
-    /// distance hinted at it. `g` the documented model's response on the logs' lines, `own`
+    /// one factor), or one input's column (likewise), scaled by one of [`CHANNEL_UNITS`]. A
+    /// pitch axis's rate logged in deg/s against a model in rad/s fitted M_alpha at 1.4e5 for
+    /// 3.6 and only the parameters' distance hinted at it. `g` the documented model's response on the logs' lines, `own`
     /// its cost.
     fn unit_rescaled(&self, g: &[CMatrix], own: f64) -> Option<Rescaled> {
         let data = self.data();

@@ -174,7 +174,6 @@ pub struct Alias {
 /// the same `-c xdot`). A candidate whose analysis fails (a derivative not finite at the
 /// documented values) is left out: the check of the model itself reports such failures.
 pub fn aliases(model: &Model) -> Result<Vec<Alias>> {
-    let base: Vec<String> = model.parameters()?.into_iter().map(|p| p.name).collect();
     let base_id = analyse(model, &model.documented()?)?;
     let mut found = Vec::new();
     for effect in model.frf_candidates() {
@@ -184,7 +183,7 @@ pub fn aliases(model: &Model) -> Result<Vec<Alias>> {
         let Ok(id) = with.documented().and_then(|theta| analyse(&with, &theta)) else {
             continue;
         };
-        let own = added_names(&base, &with)?;
+        let own = with.effect_parameters(&effect)?;
         let mut parameters: Vec<String> = own
             .iter()
             .filter(|p| id.no_effect.contains(p))
@@ -218,29 +217,18 @@ pub fn aliases(model: &Model) -> Result<Vec<Alias>> {
     Ok(found)
 }
 
-/// The parameter names of `with` that `base` does not have: an added effect's own.
-fn added_names(base: &[String], with: &Model) -> Result<Vec<String>> {
-    Ok(with
-        .parameters()?
-        .into_iter()
-        .map(|p| p.name)
-        .filter(|n| !base.contains(n))
-        .collect())
-}
-
 /// Pairs of candidates the outputs cannot tell apart: with the first in the model, the
 /// second's parameters trade against the first's ([`aliases`]). A smoothed dry friction
 /// linearized at rest is a viscous one: a discovery that adds either names the other its
 /// rival.
 pub fn rival_pairs(model: &Model) -> Result<Vec<(String, String)>> {
-    let base: Vec<String> = model.parameters()?.into_iter().map(|p| p.name).collect();
     let candidates = model.frf_candidates();
     let mut pairs = Vec::new();
     for (i, first) in candidates.iter().enumerate() {
         let Ok(with) = model.with_effect(first) else {
             continue;
         };
-        let own = added_names(&base, &with)?;
+        let own = with.effect_parameters(first)?;
         for alias in aliases(&with)? {
             if candidates[i + 1..].contains(&alias.effect)
                 && alias.with.iter().any(|n| own.contains(n))

@@ -476,6 +476,23 @@ impl Model {
         m
     }
 
+    /// The names of the parameters the enabled effect `name` brings: those the model has and
+    /// has not without it (empty when it is not enabled).
+    pub fn effect_parameters(&self, name: &str) -> Result<Vec<String>> {
+        let others: Vec<String> = self
+            .without_effect(name)
+            .parameters()?
+            .into_iter()
+            .map(|p| p.name)
+            .collect();
+        Ok(self
+            .parameters()?
+            .into_iter()
+            .map(|p| p.name)
+            .filter(|n| !others.contains(n))
+            .collect())
+    }
+
     /// Offers a further effect as a discovery candidate (replacing a generic effect of the same
     /// name); it is not enabled.
     pub fn with_candidate(&self, effect: Arc<dyn Effect>) -> Result<Self> {

@@ -1127,14 +1127,18 @@ impl Workbench {
             .with_test(EXCITATION_TEST)
             .with_warnings(
                 match &last_model {
-                    Some(m) => self.far_warning(m, &last.params, unexplained)?.0,
-                    None => None,
+                    Some(m) => {
+                        let mut why: Vec<String> = self
+                            .far_warning(m, &last.params, unexplained)?
+                            .0
+                            .into_iter()
+                            .collect();
+                        why.extend(super::discover::unmeasured_effects(m, &last.params)?);
+                        why
+                    }
+                    None => Vec::new(),
                 }
                 .into_iter()
-                .chain(match &last_model {
-                    Some(m) => super::discover::unmeasured_effects(m, &last.params)?,
-                    None => Vec::new(),
-                })
                 .chain(offset)
                 .chain(
                     unexplained
@@ -1470,7 +1474,7 @@ mod tests {
 
     /// A linear plant written as a `[nonlinear]` section around the operating point
     /// `p = 1, u = 0.5` (an unstable double integrator with a spring of negative stiffness),
-    /// with state feedback; `controller` replaces the state feedback when given.
+    /// its `[controller]` section's body `controller`.
     fn shifted_plant(controller: &str) -> Model {
         let text = format!(
             r#"
