@@ -2,19 +2,17 @@
 #![allow(clippy::unwrap_used)]
 mod common;
 
-use std::path::PathBuf;
+use common::{stabilis, text, Scratch};
 
-use common::{stabilis, text};
-
-fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("sim-cli-tests-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+/// A directory of the test's own, removed when dropped.
+fn scratch() -> Scratch {
+    Scratch::new("sim-cli-tests-")
 }
 
 #[test]
 fn sim_writes_a_log_that_info_and_the_reader_understand() {
-    let out = temp("run.mcap");
+    let dir = scratch();
+    let out = dir.join("run.mcap");
     let run = stabilis(&[
         "sim",
         "wheel-pendulum",
@@ -109,7 +107,8 @@ fn without_control_the_pendulum_falls() {
 
 #[test]
 fn bad_input_exits_with_code_2_and_a_named_error() {
-    let missing = temp("absent.mcap");
+    let dir = scratch();
+    let missing = dir.join("absent.mcap");
     let run = stabilis(&["info", missing.to_str().unwrap()]);
     assert_eq!(run.status.code(), Some(2));
     assert_eq!(
@@ -117,7 +116,7 @@ fn bad_input_exits_with_code_2_and_a_named_error() {
         format!("error: file not found: {}", missing.display())
     );
 
-    let not_mcap = temp("notes.mcap");
+    let not_mcap = dir.join("notes.mcap");
     std::fs::write(&not_mcap, "these are notes, not a log").unwrap();
     let run = stabilis(&["info", not_mcap.to_str().unwrap()]);
     assert_eq!(run.status.code(), Some(2));
@@ -127,7 +126,7 @@ fn bad_input_exits_with_code_2_and_a_named_error() {
         text(&run.stderr)
     );
 
-    let out = temp("short.mcap");
+    let out = dir.join("short.mcap");
     assert_eq!(
         stabilis(&[
             "sim",
@@ -169,7 +168,7 @@ fn bad_input_exits_with_code_2_and_a_named_error() {
         text(&run.stderr)
     );
 
-    let unwritable = temp("no-such-dir").join("run.mcap");
+    let unwritable = dir.join("no-such-dir").join("run.mcap");
     let run = stabilis(&[
         "sim",
         "wheel-pendulum",
@@ -206,7 +205,8 @@ fn bad_input_exits_with_code_2_and_a_named_error() {
 
 #[test]
 fn a_log_cut_off_mid_way_is_still_summarised() {
-    let out = temp("long.mcap");
+    let dir = scratch();
+    let out = dir.join("long.mcap");
     let run = stabilis(&[
         "sim",
         "wheel-pendulum",
@@ -218,7 +218,7 @@ fn a_log_cut_off_mid_way_is_still_summarised() {
     assert_eq!(run.status.code(), Some(0));
     // Keep the first 60 % of the bytes, as if the writer had been killed.
     let bytes = std::fs::read(&out).unwrap();
-    let cut = temp("cut.mcap");
+    let cut = dir.join("cut.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() * 6 / 10]).unwrap();
     let run = stabilis(&["info", cut.to_str().unwrap(), "--json"]);
     assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
@@ -236,7 +236,8 @@ fn a_log_cut_off_mid_way_is_still_summarised() {
 
 #[test]
 fn csv_files_are_summarised_too() {
-    let path = temp("measured.csv");
+    let dir = scratch();
+    let path = dir.join("measured.csv");
     std::fs::write(&path, "t,phi\n0,0.1\n0.5,0.2\n1,0.3\n").unwrap();
     let run = stabilis(&["info", path.to_str().unwrap(), "--json"]);
     assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));

@@ -6,9 +6,12 @@ use std::process::Command;
 use sim::scenarios::cubli::{INPUT_FIELDS, OUTPUT_FIELDS, STATE_FIELDS};
 
 fn run_edge(name: &str, extra: &[&str]) -> (serde_json::Value, sim::log::Log) {
-    let dir = std::env::temp_dir().join(format!("cubli-jump-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let out = dir.join(name);
+    // Removed when dropped, after the binary has written the log and it has been read.
+    let dir = tempfile::Builder::new()
+        .prefix("cubli-jump-")
+        .tempdir()
+        .unwrap();
+    let out = dir.path().join(name);
     let mut args = vec![
         "sim",
         "cubli",
@@ -37,7 +40,6 @@ fn run_edge(name: &str, extra: &[&str]) -> (serde_json::Value, sim::log::Log) {
     );
     let json: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     let log = sim::log::read_mcap(&out).unwrap();
-    std::fs::remove_file(&out).unwrap();
     (json, log)
 }
 

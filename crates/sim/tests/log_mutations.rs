@@ -3,7 +3,7 @@
 //! differ from the log as written. Fixed seed and a bounded number of mutations, so it runs in
 //! CI in a few seconds.
 #![allow(clippy::unwrap_used)]
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -13,14 +13,12 @@ use sim::log::{read_mcap_bytes, Log};
 const TRUNCATIONS: usize = 40;
 const FLIPS: usize = 150;
 
-fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("sim-mutations-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
-
 /// One log per scenario of `stabilis sim`, short runs.
 fn logs() -> Vec<(String, Vec<u8>)> {
+    let dir = tempfile::Builder::new()
+        .prefix("sim-mutations-")
+        .tempdir()
+        .unwrap();
     let runs: [(&str, &[&str]); 5] = [
         ("wheel-pendulum", &["--duration", "3"]),
         ("cubli", &["--duration", "5", "--excitation-rms", "0.01"]),
@@ -30,7 +28,7 @@ fn logs() -> Vec<(String, Vec<u8>)> {
     ];
     runs.iter()
         .map(|(system, options)| {
-            let out = temp(system);
+            let out = dir.path().join(system);
             let out_arg = out.display().to_string();
             let mut args: Vec<&str> = options.to_vec();
             let file = if *system == "flying-platform" {

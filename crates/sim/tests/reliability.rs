@@ -8,13 +8,12 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
-use common::{stabilis, stabilis_in, text};
+use common::{stabilis, stabilis_in, text, Scratch};
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("sim-reliability-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// An empty directory `name` of the test's own, alone in its parent (which some tests look
+/// at); both are removed when it is dropped.
+fn scratch(name: &str) -> Scratch {
+    Scratch::nested("sim-reliability-", name)
 }
 
 /// A short wheel-pendulum log at `path`.

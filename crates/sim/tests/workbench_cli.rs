@@ -2,18 +2,17 @@
 //! written as 18 MCAP files (DESIGN.md topics and metadata) and read back by the binary.
 #![allow(clippy::unwrap_used)]
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 mod common;
 
-use common::{ok, refused};
+use common::{ok, refused, Scratch};
 use sim::log::LogWriter;
 use sim::systems::flying_platform::embedded_dataset;
 
-fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("sim-workbench-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+/// A directory of the test's own, removed when dropped.
+fn scratch() -> Scratch {
+    Scratch::new("sim-workbench-cli-")
 }
 
 /// Writes the embedded dataset as MCAP files into `dir`, leaving out the output `drop`.
@@ -75,10 +74,11 @@ fn write_logs(dir: &Path, drop: Option<&str>) {
 
 #[test]
 fn discover_on_mcap_logs_writes_json_and_report() {
-    let logs = temp("logs");
+    let dir = scratch();
+    let logs = dir.join("logs");
     write_logs(&logs, None);
-    let json = temp("discover.json");
-    let report = temp("report");
+    let json = dir.join("discover.json");
+    let report = dir.join("report");
     let stdout = ok(&[
         "discover",
         "--data",
@@ -116,7 +116,8 @@ fn discover_on_mcap_logs_writes_json_and_report() {
 
 #[test]
 fn fit_with_effects_reports_parameters_with_standard_errors() {
-    let logs = temp("logs-fit");
+    let dir = scratch();
+    let logs = dir.join("logs-fit");
     write_logs(&logs, None);
     let stdout = ok(&[
         "fit",
@@ -142,9 +143,10 @@ fn fit_with_effects_reports_parameters_with_standard_errors() {
 
 #[test]
 fn missing_channel_is_named_and_no_report_is_left() {
-    let logs = temp("logs-missing");
+    let dir = scratch();
+    let logs = dir.join("logs-missing");
     write_logs(&logs, Some("wz"));
-    let report = temp("report-missing");
+    let report = dir.join("report-missing");
     let stderr = refused(&[
         "discover",
         "--data",
@@ -164,7 +166,8 @@ fn missing_channel_is_named_and_no_report_is_left() {
 
 #[test]
 fn unknown_or_repeated_effect_is_named() {
-    let logs = temp("logs-unknown");
+    let dir = scratch();
+    let logs = dir.join("logs-unknown");
     write_logs(&logs, None);
     let stderr = refused(&[
         "fit",
@@ -210,8 +213,9 @@ fn cubli_logs(dir: &Path, extra: &[&str]) {
 
 #[test]
 fn cubli_compare_fit_discover_and_report() {
+    let dir = scratch();
     let c = 2e-5;
-    let logs = temp("cubli-viscous");
+    let logs = dir.join("cubli-viscous");
     cubli_logs(&logs, &["--viscous=2e-5,2e-5,2e-5"]);
     let data = logs.to_str().unwrap();
     let json = |args: &[&str]| -> serde_json::Value {
@@ -233,7 +237,7 @@ fn cubli_compare_fit_discover_and_report() {
     // The fitted model explains the logs; the nominal one leaves the wheels' misfit.
     assert_eq!(fitted["unexplained"], false, "{}", fitted["verdict"]);
     assert_eq!(nominal["unexplained"], true, "{}", nominal["verdict"]);
-    let report = temp("cubli-report");
+    let report = dir.join("cubli-report");
     let stdout = ok(&[
         "discover",
         "--system",
@@ -315,10 +319,11 @@ fn cubli_csv(path: &Path, source: &Path, edit: impl Fn(&mut Vec<String>, &mut Ve
 
 #[test]
 fn cubli_bad_data_is_named_and_no_report_is_left() {
-    let logs = temp("cubli-bad-source");
+    let dir = scratch();
+    let logs = dir.join("cubli-bad-source");
     cubli_logs(&logs, &[]);
     let source = logs.join("run21.mcap");
-    let report = temp("cubli-bad-report");
+    let report = dir.join("cubli-bad-report");
     let run = |file: &Path| {
         refused(&[
             "discover",
@@ -331,7 +336,7 @@ fn cubli_bad_data_is_named_and_no_report_is_left() {
         ])
     };
     // A missing channel.
-    let missing = temp("cubli-missing.csv");
+    let missing = dir.join("cubli-missing.csv");
     cubli_csv(&missing, &source, |h, rows| {
         h.pop();
         for r in rows.iter_mut() {
@@ -341,7 +346,7 @@ fn cubli_bad_data_is_named_and_no_report_is_left() {
     let stderr = run(&missing);
     assert!(stderr.contains("\"gz\""), "{stderr}");
     // A NaN sample.
-    let nan = temp("cubli-nan.csv");
+    let nan = dir.join("cubli-nan.csv");
     cubli_csv(&nan, &source, |_, rows| rows[500][5] = "NaN".into());
     let stderr = run(&nan);
     assert!(
@@ -349,7 +354,7 @@ fn cubli_bad_data_is_named_and_no_report_is_left() {
         "{stderr}"
     );
     // Output and input logs of different lengths.
-    let short = temp("cubli-short.mcap");
+    let short = dir.join("cubli-short.mcap");
     let data = sim::systems::cubli::load_cubli(std::slice::from_ref(&source)).unwrap();
     let e = &data.experiments[0];
     let mut w = LogWriter::create(&short).unwrap();
@@ -377,7 +382,7 @@ fn cubli_bad_data_is_named_and_no_report_is_left() {
     assert!(stderr.contains("/cubli/output"), "{stderr}");
     // One file of three with its time in milliseconds: the message lists each rate with its
     // files, the odd one first, rounded (the mean step of a time column is not exact).
-    let rates = temp("cubli-rates");
+    let rates = dir.join("cubli-rates");
     std::fs::create_dir_all(&rates).unwrap();
     for (name, rows) in [("a", 0), ("b", 1)] {
         // b one row shorter: the same log twice is refused as such.

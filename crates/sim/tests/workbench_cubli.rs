@@ -3,16 +3,21 @@
 #![allow(clippy::unwrap_used)]
 use std::path::PathBuf;
 
+use tempfile::TempDir;
+
 use sim::progress::Progress;
 use sim::scenarios::cubli::{Args, Kind};
 use sim::scenarios::{run, Common};
 use sim::systems::cubli::{discover, load_cubli, CubliDiscovery, CubliOptions};
 
-/// Writes six 40 s balancing runs with the given hidden effects and returns their paths.
-fn logs(tag: &str, hide: impl Fn(&mut Args)) -> Vec<PathBuf> {
-    let dir = std::env::temp_dir().join(format!("cubli-wb-{tag}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    [
+/// Writes six 40 s balancing runs with the given hidden effects and returns their paths and
+/// the directory that holds them (dropping it removes them).
+fn logs(tag: &str, hide: impl Fn(&mut Args)) -> (TempDir, Vec<PathBuf>) {
+    let dir = tempfile::Builder::new()
+        .prefix(&format!("cubli-wb-{tag}-"))
+        .tempdir()
+        .unwrap();
+    let paths: Vec<PathBuf> = [
         (11u64, 5.0),
         (12, -4.0),
         (13, 3.0),
@@ -22,7 +27,7 @@ fn logs(tag: &str, hide: impl Fn(&mut Args)) -> Vec<PathBuf> {
     ]
     .iter()
     .map(|&(seed, tilt)| {
-        let path = dir.join(format!("run{seed}.mcap"));
+        let path = dir.path().join(format!("run{seed}.mcap"));
         let common = Common {
             duration: 40.0,
             out: Some(path.clone()),
@@ -35,15 +40,14 @@ fn logs(tag: &str, hide: impl Fn(&mut Args)) -> Vec<PathBuf> {
         run(&args, &mut Progress::hidden()).unwrap();
         path
     })
-    .collect()
+    .collect();
+    (dir, paths)
 }
 
 fn discover_on(tag: &str, hide: impl Fn(&mut Args)) -> CubliDiscovery {
-    let paths = logs(tag, hide);
+    let (dir, paths) = logs(tag, hide);
     let data = load_cubli(&paths).unwrap();
-    for p in &paths {
-        std::fs::remove_file(p).unwrap();
-    }
+    drop(dir);
     let d = discover(&data, &CubliOptions::default()).unwrap();
     println!("{tag}:\n{}", d.table());
     d
@@ -148,11 +152,9 @@ fn hidden_torque_constant_is_found() {
 
 #[test]
 fn a_one_sample_input_delay_is_reported_as_unexplained_misfit_and_short_data_is_refused() {
-    let paths = logs("delay", |_| {});
+    let (dir, paths) = logs("delay", |_| {});
     let mut data = load_cubli(&paths).unwrap();
-    for p in &paths {
-        std::fs::remove_file(p).unwrap();
-    }
+    drop(dir);
     // Log the torque one sample late: no candidate describes a delay.
     for e in &mut data.experiments {
         let u = e.u.clone();

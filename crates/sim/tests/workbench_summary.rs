@@ -6,15 +6,13 @@
 #![allow(clippy::unwrap_used)]
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use common::{ok, refused};
+use common::{ok, refused, Scratch};
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("sim-summary-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// An empty directory of the test's own, removed when dropped.
+fn scratch(name: &str) -> Scratch {
+    Scratch::new(&format!("sim-summary-{name}-"))
 }
 
 /// A first-order plant `x' = -a x + b F`, `y = x`.
@@ -165,7 +163,6 @@ fn the_report_json_is_named_for_any_verb() {
         serde_json::from_str(&std::fs::read_to_string(report.join("report.json")).unwrap())
             .unwrap();
     assert_eq!(doc["steps"].as_array().unwrap().len(), 1);
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -180,7 +177,6 @@ fn fit_without_an_effect_is_refused_before_the_work() {
     let stderr = refused(&["fit", "--with", ""]);
     assert!(stderr.contains("fit needs --with"), "{stderr}");
     assert!(!report.exists());
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -205,7 +201,6 @@ fn one_experiment_is_counted_in_the_singular() {
     assert!(!stdout.contains("1 experiments"), "{stdout}");
     let html = std::fs::read_to_string(report.join("index.html")).unwrap();
     assert!(html.contains("1 experiment.") && !html.contains("1 experiments"));
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// Two masses joined by a spring, free to move together: A has a double zero eigenvalue,
@@ -258,7 +253,6 @@ fn model_check_puts_both_zero_eigenvalues_on_the_imaginary_axis() {
         stdout.contains("output x2 depends on no state and no input"),
         "{stdout}"
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// A pendulum whose response fixes only `1/Jp` and `m g l/Jp` (`Jp = J + m l^2`).
@@ -314,7 +308,6 @@ fn model_check_names_the_combination_and_the_parameter_a_fit_holds() {
         )) && stdout.contains("a fit on data weighs by the data's Jacobian"),
         "{stdout}"
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -333,7 +326,6 @@ fn bounds_the_wrong_way_round_are_named_as_such() {
         "{stderr}"
     );
     assert!(!stderr.contains("lies outside"), "{stderr}");
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// A loop that grows without overflowing (a controller pole at 1.02 per sample: 4e8-fold over
@@ -364,7 +356,6 @@ fn a_slowly_diverging_closed_loop_is_named() {
         "{time_fit}"
     );
     assert!(time_fit["closed_loop"].is_null(), "{time_fit}");
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// `--band-hz` narrows a periodic estimate to its excited lines within the band (it used to be
@@ -398,7 +389,6 @@ fn a_band_keeps_the_periodic_lines_within_it() {
         stderr.contains("holds none of the 20 excited lines"),
         "{stderr}"
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// Periodic and non-periodic logs in one `--data` directory: the periodic estimate needs every
@@ -462,5 +452,4 @@ fn a_mixed_set_names_the_experiment_that_is_not_periodic() {
     assert!(doc["estimator"].as_str().unwrap().contains("welch"));
     let why = doc["welch_reason"].as_str().unwrap();
     assert_eq!(format!("Welch estimate: {why}"), line);
-    std::fs::remove_dir_all(&dir).unwrap();
 }

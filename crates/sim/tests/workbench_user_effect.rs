@@ -43,7 +43,11 @@ fn user_defined_vertical_drag_is_fitted_to_the_truths_value() {
     let expected = -a_truth[(2, 2)];
     assert!(expected > 0.5, "truth vz drag {expected}");
     // The paper's design and amplitudes, linear hover dynamics, seed 12.
-    let dir = std::env::temp_dir().join(format!("sim-user-effect-{}", std::process::id()));
+    let tmp = tempfile::Builder::new()
+        .prefix("sim-user-effect-")
+        .tempdir()
+        .unwrap();
+    let dir = tmp.path().join("sysid");
     let out = dir.display().to_string();
     let args = [
         "--scenario=sysid",
@@ -66,7 +70,7 @@ fn user_defined_vertical_drag_is_fitted_to_the_truths_value() {
         std::slice::from_ref(&dir),
     )
     .unwrap();
-    std::fs::remove_dir_all(&dir).unwrap();
+    drop(tmp);
     let base = Workbench::new(structure, data, EstimatorChoice::Auto).unwrap();
     let before = base.compare().unwrap();
     let mut wb = base.clone();

@@ -348,11 +348,14 @@ mod tests {
         assert_eq!(hz(0.0), "0");
     }
 
-    /// A log of the pendulum's topics, 40 samples at 100 Hz, the output stamped `offset` s
-    /// after its input, with `excited` in the metadata when given.
-    fn pendulum_log(name: &str, offset: f64, excited: Option<&str>) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("workbench-load-tests-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+    /// A directory of the test's own, removed with its files when dropped.
+    fn scratch(prefix: &str) -> tempfile::TempDir {
+        tempfile::Builder::new().prefix(prefix).tempdir().unwrap()
+    }
+
+    /// A log `name` in `dir` of the pendulum's topics, 40 samples at 100 Hz, the output
+    /// stamped `offset` s after its input, with `excited` in the metadata when given.
+    fn pendulum_log(dir: &Path, name: &str, offset: f64, excited: Option<&str>) -> PathBuf {
         let path = dir.join(name);
         let mut log = crate::log::LogWriter::create(&path).unwrap();
         let mut meta = Meta::new(100.0);
@@ -382,9 +385,10 @@ mod tests {
     #[test]
     fn misaligned_topics_and_unknown_excited_inputs_are_named() {
         let (inputs, outputs) = (vec!["T".to_string()], vec!["theta".to_string()]);
-        let ok = pendulum_log("ok.mcap", 0.004, Some("T"));
+        let dir = scratch("workbench-load-tests-");
+        let ok = pendulum_log(dir.path(), "ok.mcap", 0.004, Some("T"));
         assert!(load("pend", &inputs, &outputs, &[ok]).is_ok());
-        let late = pendulum_log("late.mcap", 0.25, None);
+        let late = pendulum_log(dir.path(), "late.mcap", 0.25, None);
         let err = load("pend", &inputs, &outputs, &[late])
             .unwrap_err()
             .to_string();
@@ -392,7 +396,7 @@ mod tests {
             err.contains("/pend/output in") && err.contains("message 0 at t = 0.25 s"),
             "{err}"
         );
-        let unknown = pendulum_log("x.mcap", 0.0, Some("X"));
+        let unknown = pendulum_log(dir.path(), "x.mcap", 0.0, Some("X"));
         let err = load("pend", &inputs, &outputs, &[unknown])
             .unwrap_err()
             .to_string();
@@ -408,9 +412,8 @@ mod tests {
     /// missing columns and the remedy.
     #[test]
     fn a_missing_input_is_named_before_its_excitation() {
-        let dir = std::env::temp_dir().join(format!("workbench-load-csv-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("one_input.csv");
+        let dir = scratch("workbench-load-csv-");
+        let path = dir.path().join("one_input.csv");
         let rows: String = (0..20)
             .map(|k| format!("{},{},{},{}\n", k as f64 * 0.01, k, 2 * k, k % 3))
             .collect();
@@ -421,7 +424,7 @@ mod tests {
             .to_string();
         assert!(err.starts_with("missing field \"uR\""), "{err}");
         // Both inputs logged, the excitation of one: named, with what to do.
-        let both = dir.join("one_excitation.csv");
+        let both = dir.path().join("one_excitation.csv");
         let rows: String = (0..20)
             .map(|k| format!("{},{},{},{},{}\n", k as f64 * 0.01, k, k % 5, 2 * k, k % 3))
             .collect();
@@ -434,7 +437,6 @@ mod tests {
                 && err.contains("zeros for an input not excited"),
             "{err}"
         );
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     /// Logs whose clocks differ by parts per million share their mean rate; a file in

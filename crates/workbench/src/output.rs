@@ -560,11 +560,12 @@ fn mark(dir: &Path) -> Result<()> {
 mod tests {
     use super::*;
 
-    fn scratch(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("sim_output_{name}_{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
+    /// An empty directory `sim_output_{name}_XXXXXX` of the test's own, removed when dropped.
+    fn scratch(name: &str) -> tempfile::TempDir {
+        tempfile::Builder::new()
+            .prefix(&format!("sim_output_{name}_"))
+            .tempdir()
+            .unwrap()
     }
 
     /// The entries of `root` other than `known` (an old output moved aside, say).
@@ -582,7 +583,8 @@ mod tests {
 
     #[test]
     fn a_directory_holding_the_inputs_is_never_replaced() {
-        let dir = scratch("inputs_dir");
+        let tmp = scratch("inputs_dir");
+        let dir = tmp.path().to_path_buf();
         let input = dir.join("run.mcap");
         std::fs::write(&input, b"\x89MCAP0\r\n").unwrap();
         let err = write_dir_atomically(&dir, std::slice::from_ref(&dir), |d| {
@@ -598,24 +600,24 @@ mod tests {
         assert!(input.exists());
         let names: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
         assert_eq!(names.len(), 1, "no temporary left behind");
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
     fn a_missing_parent_is_refused_and_nothing_is_created() {
-        let root = scratch("no_parent");
+        let tmp = scratch("no_parent");
+        let root = tmp.path().to_path_buf();
         let dir = root.join("typo").join("sub").join("report");
         let err = write_dir_atomically(&dir, &[], |d| write_text("x")(&d.join("index.html")))
             .unwrap_err();
         assert!(err.to_string().contains("does not exist"), "{err}");
         assert_eq!(err.exit_code(), 2);
         assert!(!root.join("typo").exists());
-        std::fs::remove_dir_all(&root).unwrap();
     }
 
     #[test]
     fn a_directory_it_wrote_is_replaced_unless_something_was_added() {
-        let root = scratch("own_dir");
+        let tmp = scratch("own_dir");
+        let root = tmp.path().to_path_buf();
         let dir = root.join("report");
         write_dir_atomically(&dir, &[], |d| write_text("1")(&d.join("index.html"))).unwrap();
         write_dir_atomically(&dir, &[], |d| write_text("2")(&d.join("index.html"))).unwrap();
@@ -633,7 +635,6 @@ mod tests {
         );
         // Only the report itself is left in the parent (no temporaries, no old copies).
         assert_eq!(std::fs::read_dir(&root).unwrap().count(), 1);
-        std::fs::remove_dir_all(&root).unwrap();
     }
 
     /// A file a user adds to an old report while the new one is being written is kept (in the
@@ -641,7 +642,8 @@ mod tests {
     /// neither written over nor removed.
     #[test]
     fn nothing_added_during_the_run_or_named_like_a_temporary_is_deleted() {
-        let root = scratch("during");
+        let tmp = scratch("during");
+        let root = tmp.path().to_path_buf();
         let dir = root.join("report");
         write_dir_atomically(&dir, &[], |d| write_text("1")(&d.join("index.html"))).unwrap();
         write_dir_atomically(&dir, &[], |d| {
@@ -671,14 +673,14 @@ mod tests {
         write_atomically(&target, Kind::Json, &[], write_text("{}")).unwrap();
         assert_eq!(std::fs::read_to_string(&squatter).unwrap(), "user data");
         assert_eq!(std::fs::read_to_string(&target).unwrap(), "{}");
-        std::fs::remove_dir_all(&root).unwrap();
     }
 
     /// A marker that names something outside the old output, or the old output itself (an
     /// empty line, `.`), removes neither: only the listed entries of the old output go.
     #[test]
     fn a_damaged_marker_removes_nothing_outside_the_listed_entries() {
-        let root = scratch("damaged_marker");
+        let tmp = scratch("damaged_marker");
+        let root = tmp.path().to_path_buf();
         let dir = root.join("report");
         write_dir_atomically(&dir, &[], |d| write_text("1")(&d.join("index.html"))).unwrap();
         let outside = root.join("mine.txt");
@@ -707,7 +709,6 @@ mod tests {
             std::fs::read_to_string(kept[0].join("added.txt")).unwrap(),
             "also mine"
         );
-        std::fs::remove_dir_all(&root).unwrap();
     }
 
     /// A listed file that a user replaced by a directory of their own is not removed with the
@@ -715,7 +716,8 @@ mod tests {
     /// the user's, and they stay in the moved-aside directory.
     #[test]
     fn a_directory_under_a_listed_name_is_kept() {
-        let root = scratch("listed_dir");
+        let tmp = scratch("listed_dir");
+        let root = tmp.path().to_path_buf();
         let dir = root.join("report");
         write_dir_atomically(&dir, &[], |d| write_text("1")(&d.join("index.html"))).unwrap();
         std::fs::remove_file(dir.join("index.html")).unwrap();
@@ -732,12 +734,12 @@ mod tests {
             std::fs::read_to_string(kept[0].join("index.html").join("notes.txt")).unwrap(),
             "mine"
         );
-        std::fs::remove_dir_all(&root).unwrap();
     }
 
     #[test]
     fn the_current_directory_is_refused_when_not_empty() {
-        let dir = scratch("dot");
+        let tmp = scratch("dot");
+        let dir = tmp.path().to_path_buf();
         std::fs::write(dir.join("keep.txt"), "x").unwrap();
         let dot = dir.join(".");
         let err = write_dir_atomically(&dot, &[], |d| write_text("x")(&d.join("a"))).unwrap_err();
@@ -752,14 +754,14 @@ mod tests {
             })
             .count();
         assert_eq!(leftovers, 0);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     /// A user's own JSON or MCAP log of the kind being written is kept: only a file this
     /// program wrote (its `written_by`, its MCAP header's library) is replaced.
     #[test]
     fn a_users_own_file_of_the_same_kind_is_refused() {
-        let dir = scratch("own_kind");
+        let tmp = scratch("own_kind");
+        let dir = tmp.path().to_path_buf();
         let config = dir.join("config.json");
         std::fs::write(&config, "{\"gain\": 3}").unwrap();
         let err = write_atomically(&config, Kind::Json, &[], write_text("{}")).unwrap_err();
@@ -795,12 +797,12 @@ mod tests {
         let own = dir.join("own.mcap");
         std::fs::write(&own, header("stabilis 0.1.0")).unwrap();
         write_atomically(&own, Kind::Mcap, &[], write_text("x")).unwrap();
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
     fn files_of_another_kind_and_inputs_are_refused() {
-        let dir = scratch("kinds");
+        let tmp = scratch("kinds");
+        let dir = tmp.path().to_path_buf();
         let csv = dir.join("data.csv");
         std::fs::write(&csv, "t,x\n0,1\n").unwrap();
         for kind in [Kind::Mcap, Kind::Json] {
@@ -822,12 +824,12 @@ mod tests {
         assert!(err.to_string().contains("is an input"), "{err}");
         assert_eq!(std::fs::read(&log).unwrap(), b"\x89MCAP0\r\nrest");
         assert_eq!(std::fs::read_to_string(&csv).unwrap(), "t,x\n0,1\n");
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
     fn outputs_that_name_the_same_path_or_lie_one_inside_the_other_are_refused() {
-        let dir = scratch("clash");
+        let tmp = scratch("clash");
+        let dir = tmp.path().to_path_buf();
         let report = dir.join("r");
         let json = dir.join("r");
         fn planned<'a>(report: &'a Path, json: &'a Path) -> [Planned<'a>; 2] {
@@ -861,12 +863,12 @@ mod tests {
         assert!(err.to_string().contains("lies inside --report"), "{err}");
         check_outputs(&planned(&report, &dir.join("r.json")), &[]).unwrap();
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
     fn a_failed_write_keeps_the_old_file_and_leaves_no_temporary() {
-        let dir = scratch("failed");
+        let tmp = scratch("failed");
+        let dir = tmp.path().to_path_buf();
         let path = dir.join("out.json");
         let (one, three) = (
             r#"{"written_by": "stabilis", "n": 1}"#,
@@ -883,6 +885,5 @@ mod tests {
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
         write_atomically(&path, Kind::Json, &[], write_text(three)).unwrap();
         assert_eq!(std::fs::read_to_string(&path).unwrap(), three);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

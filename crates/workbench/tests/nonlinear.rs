@@ -553,8 +553,11 @@ fn the_time_criterion_locates_a_missing_mode_in_frequency() {
             summary.contains("coherence with the logged excitation"),
             "{summary}"
         );
-        let dir =
-            std::env::temp_dir().join(format!("stabilis-coherence-{}-{seed}", std::process::id()));
+        let tmp = tempfile::Builder::new()
+            .prefix(&format!("stabilis-coherence-{seed}-"))
+            .tempdir()
+            .unwrap();
+        let dir = tmp.path().join("report");
         assert!(
             !dir.exists(),
             "{} is not this test's to remove",
@@ -562,7 +565,7 @@ fn the_time_criterion_locates_a_missing_mode_in_frequency() {
         );
         workbench::report::write_report(&dir, &wb, &d).unwrap();
         let html = std::fs::read_to_string(dir.join("index.html")).unwrap();
-        std::fs::remove_dir_all(&dir).unwrap();
+        drop(tmp);
         assert!(
             html.contains("theta: coherence") && !html.contains("Expected cost of the true model"),
             "seed {seed}"

@@ -438,17 +438,20 @@ mod tests {
         writer.finish().unwrap();
     }
 
-    fn temp(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("stabilis-tilt-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        dir.join(name)
+    /// A directory of the test's own, removed when dropped.
+    fn scratch() -> tempfile::TempDir {
+        tempfile::Builder::new()
+            .prefix("stabilis-tilt-")
+            .tempdir()
+            .unwrap()
     }
 
     #[test]
     fn estimates_a_simulated_log_better_than_least_squares() {
-        let path = temp("ok.mcap");
+        let dir = scratch();
+        let path = dir.path().join("ok.mcap");
         write_log(&path, |_| {});
-        let out = temp("estimates.mcap");
+        let out = dir.path().join("estimates.mcap");
         let args = Args {
             data: path,
             out: Some(out.clone()),
@@ -479,6 +482,7 @@ mod tests {
 
     #[test]
     fn bad_metadata_is_named() {
+        let dir = scratch();
         let cases: [(&str, Edit); 4] = [
             ("p3", |r| {
                 r.remove("p3");
@@ -496,7 +500,7 @@ mod tests {
             }),
         ];
         for (k, (needle, edit)) in cases.into_iter().enumerate() {
-            let path = temp(&format!("bad{k}.mcap"));
+            let path = dir.path().join(format!("bad{k}.mcap"));
             write_log(&path, edit);
             let error = Args {
                 data: path,

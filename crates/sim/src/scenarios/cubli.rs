@@ -825,14 +825,18 @@ mod tests {
 
     #[test]
     fn excited_balance_log_reads_back_with_the_design_topics() {
-        let path = std::env::temp_dir().join(format!("cubli-scenario-{}.mcap", std::process::id()));
+        let dir = tempfile::Builder::new()
+            .prefix("cubli-scenario-")
+            .tempdir()
+            .unwrap();
+        let path = dir.path().join("balance.mcap");
         let mut args = Args::new(common(4.0, Some(path.clone())), Kind::Balance);
         args.excitation_rms = 0.01;
         args.viscous = vec![1e-5; 3];
         args.gyro_bias = vec![0.01, 0.0, 0.0];
         run(&args, &mut Progress::hidden()).unwrap();
         let log = read_mcap(&path).unwrap();
-        std::fs::remove_file(&path).unwrap();
+        drop(dir);
         let input = &log.topics["/cubli/input"];
         let output = &log.topics["/cubli/output"];
         let excitation = &log.topics["/cubli/excitation"];

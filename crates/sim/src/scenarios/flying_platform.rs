@@ -414,7 +414,11 @@ mod tests {
 
     #[test]
     fn sysid_writes_eighteen_readable_experiments() {
-        let dir = std::env::temp_dir().join(format!("stabilis_fp_sysid_{}", std::process::id()));
+        let tmp = tempfile::Builder::new()
+            .prefix("stabilis_fp_sysid_")
+            .tempdir()
+            .unwrap();
+        let dir = tmp.path().join("sysid");
         let dir_arg = dir.display().to_string();
         let system = SimSystem::parse_args(
             "flying-platform",
@@ -453,7 +457,6 @@ mod tests {
                 );
             }
         }
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -247,9 +247,11 @@ mod tests {
 
     #[test]
     fn short_run_logs_every_topic_and_reports_the_design() {
-        let dir = std::env::temp_dir().join(format!("stabilis-platoon-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let out = dir.join("run.mcap");
+        let dir = tempfile::Builder::new()
+            .prefix("stabilis-platoon-")
+            .tempdir()
+            .unwrap();
+        let out = dir.path().join("run.mcap");
         let out_arg = out.to_string_lossy().to_string();
         let args = [
             "--vehicles",
@@ -274,7 +276,6 @@ mod tests {
         assert!((c_star - 0.010205).abs() / 0.010205 < 0.01);
         let log = crate::log::read_mcap(&out).unwrap();
         assert!(log.topic("/platoon/transmit").is_ok());
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     /// The summary of a platoon run with `args`.

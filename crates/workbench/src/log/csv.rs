@@ -9,9 +9,10 @@ use crate::error::{Result, SimError};
 /// Reads the CSV file at `path` into a table named after the file.
 ///
 /// ```
-/// let path = std::env::temp_dir().join("sim_doc_read.csv");
+/// let path = std::env::temp_dir().join(format!("sim_doc_read_{}.csv", std::process::id()));
 /// std::fs::write(&path, "t,x\n0,1.5\n0.1,2.5\n").unwrap();
 /// let table = workbench::log::read_csv(&path).unwrap();
+/// std::fs::remove_file(&path).unwrap();
 /// assert_eq!(table.column("x").unwrap(), &[1.5, 2.5]);
 /// ```
 pub fn read_csv(path: impl AsRef<Path>) -> Result<Table> {

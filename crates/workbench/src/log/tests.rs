@@ -7,10 +7,12 @@ use proptest::prelude::*;
 use super::*;
 use crate::error::SimError;
 
-fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("workbench-log-tests-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+/// A directory of the test's own, removed with its files when dropped.
+fn scratch() -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix("workbench-log-tests-")
+        .tempdir()
+        .unwrap()
 }
 
 /// Writes `n` messages of a ramp on one topic (x = 2 t, v = -t) and returns the writer unfinished.
@@ -43,7 +45,8 @@ fn check_ramp(log: &Log, n: usize) {
 
 #[test]
 fn finished_log_reads_back_with_metadata() {
-    let path = temp("finished.mcap");
+    let dir = scratch();
+    let path = dir.path().join("finished.mcap");
     ramp(&path, 300, DEFAULT_FLUSH_EVERY).finish().unwrap();
     let log = read_mcap(&path).unwrap();
     assert!(log.complete && log.problem.is_none());
@@ -60,7 +63,8 @@ fn temporary(path: &std::path::Path) -> PathBuf {
 
 #[test]
 fn dropped_writer_keeps_the_previous_log_and_leaves_no_temporary() {
-    let path = temp("dropped.mcap");
+    let dir = scratch();
+    let path = dir.path().join("dropped.mcap");
     ramp(&path, 5, DEFAULT_FLUSH_EVERY).finish().unwrap();
     drop(ramp(&path, 250, DEFAULT_FLUSH_EVERY));
     check_ramp(&read_mcap(&path).unwrap(), 5);
@@ -69,7 +73,8 @@ fn dropped_writer_keeps_the_previous_log_and_leaves_no_temporary() {
 
 #[test]
 fn panic_while_writing_keeps_the_previous_log() {
-    let path = temp("panicked.mcap");
+    let dir = scratch();
+    let path = dir.path().join("panicked.mcap");
     ramp(&path, 7, DEFAULT_FLUSH_EVERY).finish().unwrap();
     let moved = path.clone();
     let result = std::panic::catch_unwind(move || {
@@ -88,7 +93,8 @@ fn killed_writer_keeps_the_previous_log_and_leaves_every_flushed_chunk_beside_it
     // Forgetting the writer skips every destructor, as a killed process would: buffered bytes
     // are lost, chunks already flushed must still read from the temporary file, and the log
     // at the target is the previous one.
-    let path = temp("killed.mcap");
+    let dir = scratch();
+    let path = dir.path().join("killed.mcap");
     ramp(&path, 3, DEFAULT_FLUSH_EVERY).finish().unwrap();
     std::mem::forget(ramp(&path, 1050, 100));
     check_ramp(&read_mcap(&path).unwrap(), 3);
@@ -105,13 +111,14 @@ fn killed_writer_keeps_the_previous_log_and_leaves_every_flushed_chunk_beside_it
 
 #[test]
 fn writer_refuses_to_replace_a_file_that_is_not_a_log() {
-    let path = temp("notes.mcap");
+    let dir = scratch();
+    let path = dir.path().join("notes.mcap");
     std::fs::write(&path, "my notes").unwrap();
     let err = LogWriter::create(&path).unwrap_err();
     assert!(matches!(err, SimError::UnsafeOutput { .. }), "{err}");
     assert_eq!(err.exit_code(), 2);
     assert_eq!(std::fs::read_to_string(&path).unwrap(), "my notes");
-    let log = temp("input.mcap");
+    let log = dir.path().join("input.mcap");
     ramp(&log, 2, DEFAULT_FLUSH_EVERY).finish().unwrap();
     let err = LogWriter::create_for(&log, std::slice::from_ref(&log)).unwrap_err();
     assert!(err.to_string().contains("is an input"), "{err}");
@@ -120,11 +127,12 @@ fn writer_refuses_to_replace_a_file_that_is_not_a_log() {
 
 #[test]
 fn missing_file_wrong_format_and_missing_topic_are_named() {
-    let err = read_mcap(temp("absent.mcap")).unwrap_err();
+    let dir = scratch();
+    let err = read_mcap(dir.path().join("absent.mcap")).unwrap_err();
     assert!(matches!(err, SimError::FileNotFound { .. }));
     assert!(err.to_string().starts_with("file not found: "), "{err}");
 
-    let text = temp("text.mcap");
+    let text = dir.path().join("text.mcap");
     std::fs::write(&text, "t,x\n0,1\n").unwrap();
     let err = read_mcap(&text).unwrap_err();
     assert!(err.to_string().contains("not an MCAP file"), "{err}");
@@ -134,7 +142,7 @@ fn missing_file_wrong_format_and_missing_topic_are_named() {
         SimError::NotMcap { .. }
     ));
 
-    let path = temp("topics.mcap");
+    let path = dir.path().join("topics.mcap");
     ramp(&path, 3, DEFAULT_FLUSH_EVERY).finish().unwrap();
     let err = read_mcap(&path).unwrap().topic("/demo/input").unwrap_err();
     assert!(
@@ -153,7 +161,8 @@ fn missing_file_wrong_format_and_missing_topic_are_named() {
 
 #[test]
 fn writer_refuses_bad_messages() {
-    let mut log = LogWriter::create(temp("refused.mcap")).unwrap();
+    let dir = scratch();
+    let mut log = LogWriter::create(dir.path().join("refused.mcap")).unwrap();
     let topic = log.add_topic("/demo/output", &["x", "v"]).unwrap();
     let err = log.write(topic, 0.0, &[1.0, f64::NAN]).unwrap_err();
     assert!(err.to_string().contains("field \"v\""), "{err}");
@@ -172,9 +181,9 @@ fn writer_refuses_bad_messages() {
     assert!(log.add_topic("/demo/other", &["y", "y"]).is_err());
 }
 
-/// Writes raw JSON messages with the mcap crate, as another tool might.
-fn raw_log(name: &str, schema: &str, messages: &[&str]) -> PathBuf {
-    let path = temp(name);
+/// Writes raw JSON messages with the mcap crate, as another tool might, to `name` in `dir`.
+fn raw_log(dir: &std::path::Path, name: &str, schema: &str, messages: &[&str]) -> PathBuf {
+    let path = dir.join(name);
     let mut writer = mcap::Writer::new(std::io::BufWriter::new(
         std::fs::File::create(&path).unwrap(),
     ))
@@ -204,7 +213,9 @@ const SCHEMA: &str = r#"{"type":"object","properties":{"t":{"type":"number"},"b"
 
 #[test]
 fn foreign_logs_read_by_schema_and_bad_values_are_named() {
+    let dir = scratch();
     let path = raw_log(
+        dir.path(),
         "foreign.mcap",
         SCHEMA,
         &[
@@ -219,7 +230,12 @@ fn foreign_logs_read_by_schema_and_bad_values_are_named() {
     assert_eq!(table.column("b").unwrap(), &[2.0, 4.0]);
     assert_eq!(table.t, [0.0, 0.5]);
 
-    let path = raw_log("missing-field.mcap", SCHEMA, &[r#"{"t":0,"a":1}"#]);
+    let path = raw_log(
+        dir.path(),
+        "missing-field.mcap",
+        SCHEMA,
+        &[r#"{"t":0,"a":1}"#],
+    );
     let err = read_mcap(&path).unwrap_err();
     assert!(
         err.to_string()
@@ -227,14 +243,19 @@ fn foreign_logs_read_by_schema_and_bad_values_are_named() {
         "{err}"
     );
 
-    let path = raw_log("null.mcap", SCHEMA, &[r#"{"t":0,"a":null,"b":1}"#]);
+    let path = raw_log(
+        dir.path(),
+        "null.mcap",
+        SCHEMA,
+        &[r#"{"t":0,"a":null,"b":1}"#],
+    );
     let err = read_mcap(&path).unwrap_err();
     assert_eq!(
         err.to_string(),
         "field \"a\" in /raw at t = 0 is not a finite number: null"
     );
 
-    let path = raw_log("no-t.mcap", SCHEMA, &[r#"{"a":1,"b":1}"#]);
+    let path = raw_log(dir.path(), "no-t.mcap", SCHEMA, &[r#"{"a":1,"b":1}"#]);
     let err = read_mcap(&path).unwrap_err();
     assert!(
         err.to_string()
@@ -242,7 +263,7 @@ fn foreign_logs_read_by_schema_and_bad_values_are_named() {
         "{err}"
     );
 
-    let path = raw_log("not-json.mcap", SCHEMA, &["[1, 2]"]);
+    let path = raw_log(dir.path(), "not-json.mcap", SCHEMA, &["[1, 2]"]);
     let err = read_mcap(&path).unwrap_err();
     assert!(
         err.to_string()
@@ -251,14 +272,20 @@ fn foreign_logs_read_by_schema_and_bad_values_are_named() {
     );
 
     // No usable schema: the fields are the numbers of the first message.
-    let path = raw_log("schemaless.mcap", "{}", &[r#"{"t":1,"z":5,"y":6}"#]);
+    let path = raw_log(
+        dir.path(),
+        "schemaless.mcap",
+        "{}",
+        &[r#"{"t":1,"z":5,"y":6}"#],
+    );
     let table = read_mcap(&path).unwrap().topic("/raw").unwrap().clone();
     assert_eq!(table.fields, ["y", "z"]);
 }
 
 #[test]
 fn csv_reads_into_the_same_table() {
-    let path = temp("good.csv");
+    let dir = scratch();
+    let path = dir.path().join("good.csv");
     std::fs::write(&path, "x, t ,v\n1,0,2\n3,0.5,4\n").unwrap();
     let table = read_csv(&path).unwrap();
     assert_eq!(table.fields, ["x", "v"]);
@@ -270,7 +297,8 @@ fn csv_reads_into_the_same_table() {
 /// read as the comma-separated file does.
 #[test]
 fn csv_delimiters_comments_and_line_ends_read_alike() {
-    let comma = temp("comma.csv");
+    let dir = scratch();
+    let comma = dir.path().join("comma.csv");
     std::fs::write(&comma, "t,x,v\n0,1.5,2\n0.5,-3,4e-3\n").unwrap();
     let want = read_csv(&comma).unwrap();
     for (name, text) in [
@@ -282,7 +310,7 @@ fn csv_delimiters_comments_and_line_ends_read_alike() {
         ),
         ("crlf.csv", "t,x,v\r\n0,1.5,2\r\n0.5,-3,4e-3\r\n"),
     ] {
-        let path = temp(name);
+        let path = dir.path().join(name);
         std::fs::write(&path, text).unwrap();
         let table = read_csv(&path).unwrap();
         assert_eq!(table.fields, want.fields, "{name}");
@@ -297,6 +325,7 @@ fn csv_delimiters_comments_and_line_ends_read_alike() {
 
 #[test]
 fn csv_errors_are_named() {
+    let dir = scratch();
     let cases = [
         (
             "no-t.csv",
@@ -318,13 +347,13 @@ fn csv_errors_are_named() {
         ),
     ];
     for (name, text, expected) in cases {
-        let path = temp(name);
+        let path = dir.path().join(name);
         std::fs::write(&path, text).unwrap();
         let err = read_csv(&path).unwrap_err();
         assert!(err.to_string().contains(expected), "{name}: {err}");
     }
     assert!(matches!(
-        read_csv(temp("absent.csv")).unwrap_err(),
+        read_csv(dir.path().join("absent.csv")).unwrap_err(),
         SimError::FileNotFound { .. }
     ));
 }
@@ -357,7 +386,8 @@ proptest! {
     /// Every finite f64 survives the JSON text of a message bit for bit.
     #[test]
     fn values_round_trip_exactly(values in proptest::collection::vec(proptest::num::f64::NORMAL | proptest::num::f64::SUBNORMAL | proptest::num::f64::ZERO, 1..40)) {
-        let path = temp("prop.mcap");
+        let dir = scratch();
+        let path = dir.path().join("prop.mcap");
         let mut log = LogWriter::create(&path).unwrap();
         let topic = log.add_topic("/p/q", &["value"]).unwrap();
         for (k, v) in values.iter().enumerate() {
@@ -413,7 +443,8 @@ fn chunk_offsets(bytes: &[u8]) -> Vec<usize> {
 
 #[test]
 fn a_flipped_bit_in_compressed_data_fails_the_chunk_crc() {
-    let path = temp("crc.mcap");
+    let dir = scratch();
+    let path = dir.path().join("crc.mcap");
     ramp(&path, 1200, 200).finish().unwrap();
     let bytes = std::fs::read(&path).unwrap();
     let chunk = chunk_offsets(&bytes)[2];
@@ -454,7 +485,8 @@ fn a_flipped_bit_in_compressed_data_fails_the_chunk_crc() {
 
 #[test]
 fn a_corrupt_chunk_size_is_an_error_before_any_allocation() {
-    let path = temp("size.mcap");
+    let dir = scratch();
+    let path = dir.path().join("size.mcap");
     ramp(&path, 1200, 200).finish().unwrap();
     let bytes = std::fs::read(&path).unwrap();
     let chunk = chunk_offsets(&bytes)[1];
@@ -474,7 +506,8 @@ fn a_corrupt_chunk_size_is_an_error_before_any_allocation() {
 
 #[test]
 fn times_out_of_order_or_off_their_log_time_are_named_errors() {
-    let path = temp("order.mcap");
+    let dir = scratch();
+    let path = dir.path().join("order.mcap");
     let mut log = LogWriter::create(&path).unwrap();
     let topic = log.add_topic("/demo/output", &["x"]).unwrap();
     for t in [0.0, 0.02, 0.01] {
@@ -508,7 +541,7 @@ fn times_out_of_order_or_off_their_log_time_are_named_errors() {
         w.finish().unwrap();
     };
     let epoch = 1_700_000_000_000_000_000u64;
-    let wall = temp("wall.mcap");
+    let wall = dir.path().join("wall.mcap");
     write(&wall, &[(0.0, epoch), (0.5, epoch + 500_000_000)]);
     assert_eq!(
         read_mcap(&wall)
@@ -518,7 +551,7 @@ fn times_out_of_order_or_off_their_log_time_are_named_errors() {
             .len(),
         2
     );
-    let off = temp("off.mcap");
+    let off = dir.path().join("off.mcap");
     write(&off, &[(0.0, epoch), (0.5, epoch + 900_000_000)]);
     let err = read_mcap(&off).unwrap_err().to_string();
     assert!(err.contains("log_time"), "{err}");
@@ -526,7 +559,8 @@ fn times_out_of_order_or_off_their_log_time_are_named_errors() {
 
 #[test]
 fn a_csv_with_a_repeated_column_is_refused() {
-    let path = temp("twice.csv");
+    let dir = scratch();
+    let path = dir.path().join("twice.csv");
     std::fs::write(&path, "t,x,x\n0,1,2\n").unwrap();
     let err = read_csv(&path).unwrap_err().to_string();
     assert!(err.contains("\"x\" appears twice"), "{err}");
@@ -578,11 +612,12 @@ fn a_gap_is_named_where_it_is() {
 
 #[test]
 fn the_same_log_twice_is_refused() {
-    let a = temp("once.mcap");
+    let dir = scratch();
+    let a = dir.path().join("once.mcap");
     ramp(&a, 3, DEFAULT_FLUSH_EVERY).finish().unwrap();
-    let copy = temp("copy.mcap");
+    let copy = dir.path().join("copy.mcap");
     std::fs::copy(&a, &copy).unwrap();
-    let other = temp("other.mcap");
+    let other = dir.path().join("other.mcap");
     ramp(&other, 4, DEFAULT_FLUSH_EVERY).finish().unwrap();
     assert!(refuse_repeats(&[a.clone(), other.clone()]).is_ok());
     for repeat in [

@@ -33,13 +33,14 @@ struct Topic {
 ///
 /// ```
 /// use workbench::log::{LogWriter, read_mcap};
-/// let path = std::env::temp_dir().join("sim_doc_writer.mcap");
+/// let path = std::env::temp_dir().join(format!("sim_doc_writer_{}.mcap", std::process::id()));
 /// let mut log = LogWriter::create(&path).unwrap();
 /// let output = log.add_topic("/demo/output", &["x"]).unwrap();
 /// log.write(output, 0.0, &[1.0]).unwrap();
 /// log.write(output, 0.5, &[2.0]).unwrap();
 /// log.finish().unwrap();
 /// let read = read_mcap(&path).unwrap();
+/// std::fs::remove_file(&path).unwrap();
 /// assert_eq!(read.topic("/demo/output").unwrap().column("x").unwrap(), &[1.0, 2.0]);
 /// ```
 pub struct LogWriter {
