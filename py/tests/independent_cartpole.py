@@ -80,6 +80,7 @@ class Plant:
     flex_mass: float = 0.05  # its mass, kg
     offset_x: float = 0.0  # constant offset of the cart position sensor, m
     offset_theta: float = 0.0  # constant offset of the pole angle sensor, rad
+    theta_lag: float = 0.0  # first-order low-pass of the pole angle sensor, s (0: none)
 
 
 def documented_plant() -> Plant:
@@ -188,11 +189,17 @@ def controller_toml(ctrl: Controller) -> str:
 
 
 def _extra_states(p: Plant) -> int:
-    return (1 if p.tau > 0 else 0) + (2 if p.flex_hz > 0 else 0)
+    return (1 if p.tau > 0 else 0) + (2 if p.flex_hz > 0 else 0) + (1 if p.theta_lag > 0 else 0)
+
+
+def _angle_sensed(p: Plant) -> int:
+    """The state the angle sensor reads: the pole angle, or its low-pass (the last state)."""
+    return 4 + _extra_states(p) - 1 if p.theta_lag > 0 else 2
 
 
 def derivative(p: Plant, s: list[float], f_in: float, w: float, torque: float) -> list[float]:
-    """ds/dt of the state [x, xdot, theta, thetadot, (lag force), (appendage q, q')]."""
+    """ds/dt of the state [x, xdot, theta, thetadot, (lag force), (appendage q, q'), (sensed
+    angle)]."""
     x, xd, th, thd = s[0], s[1], s[2], s[3]
     out = [xd, 0.0, thd, 0.0]
     i = 4
@@ -219,6 +226,8 @@ def derivative(p: Plant, s: list[float], f_in: float, w: float, torque: float) -
     out[3] = (a11 * rhs2 - a12 * rhs1) / det
     if p.flex_hz > 0:  # q'' = -x'' - spring / m_f (q relative to the cart)
         out += [s[i + 1], -out[1] - spring / p.flex_mass]
+    if p.theta_lag > 0:  # the angle sensor's low-pass, the last state
+        out.append((th - s[-1]) / p.theta_lag)
     return out
 
 
@@ -272,7 +281,7 @@ def linear_closed_loop(cfg: Config, ctrl: Controller) -> tuple[np.ndarray, np.nd
     _, g_phi = zoh(a, b, phi)
     g1 = e_rest @ g_phi  # effect of u[k-d-1], held over the first phi of the interval
     c = np.zeros((2, n))
-    c[0, 0] = c[1, 2] = 1.0
+    c[0, 0] = c[1, _angle_sensed(cfg.plant)] = 1.0
     nc = ctrl.A.shape[0]
     lags = n + nc  # u[k-1] .. u[k-d-1] at lags .. lags + d
     nz = lags + d + 1
@@ -310,7 +319,7 @@ def sampled_frf(p: Plant, freqs_hz: np.ndarray, ts: float) -> np.ndarray:
     _, g_phi = zoh(a, b, phi)
     g1 = e_rest @ g_phi
     c = np.zeros((2, n))
-    c[0, 0] = c[1, 2] = 1.0
+    c[0, 0] = c[1, _angle_sensed(p)] = 1.0
     z = np.exp(2j * np.pi * np.asarray(freqs_hz) * ts)[:, None, None]
     rhs = (g0 + g1 / z) * z ** -d
     return (c @ np.linalg.solve(z * np.eye(n) - phi_full, rhs))[:, :, 0]
@@ -380,6 +389,7 @@ def simulate(cfg: Config) -> list[Run]:
               max(1, math.ceil(cfg.substeps * h / ts - 1e-9)), lag) for h, lag in parts]
     ac, bc, cc, dc = (np.asarray(m, float) for m in (ctrl.A, ctrl.B, ctrl.C, ctrl.D))
     offset = np.array([p.offset_x, p.offset_theta])
+    sensed = _angle_sensed(p)
     runs = []
     for e in range(1, cfg.experiments + 1):
         r = multisine(cfg, rng)[n % cfg.period_samples]
@@ -393,7 +403,7 @@ def simulate(cfg: Config) -> list[Run]:
         state = np.zeros((count, 4))
         for k in range(count):
             state[k] = s[:4]
-            y[k] = (s[0], s[2])
+            y[k] = (s[0], s[sensed])
             y[k] += noise[k]
             if offset.any():  # (skipped when zero: the default logs stay bit for bit)
                 y[k] += offset

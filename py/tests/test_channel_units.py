@@ -1,7 +1,8 @@
 """Channels logged in another unit than the model's are named: the cart-pole of
 independent_cartpole.py (numpy only, no stabilis code), short campaigns (2 experiments x 4
 periods), logged as CSV with the pole angle in degrees or the cart position in millimetres
-against data/cart_pole.toml in radians and metres. The verdict is a misfit; its sentence names
+against data/cart_pole.toml in radians and metres, or the force or the angle with the opposite
+sign. The verdict is a misfit; its sentence names
 the channel and the factor at which the documented model fits. The same logs in SI units read
 explained with no such sentence. Every (case, seed) is its own case.
 """
@@ -20,18 +21,25 @@ from test_interop import run_cli
 MODEL = Path(__file__).parent / "data" / "cart_pole.toml"
 SEEDS = (1, 2, 3)
 CASES = {
-    "si": ((1.0, 1.0), None),
-    "degrees": ((1.0, 180.0 / math.pi), "with output theta scaled by 57.3: is it logged in the "
-                "model's unit (degrees against radians?)"),
-    "millimetres": ((1000.0, 1.0), "with output x scaled by 1000.0: is it logged in the model's "
-                    "unit (mm against m"),
+    "si": ((1.0, 1.0, 1.0), None),
+    "degrees": ((1.0, 1.0, 180.0 / math.pi), "with output theta scaled by 57.3: is it logged in "
+                "the model's unit (degrees against radians?)"),
+    "millimetres": ((1.0, 1000.0, 1.0), "with output x scaled by 1000.0: is it logged in the "
+                    "model's unit (mm against m"),
+    # A force logged with the opposite sign (the motor wired the other way round): flipping the
+    # one input is flipping every output, and the input is named first.
+    "sign": ((-1.0, 1.0, 1.0), "with input F scaled by -1.0: is its sign flipped (wiring, a "
+             "motor's direction or an axis convention?)"),
+    "angle sign": ((1.0, 1.0, -1.0), "with output theta scaled by -1.0: is its sign flipped"),
 }
 
 
-def logs(directory: Path, seed: int, scale: tuple[float, float]) -> Path:
+def logs(directory: Path, seed: int, scale: tuple[float, float, float]) -> Path:
+    """The campaign with the input F and the outputs x, theta logged times `scale`."""
     directory.mkdir()
     for i, run in enumerate(ic.simulate(ic.Config(seed=seed, experiments=2, periods=4))):
-        table = np.column_stack([run.t, run.u, run.y * np.array(scale), run.r])
+        table = np.column_stack([run.t, run.u * scale[0], run.y * np.array(scale[1:]),
+                                 run.r * scale[0]])
         np.savetxt(directory / f"exp_{i}.csv", table, delimiter=",",
                    header="t,F,x,theta,r_F", comments="", fmt="%.10g")
     return directory

@@ -618,9 +618,10 @@ const CLOCK_UNITS: [(f64, &str); 10] = [
     (10.0, "a sample rate a tenth of the declared one?"),
 ];
 
-/// Factors a channel logged in another unit makes (the logged value against the model's) and
-/// the confusion each stands for.
-const CHANNEL_UNITS: [(f64, &str); 8] = [
+/// Factors a channel logged in another unit or sign makes (the logged value against the
+/// model's) and the confusion each stands for.
+const CHANNEL_UNITS: [(f64, &str); 9] = [
+    (-1.0, "wiring, a motor's direction or an axis convention"),
     (180.0 / std::f64::consts::PI, "degrees against radians"),
     (std::f64::consts::PI / 180.0, "radians against degrees"),
     (30.0 / std::f64::consts::PI, "rpm against rad/s"),
@@ -750,17 +751,19 @@ impl Workbench {
             }
         }
         let (v, c, what, name) = best?;
+        let plural = name.contains(", ");
+        let question = match (c < 0.0, plural) {
+            (true, false) => "is its sign flipped",
+            (true, true) => "are their signs flipped",
+            (false, false) => "is it logged in the model's unit",
+            (false, true) => "are they logged in the model's unit",
+        };
         Some((
             v,
             format!(
-                "{} with {name} scaled by {}: {} logged in the model's unit ({what}?)",
+                "{} with {name} scaled by {}: {question} ({what}?)",
                 self.better(v, own),
                 fmt_ratio(c),
-                if name.contains(", ") {
-                    "are they"
-                } else {
-                    "is it"
-                }
             ),
         ))
     }
@@ -789,7 +792,8 @@ impl Workbench {
             .map(|(_, sentence)| sentence)
     }
 
-    /// The [`far_from_documented`] warning, with the [sentence](Self::rescaled_sentence)
+    /// The [`far_from_documented`] warning on the parameters of the starting model (not those
+    /// of the effects the discovery added), with the [sentence](Self::rescaled_sentence)
     /// naming a clock or channels in another unit when the documented model fits the logs
     /// rescaled; that sentence alone after a verdict of misfit (a cart-pole's angle logged in
     /// degrees left a misfit 415 times the noise with every parameter near its documented
@@ -800,7 +804,19 @@ impl Workbench {
         params: &[ParamEstimate],
         unexplained: bool,
     ) -> Result<(Option<String>, bool)> {
-        let far = far_from_documented(model, params)?;
+        // A candidate's documented value is where its fit starts, not a measured property: an
+        // axle damping found at 1/40 of its guess is no sign of a bent fit.
+        let start = self.model.enabled();
+        let mut discovered = Vec::new();
+        for e in model.enabled().iter().filter(|e| !start.contains(e)) {
+            discovered.extend(model.effect_parameters(e)?);
+        }
+        let own: Vec<ParamEstimate> = params
+            .iter()
+            .filter(|p| !discovered.contains(&p.name))
+            .cloned()
+            .collect();
+        let far = far_from_documented(model, &own)?;
         if far.is_none() && !unexplained {
             return Ok((None, false));
         }

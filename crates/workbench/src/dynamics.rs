@@ -32,6 +32,21 @@ pub trait Dynamics: Send + Sync + std::fmt::Debug {
     fn input_lag(&self) -> Option<f64> {
         None
     }
+    /// `(output, tau)` of each first-order lag on one output ([`LaggedOutput`]), in the order
+    /// of their states, which are the model's last; the predictor integrates them exactly.
+    fn output_lags(&self) -> Vec<(usize, f64)> {
+        Vec::new()
+    }
+    /// The outputs before any output lag: what each lag filters.
+    fn h_unlagged(
+        &self,
+        x: &[f64],
+        u: &[f64],
+        y: &mut [f64],
+        scratch: &mut Vec<f64>,
+    ) -> Result<()> {
+        self.h(x, u, y, scratch)
+    }
 }
 
 /// A constant offset on every output: `y = h(x, u) + bias`.
@@ -87,6 +102,22 @@ impl Dynamics for OutputBias {
     fn input_lag(&self) -> Option<f64> {
         self.inner.input_lag()
     }
+    fn output_lags(&self) -> Vec<(usize, f64)> {
+        self.inner.output_lags()
+    }
+    fn h_unlagged(
+        &self,
+        x: &[f64],
+        u: &[f64],
+        y: &mut [f64],
+        scratch: &mut Vec<f64>,
+    ) -> Result<()> {
+        self.inner.h_unlagged(x, u, y, scratch)?;
+        for (y, b) in y.iter_mut().zip(&self.bias) {
+            *y += b;
+        }
+        Ok(())
+    }
 }
 
 /// A first-order lag on every input: states `(x, x_a)`, `x_a' = (u - x_a) / tau`, the plant
@@ -109,6 +140,13 @@ impl LaggedInputs {
                 "tau",
                 tau,
                 "the model already has an input lag",
+            ));
+        }
+        if !inner.output_lags().is_empty() {
+            return Err(SimError::invalid(
+                "tau",
+                tau,
+                "an input lag must wrap the model inside its output lags (their states come last)",
             ));
         }
         Ok(Self {
@@ -200,5 +238,118 @@ impl Dynamics for DelayedInputs {
     }
     fn input_lag(&self) -> Option<f64> {
         self.inner.input_lag()
+    }
+    fn output_lags(&self) -> Vec<(usize, f64)> {
+        self.inner.output_lags()
+    }
+    fn h_unlagged(
+        &self,
+        x: &[f64],
+        u: &[f64],
+        y: &mut [f64],
+        scratch: &mut Vec<f64>,
+    ) -> Result<()> {
+        self.inner.h_unlagged(x, u, y, scratch)
+    }
+}
+
+/// A first-order lag on output `output`: state `x_s' = (h_i(x, u) - x_s) / tau` appended to
+/// the inner model's, reported in place of `h_i`.
+#[derive(Debug)]
+pub struct LaggedOutput {
+    inner: Box<dyn Dynamics>,
+    output: usize,
+    rate: f64,
+}
+
+impl LaggedOutput {
+    /// `inner` with its output `output` behind a lag of time constant `tau` (s, positive).
+    pub fn new(inner: Box<dyn Dynamics>, output: usize, tau: f64) -> Result<Self> {
+        if !(tau.is_finite() && tau > 0.0) {
+            return Err(SimError::invalid("tau", tau, "must be positive and finite"));
+        }
+        if output >= inner.outputs() {
+            return Err(SimError::invalid(
+                "output",
+                output,
+                format!("the model has {} outputs", inner.outputs()),
+            ));
+        }
+        if inner.output_lags().iter().any(|(o, _)| *o == output) {
+            return Err(SimError::invalid("output", output, "already has a lag"));
+        }
+        Ok(Self {
+            inner,
+            output,
+            rate: 1.0 / tau,
+        })
+    }
+}
+
+impl Dynamics for LaggedOutput {
+    fn states(&self) -> usize {
+        self.inner.states() + 1
+    }
+    fn inputs(&self) -> usize {
+        self.inner.inputs()
+    }
+    fn outputs(&self) -> usize {
+        self.inner.outputs()
+    }
+    fn f(&self, x: &[f64], u: &[f64], dx: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
+        let n = self.inner.states();
+        self.inner.f(&x[..n], u, &mut dx[..n], scratch)?;
+        // The predictor integrates this state exactly and never uses its derivative here;
+        // the operating point's drift check does. A small model's outputs stay on the stack.
+        let p = self.inner.outputs();
+        let mut stack = [0.0; 16];
+        let mut heap = Vec::new();
+        let y = if p <= stack.len() {
+            &mut stack[..p]
+        } else {
+            heap.resize(p, 0.0);
+            &mut heap[..]
+        };
+        self.inner.h(&x[..n], u, y, scratch)?;
+        dx[n] = (y[self.output] - x[n]) * self.rate;
+        Ok(())
+    }
+    fn h(&self, x: &[f64], u: &[f64], y: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
+        let n = self.inner.states();
+        self.inner.h(&x[..n], u, y, scratch)?;
+        y[self.output] = x[n];
+        Ok(())
+    }
+    fn operating_point(&self) -> (Vec<f64>, Vec<f64>) {
+        let (mut x, u) = self.inner.operating_point();
+        let mut y = vec![0.0; self.inner.outputs()];
+        // An operating point the inner model cannot evaluate fails at its first use.
+        let settled = self
+            .inner
+            .h(&x, &u, &mut y, &mut Vec::new())
+            .map_or(0.0, |_| y[self.output]);
+        x.push(settled);
+        (x, u)
+    }
+    fn input_delay(&self) -> f64 {
+        self.inner.input_delay()
+    }
+    fn input_lag(&self) -> Option<f64> {
+        self.inner.input_lag()
+    }
+    fn output_lags(&self) -> Vec<(usize, f64)> {
+        let mut lags = self.inner.output_lags();
+        lags.push((self.output, 1.0 / self.rate));
+        lags
+    }
+    fn h_unlagged(
+        &self,
+        x: &[f64],
+        u: &[f64],
+        y: &mut [f64],
+        scratch: &mut Vec<f64>,
+    ) -> Result<()> {
+        self.inner
+            .h_unlagged(&x[..self.inner.states()], u, y, scratch)
     }
 }

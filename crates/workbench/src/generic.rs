@@ -1,20 +1,21 @@
 //! Effects every model gets as discovery candidates, whatever its system: a first-order lag
 //! on every input (`actuator_lag`, time constant `tau`), a transport delay of every input
-//! (`input_delay`, `td`), and for a nonlinear model a constant offset on every output
-//! (`sensor_bias`, `bias_<output>`). A structure that declares an effect of the same name (the
-//! flying platform does) keeps its own.
+//! (`input_delay`, `td`), with several outputs a first-order lag on each output alone
+//! (`sensor_lag_<output>`, `tau_<output>`), and for a nonlinear model a constant offset on
+//! every output (`sensor_bias`, `bias_<output>`). A structure that declares an effect of the
+//! same name (the flying platform does) keeps its own.
 use std::sync::Arc;
 
 use nalgebra::DMatrix;
 
 use super::dataset::Dataset;
-use super::dynamics::{DelayedInputs, Dynamics, LaggedInputs, OutputBias};
+use super::dynamics::{DelayedInputs, Dynamics, LaggedInputs, LaggedOutput, OutputBias};
 use super::model::{Effect, ModelStructure, Parameter, StateSpace};
 use crate::error::Result;
 
-/// `x_a' = (u - x_a) / tau` for every input, the plant driven by `x_a`.
+/// The range a lag's time constant `tau` is searched in, and where its fit starts.
 #[derive(Debug, Clone, Copy)]
-pub struct ActuatorLag {
+struct LagRange {
     /// Smallest `tau` searched, s.
     min_tau: f64,
     /// Longest `tau` searched, s.
@@ -23,9 +24,9 @@ pub struct ActuatorLag {
     start: f64,
 }
 
-impl Default for ActuatorLag {
+impl Default for LagRange {
     /// For a model without data (listing its candidates): `tau` from 0.1 ms to 0.5 s. The
-    /// workbench sizes the bounds to the data ([`ActuatorLag::for_data`]).
+    /// workbench sizes the bounds to the data ([`LagRange::for_data`]).
     fn default() -> Self {
         Self {
             min_tau: 1e-4,
@@ -35,7 +36,7 @@ impl Default for ActuatorLag {
     }
 }
 
-impl ActuatorLag {
+impl LagRange {
     /// For data at sample period `t` whose closest frequency lines are `resolution` Hz apart:
     /// `tau` from 1e-4 `t`, where the lag shifts the response by less than 2.5e-4 rad up to
     /// 0.4 times the sample rate, so the lagged model nests the one without and its fit can
@@ -48,7 +49,7 @@ impl ActuatorLag {
     /// longer one only scales the response in the band. (A bound fixed at 0.5 s left a
     /// reactor's 3 s thermocouple lag at 1 s sampling on the bound.) The fit starts at one
     /// sample period.
-    pub fn for_data(t: f64, resolution: f64) -> Self {
+    fn for_data(t: f64, resolution: f64) -> Self {
         let min_tau = 1e-4 * t;
         let max_tau = (1.0 / (2.0 * std::f64::consts::PI * resolution)).max(2.0 * t);
         Self {
@@ -56,6 +57,72 @@ impl ActuatorLag {
             max_tau,
             start: t,
         }
+    }
+
+    /// The parameter `name` over this range.
+    fn parameter(&self, name: String) -> Parameter {
+        Parameter::new(
+            name,
+            self.start.clamp(self.min_tau, self.max_tau),
+            self.min_tau,
+            self.max_tau,
+            "s",
+        )
+    }
+}
+
+/// `x_a' = (u - x_a) / tau` for every input, the plant driven by `x_a`.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ActuatorLag(LagRange);
+
+impl ActuatorLag {
+    /// For data at sample period `t` whose closest frequency lines are `resolution` Hz apart
+    /// (see [`LagRange::for_data`]). Without data ([`Default`]): `tau` from 0.1 ms to 0.5 s.
+    pub fn for_data(t: f64, resolution: f64) -> Self {
+        Self(LagRange::for_data(t, resolution))
+    }
+}
+
+/// `y_s' = (h_i(x, u) - y_s) / tau` on one output `i`, reported in its place: a sensor's own
+/// filter (a gyro's low-pass, an estimator behind an encoder), and the closest first-order
+/// reading of a short sensor delay. Offered per output when the model has several: with one
+/// output it is the actuator lag's twin in every response from the inputs.
+#[derive(Debug, Clone)]
+pub struct SensorLag {
+    output: usize,
+    /// `sensor_lag_<output>`.
+    name: String,
+    /// `tau_<output>`.
+    parameter: String,
+    range: LagRange,
+}
+
+impl SensorLag {
+    /// A lag on each of `outputs`, for a model without data (`tau` from 0.1 ms to 0.5 s);
+    /// none for a single output.
+    pub fn for_outputs(outputs: &[String]) -> Vec<Self> {
+        Self::each(outputs, LagRange::default())
+    }
+
+    /// A lag on each of `outputs` over the range of [`ActuatorLag::for_data`].
+    pub fn for_data(outputs: &[String], t: f64, resolution: f64) -> Vec<Self> {
+        Self::each(outputs, LagRange::for_data(t, resolution))
+    }
+
+    fn each(outputs: &[String], range: LagRange) -> Vec<Self> {
+        if outputs.len() < 2 {
+            return Vec::new();
+        }
+        outputs
+            .iter()
+            .enumerate()
+            .map(|(output, o)| Self {
+                output,
+                name: format!("sensor_lag_{o}"),
+                parameter: format!("tau_{o}"),
+                range,
+            })
+            .collect()
     }
 }
 
@@ -189,13 +256,7 @@ impl Effect for ActuatorLag {
     }
 
     fn parameters(&self) -> Vec<Parameter> {
-        vec![Parameter::new(
-            "tau",
-            self.start.clamp(self.min_tau, self.max_tau),
-            self.min_tau,
-            self.max_tau,
-            "s",
-        )]
+        vec![self.0.parameter("tau".into())]
     }
 
     fn qualified_names(&self) -> bool {
@@ -229,6 +290,61 @@ impl Effect for ActuatorLag {
 
     fn apply_dynamics(&self, theta: &[f64], inner: Box<dyn Dynamics>) -> Result<Box<dyn Dynamics>> {
         Ok(Box::new(LaggedInputs::new(inner, theta[0])?))
+    }
+}
+
+impl Effect for SensorLag {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn description(&self) -> &str {
+        "first-order lag on one output (a sensor's filter, or a short sensor delay)"
+    }
+
+    fn parameters(&self) -> Vec<Parameter> {
+        vec![self.range.parameter(self.parameter.clone())]
+    }
+
+    fn qualified_names(&self) -> bool {
+        false
+    }
+
+    fn apply(&self, theta: &[f64], ss: &mut StateSpace) -> Result<()> {
+        let (n, m, p) = (ss.a.nrows(), ss.b.ncols(), ss.c.nrows());
+        let (i, rate) = (self.output, 1.0 / theta[0]);
+        let mut a = DMatrix::zeros(n + 1, n + 1);
+        a.view_mut((0, 0), (n, n)).copy_from(&ss.a);
+        for j in 0..n {
+            a[(n, j)] = rate * ss.c[(i, j)];
+        }
+        a[(n, n)] = -rate;
+        let mut b = DMatrix::zeros(n + 1, m);
+        b.view_mut((0, 0), (n, m)).copy_from(&ss.b);
+        for j in 0..m {
+            b[(n, j)] = rate * ss.d[(i, j)];
+        }
+        let mut c = DMatrix::zeros(p, n + 1);
+        c.view_mut((0, 0), (p, n)).copy_from(&ss.c);
+        c.row_mut(i).fill(0.0);
+        c[(i, n)] = 1.0;
+        ss.d.row_mut(i).fill(0.0);
+        ss.a = a;
+        ss.b = b;
+        ss.c = c;
+        Ok(())
+    }
+
+    fn has_dynamics(&self) -> bool {
+        true
+    }
+
+    fn apply_dynamics(&self, theta: &[f64], inner: Box<dyn Dynamics>) -> Result<Box<dyn Dynamics>> {
+        Ok(Box::new(LaggedOutput::new(inner, self.output, theta[0])?))
+    }
+
+    fn filters_outputs(&self) -> bool {
+        true
     }
 }
 
@@ -266,12 +382,16 @@ impl Effect for InputDelay {
 /// The generic effects `structure` does not declare itself (the sensor bias only for a
 /// nonlinear structure: the linear path compares deviations, where an offset cannot show).
 pub fn for_structure(structure: &dyn ModelStructure) -> Vec<Arc<dyn Effect>> {
+    let outputs = structure.outputs();
     let mut all: Vec<Arc<dyn Effect>> = vec![
         Arc::new(ActuatorLag::default()),
         Arc::new(InputDelay::default()),
     ];
     if structure.is_nonlinear() {
-        all.push(Arc::new(SensorBias::new(&structure.outputs())));
+        all.push(Arc::new(SensorBias::new(&outputs)));
+    }
+    for lag in SensorLag::for_outputs(&outputs) {
+        all.push(Arc::new(lag));
     }
     undeclared(structure, all)
 }
@@ -305,6 +425,9 @@ pub fn for_data(
     }
     all.push(Arc::new(ActuatorLag::for_data(h, resolution)));
     all.push(Arc::new(InputDelay::for_data(h, resolution)));
+    for lag in SensorLag::for_data(&data.outputs, h, resolution) {
+        all.push(Arc::new(lag));
+    }
     undeclared(structure, all)
 }
 
@@ -332,7 +455,7 @@ mod tests {
     }
 
     /// The lagged response is the plant's times `1 / (1 + j w tau)` (closed form), and the
-    /// delayed one times `e^{-j w td}`, on every entry.
+    /// delayed one times `e^{-j w td}`, on every entry; a sensor lag's only on its output's row.
     #[test]
     fn lag_and_delay_multiply_the_response_by_their_closed_forms() {
         let (tau, td) = (0.037, 0.0123);
@@ -341,10 +464,18 @@ mod tests {
         lagged.check().unwrap();
         let mut delayed = plant();
         InputDelay::default().apply(&[td], &mut delayed).unwrap();
+        // A lag on the second output, which has a feed-through.
+        let names = ["p".to_string(), "v".to_string()];
+        let mut sensed = plant();
+        SensorLag::for_outputs(&names)[1]
+            .apply(&[tau], &mut sensed)
+            .unwrap();
+        sensed.check().unwrap();
         let freqs = [0.1, 0.7, 3.0, 11.0];
         let g0 = plant().frf_lines(&freqs, None).unwrap();
         let gl = lagged.frf_lines(&freqs, None).unwrap();
         let gd = delayed.frf_lines(&freqs, None).unwrap();
+        let gs = sensed.frf_lines(&freqs, None).unwrap();
         for (k, f) in freqs.iter().enumerate() {
             let w = 2.0 * std::f64::consts::PI * f;
             let lag = C64::new(1.0, w * tau).inv();
@@ -353,7 +484,11 @@ mod tests {
                 assert!((gl[k][(i, 0)] - g0[k][(i, 0)] * lag).norm() < 1e-10);
                 assert!((gd[k][(i, 0)] - g0[k][(i, 0)] * delay).norm() < 1e-12);
             }
+            assert!((gs[k][(0, 0)] - g0[k][(0, 0)]).norm() < 1e-12);
+            assert!((gs[k][(1, 0)] - g0[k][(1, 0)] * lag).norm() < 1e-10);
         }
+        // With one output a sensor lag is the actuator lag's twin: none is offered.
+        assert!(SensorLag::for_outputs(&names[..1]).is_empty());
     }
 
     /// The lag's and the delay's ranges follow the sample period `t` and the resolution `r`:

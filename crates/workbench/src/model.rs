@@ -185,6 +185,12 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn frf_visible(&self) -> bool {
         true
     }
+    /// Whether it filters outputs with states of its own (a sensor lag): such effects apply
+    /// after all others, in the linear and the nonlinear model alike, so that their states
+    /// come last, where the predictor integrates them exactly.
+    fn filters_outputs(&self) -> bool {
+        false
+    }
 }
 
 /// A model structure: base parameters plus named optional effects.
@@ -342,11 +348,8 @@ impl Model {
                     ),
                 )
             })??;
-        let mut at = n_struct;
-        for e in &self.added {
-            let k = e.parameters().len();
-            d = e.apply_dynamics(&theta[at..at + k], d)?;
-            at += k;
+        for (e, at) in self.added_in_state_order(n_struct) {
+            d = e.apply_dynamics(&theta[at..at + e.parameters().len()], d)?;
         }
         Ok(d)
     }
@@ -547,14 +550,28 @@ impl Model {
         let mut ss = self
             .structure
             .state_space(&self.enabled, &theta[..n_struct])?;
-        let mut at = n_struct;
-        for e in &self.added {
-            let k = e.parameters().len();
-            e.apply(&theta[at..at + k], &mut ss)?;
-            at += k;
+        for (e, at) in self.added_in_state_order(n_struct) {
+            e.apply(&theta[at..at + e.parameters().len()], &mut ss)?;
         }
         ss.check()?;
         Ok(ss)
+    }
+
+    /// The added effects with where their parameters start in theta (after the structure's
+    /// `n_struct`), those that filter outputs last ([`Effect::filters_outputs`]).
+    fn added_in_state_order(&self, n_struct: usize) -> Vec<(&Arc<dyn Effect>, usize)> {
+        let mut at = n_struct;
+        let mut order: Vec<(&Arc<dyn Effect>, usize)> = self
+            .added
+            .iter()
+            .map(|e| {
+                let start = at;
+                at += e.parameters().len();
+                (e, start)
+            })
+            .collect();
+        order.sort_by_key(|(e, _)| e.filters_outputs());
+        order
     }
 
     /// FRF on `freqs_hz` at `theta`.

@@ -88,6 +88,8 @@ struct Record<'a> {
 /// The predictor of one model at one parameter vector.
 struct ExtendedPredictor {
     dynamics: Box<dyn Dynamics>,
+    /// The dynamics' output lags ([`Dynamics::output_lags`]).
+    output_lags: Vec<(usize, f64)>,
     gain: DMatrix<f64>,
     t: f64,
     substeps: usize,
@@ -111,12 +113,13 @@ impl ExtendedPredictor {
             ));
         }
         let n = dynamics.states();
-        // The plant's modes set the step; an input lag's are integrated exactly.
-        let lagged = if dynamics.input_lag().is_some() {
-            dynamics.inputs()
-        } else {
-            0
-        };
+        // The plant's modes set the step; the lags' are integrated exactly.
+        let lagged = dynamics.output_lags().len()
+            + if dynamics.input_lag().is_some() {
+                dynamics.inputs()
+            } else {
+                0
+            };
         let plant = ss.a.view((0, 0), (n - lagged, n - lagged)).clone_owned();
         let fastest = rigid_body::lti::spectral_radius(&plant)?;
         let substeps = ((fastest * t / STEP_RATE).ceil() as usize).clamp(1, MAX_SUBSTEPS);
@@ -130,6 +133,7 @@ impl ExtendedPredictor {
         let mut padded = DMatrix::zeros(n, gain.ncols());
         padded.rows_mut(0, gain.nrows()).copy_from(gain);
         Ok(Self {
+            output_lags: dynamics.output_lags(),
             dynamics,
             gain: padded,
             t,
@@ -138,11 +142,15 @@ impl ExtendedPredictor {
     }
 
     /// RK4 from `x` over `h` in `steps` steps with the input `u` held. An input lag's states
-    /// (the last `u.len()`) end every step at their exact value `u + (x_a - u) e^{-dt/tau}`,
-    /// and the plant's stages see `u + c (x_a - u) e^{-t/tau}` at their times, with `c` such
-    /// that RK4's Simpson weights integrate that input exactly over the step: a lag far
-    /// shorter than the step is neither stiff nor smeared (Simpson alone would give it
-    /// `dt / 6`), and it tends to the model without it.
+    /// (the last `u.len()` before the output lags') end every step at their exact value
+    /// `u + (x_a - u) e^{-dt/tau}`, and the plant's stages see `u + c (x_a - u) e^{-t/tau}` at
+    /// their times, with `c` such that RK4's Simpson weights integrate that input exactly over
+    /// the step: a lag far shorter than the step is neither stiff nor smeared (Simpson alone
+    /// would give it `dt / 6`), and it tends to the model without it. An output lag's state
+    /// (the last ones) follows the output it filters, taken as linear over the step (the
+    /// output's curvature within a step is the error, second order in the step), exactly:
+    /// `x_s = g1 - s tau + (x_s - g0 + s tau) e^{-dt/tau}`, `s = (g1 - g0) / dt`, which is `g1`
+    /// for a lag far shorter than the step.
     fn integrate(
         &self,
         x: &mut [f64],
@@ -151,23 +159,29 @@ impl ExtendedPredictor {
         steps: usize,
         work: &mut Work,
     ) -> Result<()> {
-        let n = x.len();
+        let outputs = &self.output_lags;
+        // The plant's and the input lag's states end at `core`; the output lags' follow.
+        let core = x.len() - outputs.len();
         let dt = h / steps as f64;
         let (lag, half, full, c) = match self.dynamics.input_lag() {
             Some(tau) => {
                 let (half, full) = ((-0.5 * dt / tau).exp(), (-dt / tau).exp());
                 // Exact integral of e^{-t/tau} over the step against Simpson's.
                 let c = tau * (1.0 - full) / (dt / 6.0 * (1.0 + 4.0 * half + full));
-                (n - u.len(), half, full, c)
+                (core - u.len(), half, full, c)
             }
-            None => (n, 1.0, 1.0, 1.0),
+            None => (core, 1.0, 1.0, 1.0),
         };
         // The lag's states as a stage sees them, `weight` of the way from u to x_a.
         let stage = |to: &mut [f64], from: &[f64], weight: f64| {
-            for ((t, a), u) in to[lag..].iter_mut().zip(&from[lag..]).zip(u) {
+            for ((t, a), u) in to[lag..core].iter_mut().zip(&from[lag..core]).zip(u) {
                 *t = u + (a - u) * weight;
             }
         };
+        if !outputs.is_empty() {
+            self.dynamics
+                .h_unlagged(x, u, &mut work.g0, &mut work.scratch)?;
+        }
         for _ in 0..steps {
             let Work {
                 k1,
@@ -176,9 +190,12 @@ impl ExtendedPredictor {
                 k4,
                 tmp,
                 scratch,
+                g0,
+                g1,
                 ..
             } = work;
             tmp[..lag].copy_from_slice(&x[..lag]);
+            tmp[core..].copy_from_slice(&x[core..]);
             stage(tmp, x, c);
             self.dynamics.f(tmp, u, k1, scratch)?;
             for i in 0..lag {
@@ -199,7 +216,16 @@ impl ExtendedPredictor {
                 x[i] += dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
             }
             stage(tmp, x, full);
-            x[lag..].copy_from_slice(&tmp[lag..]);
+            x[lag..core].copy_from_slice(&tmp[lag..core]);
+            if !outputs.is_empty() {
+                self.dynamics.h_unlagged(x, u, g1, scratch)?;
+                for (state, &(o, tau)) in x[core..].iter_mut().zip(outputs) {
+                    let slope = (g1[o] - g0[o]) / dt;
+                    let decay = (-dt / tau).exp();
+                    *state = g1[o] - slope * tau + (*state - g0[o] + slope * tau) * decay;
+                }
+                std::mem::swap(g0, g1);
+            }
         }
         Ok(())
     }
@@ -278,14 +304,44 @@ impl ExtendedPredictor {
             }
             self.advance(&mut x, (&early, &late), &mut work)
                 .map_err(|err| self.diverged(rec, k, &err.to_string()))?;
-            for (i, xi) in x.iter_mut().enumerate() {
-                *xi += (0..p).map(|j| self.gain[(i, j)] * e[(k, j)]).sum::<f64>();
-                if !xi.is_finite() {
-                    return Err(self.diverged(rec, k, &format!("state {i} is {xi}")));
-                }
+            self.correct(&mut x, e.row(k).transpose().as_slice(), &late, &mut work)
+                .map_err(|err| self.diverged(rec, k, &err.to_string()))?;
+            if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+                return Err(self.diverged(rec, k, &format!("state {i} is {}", x[i])));
             }
         }
         Ok((e, xs))
+    }
+
+    /// The predictor's correction `x += K e` after a step. An output lag's state, which the
+    /// gain does not cover, moves with the output it filters: by the change the correction
+    /// makes in that output times `1 - (tau/T)(1 - e^{-T/tau})`, a lag's response at the end
+    /// of the sample to a ramp over it (the correction stands for the disturbance the sample
+    /// accumulated). So a short lag follows the corrected output wholly, and the lagged model
+    /// nests the one without.
+    fn correct(&self, x: &mut [f64], e: &[f64], u: &[f64], work: &mut Work) -> Result<()> {
+        let lagged = !self.output_lags.is_empty();
+        if lagged {
+            self.dynamics
+                .h_unlagged(x, u, &mut work.g0, &mut work.scratch)?;
+        }
+        for (i, xi) in x.iter_mut().enumerate() {
+            *xi += e
+                .iter()
+                .enumerate()
+                .map(|(j, ej)| self.gain[(i, j)] * ej)
+                .sum::<f64>();
+        }
+        if lagged {
+            self.dynamics
+                .h_unlagged(x, u, &mut work.g1, &mut work.scratch)?;
+            let core = x.len() - self.output_lags.len();
+            for (state, &(o, tau)) in x[core..].iter_mut().zip(&self.output_lags) {
+                let follows = 1.0 - tau / self.t * (1.0 - (-self.t / tau).exp());
+                *state += follows * (work.g1[o] - work.g0[o]);
+            }
+        }
+        Ok(())
     }
 
     /// `horizon`-step predictions of one record from the one-step predicted states `xs`
@@ -430,6 +486,9 @@ struct Work {
     k4: Vec<f64>,
     tmp: Vec<f64>,
     y: Vec<f64>,
+    /// The unlagged outputs at the start and the end of a step (output lags).
+    g0: Vec<f64>,
+    g1: Vec<f64>,
     scratch: Vec<f64>,
 }
 
@@ -442,6 +501,8 @@ impl Work {
             k4: vec![0.0; n],
             tmp: vec![0.0; n],
             y: vec![0.0; p],
+            g0: vec![0.0; p],
+            g1: vec![0.0; p],
             scratch: Vec::new(),
         }
     }
@@ -1786,6 +1847,138 @@ sample_rate_hz = 100
             gaps[0] > 0.0 && gaps[0] < 0.1 * without.amax() * 40.0,
             "{gaps:?}"
         );
+        for g in &gaps[1..] {
+            assert!((g / gaps[0] - 1.0).abs() < 0.05, "gap x 1/tau: {gaps:?}");
+        }
+    }
+
+    /// The pendulum measured by angle and rate (two outputs, so a sensor lag is offered).
+    fn angle_and_rate() -> (Model, Vec<f64>) {
+        let text = "name = \"p2\"\nstates = [\"theta\", \"omega\"]\ninputs = [\"T\"]\n\
+                    outputs = [\"theta\", \"rate\"]\n[parameters]\nm = 0.5\nl = 0.4\nJ = 0.02\n\
+                    [nonlinear]\nf.theta = \"omega\"\n\
+                    f.omega = \"(m*9.81*l*sin(theta) + T)/(J + m*l^2)\"\n\
+                    h.theta = \"theta\"\nh.rate = \"omega\"\n\
+                    operating_point = { theta = 0, omega = 0, T = 0 }\n";
+        let file = ModelFile::parse(text, std::path::Path::new("p2.toml")).unwrap();
+        let model = Model::new(Arc::new(file));
+        let theta = model.documented().unwrap();
+        (model, theta)
+    }
+
+    /// The corrected predictor nests the model without a sensor lag: at the candidate's
+    /// shortest lag (1e-4 sample) its innovations on a noisy record equal the lag-free
+    /// predictor's to 1e-3 of their size, on both outputs, under a gain that corrects both
+    /// states from both outputs (the lag state moves with the output the correction changes).
+    /// Left uncorrected, the lag state made a gap of 36 % of their size.
+    #[test]
+    fn the_corrected_predictor_nests_the_model_without_a_sensor_lag() {
+        let (model, base) = angle_and_rate();
+        let t = 0.01;
+        let names = ["theta".to_string(), "rate".to_string()];
+        let lag = Arc::new(crate::generic::SensorLag::for_data(&names, t, 1.0).remove(1));
+        let sensed = model.with_user_effect(lag).unwrap();
+        let samples = 400;
+        let u = DMatrix::from_fn(samples, 1, |k, _| 1e-3 * (0.21 * k as f64).sin());
+        let y = DMatrix::from_fn(samples, 2, |k, j| {
+            let wobble = ((k * 7 + j * 3) % 11) as f64 - 5.0;
+            1e-4 * wobble
+                + if j == 0 {
+                    1e-3 * (0.05 * k as f64).sin()
+                } else {
+                    0.0
+                }
+        });
+        let gain = DMatrix::from_row_slice(2, 2, &[0.3, 0.01, 2.0, 0.2]);
+        let rec = Record {
+            name: "noisy",
+            u: &u,
+            y: &y,
+            limit: vec![f64::INFINITY; 2],
+        };
+        let run = |m: &Model, theta: &[f64]| {
+            ExtendedPredictor::new(m, theta, t, &gain)
+                .unwrap()
+                .run(&rec)
+                .unwrap()
+                .0
+        };
+        let without = run(&model, &base);
+        let shortest = sensed.parameters().unwrap().last().unwrap().lower;
+        let theta: Vec<f64> = base.iter().copied().chain([shortest]).collect();
+        let with = run(&sensed, &theta);
+        let gap = (&with - &without).amax();
+        assert!(
+            gap < 1e-3 * without.amax(),
+            "{gap:.3e} of {:.3e}",
+            without.amax()
+        );
+    }
+
+    /// A sensor lag at tiny amplitude, on the rate output of a pendulum measured by angle and
+    /// rate: the predictor's free run equals the exact zero-order-hold discretization of the
+    /// lagged linearization (`SensorLag::apply`) on both outputs to 3e-4 of the response, for
+    /// lags from the candidate's bound (1e-4 sample) to 2 samples, alone and with an actuator
+    /// lag added before or after it (the same model either way: output lags' states come
+    /// last). Measured: 4.7e-7 at the bound, 2.2e-5 at 1/40 sample, 1.3e-4 at a quarter,
+    /// 1.6e-4 at 2 samples: the lag is exact for an output linear over the step, and the
+    /// rate's curvature within a sample is the rest. A shorter lag approaches the model
+    /// without one in proportion to tau.
+    #[test]
+    fn an_output_lag_is_integrated_exactly_whatever_the_order_of_effects() {
+        let (model, base) = angle_and_rate();
+        let with = |extra: &[f64]| -> Vec<f64> { base.iter().chain(extra).copied().collect() };
+        let t = 0.01;
+        let names = ["theta".to_string(), "rate".to_string()];
+        let rate_lag = Arc::new(crate::generic::SensorLag::for_data(&names, t, 1.0).remove(1));
+        let actuator = Arc::new(crate::generic::ActuatorLag::for_data(t, 1.0));
+        let sensed = model.with_user_effect(rate_lag.clone()).unwrap();
+        let sensed_then_lagged = sensed.with_user_effect(actuator.clone()).unwrap();
+        let lagged_then_sensed = model
+            .with_user_effect(actuator)
+            .unwrap()
+            .with_user_effect(rate_lag)
+            .unwrap();
+        let samples = 300;
+        let u = DMatrix::from_fn(samples, 1, |k, _| {
+            1e-7 * ((0.3 * k as f64).sin() + if k % 7 < 3 { 1.0 } else { -1.0 })
+        });
+        let exact = |m: &Model, theta: &[f64]| {
+            let d = m.state_space(theta).unwrap().discretize(t).unwrap();
+            let mut x = DVector::zeros(d.phi.nrows());
+            let mut y = DMatrix::zeros(samples, 2);
+            for k in 0..samples {
+                y.set_row(k, &(&d.c * &x).transpose());
+                x = &d.phi * &x + &d.gamma0 * u.row(k).transpose();
+            }
+            y
+        };
+        for tau in [1e-4 * t, t / 40.0, 0.25 * t, 2.0 * t] {
+            let theta = with(&[tau]);
+            let y = free_run(&sensed, &theta, t, &u);
+            let worst = (&y - exact(&sensed, &theta)).amax();
+            assert!(
+                worst < 3e-4 * y.amax(),
+                "tau {tau}: {worst:.3e} of {:.3e}",
+                y.amax()
+            );
+            // With an actuator lag of 1.5 samples, added before or after.
+            let a = free_run(&sensed_then_lagged, &with(&[tau, 1.5 * t]), t, &u);
+            let b = free_run(&lagged_then_sensed, &with(&[1.5 * t, tau]), t, &u);
+            assert_eq!(a, b, "tau {tau}: the order of the effects matters");
+            let worst = (&a - exact(&lagged_then_sensed, &with(&[1.5 * t, tau]))).amax();
+            assert!(
+                worst < 3e-4 * a.amax(),
+                "tau {tau}: {worst:.3e} of {:.3e}",
+                a.amax()
+            );
+        }
+        let without = free_run(&model, &base, t, &u);
+        let gaps: Vec<f64> = [40.0, 80.0, 160.0]
+            .iter()
+            .map(|n| (&free_run(&sensed, &with(&[t / n]), t, &u) - &without).amax() * n)
+            .collect();
+        assert!(gaps[0] > 0.0, "{gaps:?}");
         for g in &gaps[1..] {
             assert!((g / gaps[0] - 1.0).abs() < 0.05, "gap x 1/tau: {gaps:?}");
         }

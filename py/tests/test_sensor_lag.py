@@ -1,0 +1,72 @@
+"""A low-pass on one sensor is found as itself, on that output: the cart-pole of
+independent_cartpole.py (numpy only, no stabilis code) with its angle sensor behind a
+first-order lag (`Plant.theta_lag`, integrated with the plant), short campaigns (2 experiments
+x 4 periods at 100 Hz), logged as CSV. Discovery offers `sensor_lag_<output>` on each output of
+a model with several; the cart position is not lagged. Every (lag, seed) is its own case.
+
+Measured (this file's cases): FRF criterion (data/cart_pole.toml) 6 of 6 found and explained,
+tau within 1.4 standard errors (4.89-5.19 ms at 5 ms, 19.96-20.14 ms at 20 ms); time criterion
+(data/cart_pole_nonlinear.toml) 3 of 3 found at 5 ms, 5.25-5.47 ms (biased high by 2-4
+standard errors, as the time criterion's lag estimates are). Longer lags under the time
+criterion are left tentative with a misfit (10 ms: 2 of 3 found; 20 ms: 0 of 2, tau 10-12 ms):
+the predictor's gain is the lag-free starting model's; its verdict then names what the FRF
+criterion reads on the same logs.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import independent_cartpole as ic
+from test_interop import run_cli
+
+DATA = Path(__file__).parent / "data"
+
+
+def logs(directory: Path, seed: int, lag: float) -> Path:
+    directory.mkdir()
+    cfg = ic.Config(plant=ic.Plant(theta_lag=lag), seed=seed, experiments=2, periods=4)
+    for i, run in enumerate(ic.simulate(cfg)):
+        ic.write_csv(run, directory / f"exp_{i}.csv")
+    return directory
+
+
+def discover(tmp_path: Path, model: str, data: Path) -> dict:
+    out = tmp_path / f"{model}.json"
+    done = run_cli("discover", "--model", str(DATA / model), "--data", str(data),
+                   "--json", str(out))
+    assert done.returncode == 0, done.stderr
+    return json.loads(out.read_text())
+
+
+@pytest.mark.parametrize("seed", (1, 2, 3))
+@pytest.mark.parametrize("lag", (0.005, 0.02))
+def test_a_sensor_lag_is_found_on_its_output_frf(tmp_path, lag, seed):
+    doc = discover(tmp_path, "cart_pole.toml", logs(tmp_path / "data", seed, lag))
+    assert doc["found"] == ["sensor_lag_theta"] and not doc["unexplained"], doc["verdict_text"]
+    last = doc["steps"][-1]
+    tau, se = last["params"]["tau_theta"], last["std"]["tau_theta"]
+    assert abs(tau - lag) < 3 * se and abs(tau / lag - 1) < 0.05, (tau, se)
+
+
+@pytest.mark.parametrize("seed", (1, 2, 3))
+def test_a_short_sensor_lag_is_found_under_the_time_criterion(tmp_path, seed):
+    doc = discover(tmp_path, "cart_pole_nonlinear.toml", logs(tmp_path / "data", seed, 0.005))
+    assert doc["found"] == ["sensor_lag_theta"] and not doc["unexplained"], doc["verdict_text"]
+    tau = doc["steps"][-1]["params"]["tau_theta"]
+    assert abs(tau / 0.005 - 1) < 0.12, tau
+
+
+def test_the_lag_is_the_sensors_not_the_plants():
+    # The simulator's own check: the lagged angle is theta filtered, the cart untouched (the
+    # exact sampled FRF of its linearised truth against the lag's closed form).
+    plant, lagged = ic.Plant(), ic.Plant(theta_lag=0.02)
+    f = np.array([0.3, 1.0, 4.0])
+    g0, g1 = ic.sampled_frf(plant, f, 0.01), ic.sampled_frf(lagged, f, 0.01)
+    assert np.allclose(g1[:, 0], g0[:, 0], rtol=1e-9)
+    ratio = g1[:, 1] / g0[:, 1]
+    closed = 1 / (1 + 2j * np.pi * f * 0.02)
+    assert np.allclose(ratio, closed, rtol=0.02), (ratio, closed)
