@@ -26,11 +26,11 @@ pub trait Dynamics: Send + Sync + std::fmt::Debug {
     fn input_delay(&self) -> f64 {
         0.0
     }
-    /// Time constant (s) of a first-order lag on every input whose states are the model's
-    /// last `inputs()` ([`LaggedInputs`]); the predictor integrates them exactly, since a
-    /// lag much shorter than a sample is stiff. `None` without one.
-    fn input_lag(&self) -> Option<f64> {
-        None
+    /// `(input, tau)` of each first-order input lag ([`LaggedInputs`]), in the order of their
+    /// states, which come right before the output lags'; the predictor integrates them
+    /// exactly, since a lag much shorter than a sample is stiff.
+    fn input_lags(&self) -> Vec<(usize, f64)> {
+        Vec::new()
     }
     /// `(output, tau)` of each first-order lag on one output ([`LaggedOutput`]), in the order
     /// of their states, which are the model's last; the predictor integrates them exactly.
@@ -99,8 +99,8 @@ impl Dynamics for OutputBias {
     fn input_delay(&self) -> f64 {
         self.inner.input_delay()
     }
-    fn input_lag(&self) -> Option<f64> {
-        self.inner.input_lag()
+    fn input_lags(&self) -> Vec<(usize, f64)> {
+        self.inner.input_lags()
     }
     fn output_lags(&self) -> Vec<(usize, f64)> {
         self.inner.output_lags()
@@ -120,27 +120,38 @@ impl Dynamics for OutputBias {
     }
 }
 
-/// A first-order lag on every input: states `(x, x_a)`, `x_a' = (u - x_a) / tau`, the plant
-/// driven by `x_a`.
+/// A first-order lag of one time constant on some inputs: states `(x, x_a)`, one per lagged
+/// input, `x_a' = (u_j - x_a) / tau`, the plant driven by `x_a` in place of `u_j`.
 #[derive(Debug)]
 pub struct LaggedInputs {
     inner: Box<dyn Dynamics>,
+    /// The lagged inputs, in the order of their states.
+    lagged: Vec<usize>,
     rate: f64,
 }
 
 impl LaggedInputs {
-    /// `inner` behind a lag of time constant `tau` (s, positive); `inner` has none (its
-    /// states would no longer be the last).
-    pub fn new(inner: Box<dyn Dynamics>, tau: f64) -> Result<Self> {
+    /// `inner` with the inputs `lagged` behind a lag of time constant `tau` (s, positive);
+    /// `inner` lags none of them (a lag behind a lag is not integrated exactly) and has no
+    /// output lag (whose states must stay the last).
+    pub fn new(inner: Box<dyn Dynamics>, lagged: Vec<usize>, tau: f64) -> Result<Self> {
         if !(tau.is_finite() && tau > 0.0) {
             return Err(SimError::invalid("tau", tau, "must be positive and finite"));
         }
-        if inner.input_lag().is_some() {
+        let m = inner.inputs();
+        if let Some(&j) = lagged.iter().find(|&&j| j >= m) {
             return Err(SimError::invalid(
-                "tau",
-                tau,
-                "the model already has an input lag",
+                "input",
+                j,
+                format!("the model has {m} inputs"),
             ));
+        }
+        let already = inner.input_lags();
+        if let Some(&j) = lagged
+            .iter()
+            .find(|&&j| already.iter().any(|(i, _)| *i == j))
+        {
+            return Err(SimError::invalid("input", j, "already has a lag"));
         }
         if !inner.output_lags().is_empty() {
             return Err(SimError::invalid(
@@ -151,14 +162,27 @@ impl LaggedInputs {
         }
         Ok(Self {
             inner,
+            lagged,
             rate: 1.0 / tau,
         })
     }
+
+    /// `u` with the lagged inputs replaced by their states `xa`, into `v`.
+    fn driven<'a>(&self, u: &[f64], xa: &[f64], v: &'a mut [f64]) -> &'a [f64] {
+        v.copy_from_slice(u);
+        for (&j, a) in self.lagged.iter().zip(xa) {
+            v[j] = *a;
+        }
+        v
+    }
 }
+
+/// Room for the inputs of a small model on the stack (a larger one allocates).
+const STACK: usize = 16;
 
 impl Dynamics for LaggedInputs {
     fn states(&self) -> usize {
-        self.inner.states() + self.inner.inputs()
+        self.inner.states() + self.lagged.len()
     }
     fn inputs(&self) -> usize {
         self.inner.inputs()
@@ -170,26 +194,42 @@ impl Dynamics for LaggedInputs {
         let n = self.inner.states();
         let (xp, xa) = x.split_at(n);
         let (dp, da) = dx.split_at_mut(n);
-        self.inner.f(xp, xa, dp, scratch)?;
-        for ((d, a), u) in da.iter_mut().zip(xa).zip(u) {
-            *d = (u - a) * self.rate;
+        let (mut stack, mut heap) = ([0.0; STACK], Vec::new());
+        let v = room(&mut stack, &mut heap, u.len());
+        self.inner.f(xp, self.driven(u, xa, v), dp, scratch)?;
+        for ((d, a), &j) in da.iter_mut().zip(xa).zip(&self.lagged) {
+            *d = (u[j] - a) * self.rate;
         }
         Ok(())
     }
-    fn h(&self, x: &[f64], _u: &[f64], y: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
+    fn h(&self, x: &[f64], u: &[f64], y: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
         let (xp, xa) = x.split_at(self.inner.states());
-        self.inner.h(xp, xa, y, scratch)
+        let (mut stack, mut heap) = ([0.0; STACK], Vec::new());
+        let v = room(&mut stack, &mut heap, u.len());
+        self.inner.h(xp, self.driven(u, xa, v), y, scratch)
     }
     fn operating_point(&self) -> (Vec<f64>, Vec<f64>) {
         let (mut x, u) = self.inner.operating_point();
-        x.extend_from_slice(&u);
+        x.extend(self.lagged.iter().map(|&j| u[j]));
         (x, u)
     }
     fn input_delay(&self) -> f64 {
         self.inner.input_delay()
     }
-    fn input_lag(&self) -> Option<f64> {
-        Some(1.0 / self.rate)
+    fn input_lags(&self) -> Vec<(usize, f64)> {
+        let mut lags = self.inner.input_lags();
+        lags.extend(self.lagged.iter().map(|&j| (j, 1.0 / self.rate)));
+        lags
+    }
+}
+
+/// `len` numbers of `stack`, or of `heap` when the stack is too small.
+fn room<'a>(stack: &'a mut [f64; STACK], heap: &'a mut Vec<f64>, len: usize) -> &'a mut [f64] {
+    if len <= STACK {
+        &mut stack[..len]
+    } else {
+        heap.resize(len, 0.0);
+        &mut heap[..]
     }
 }
 
@@ -236,8 +276,8 @@ impl Dynamics for DelayedInputs {
     fn input_delay(&self) -> f64 {
         self.inner.input_delay() + self.td
     }
-    fn input_lag(&self) -> Option<f64> {
-        self.inner.input_lag()
+    fn input_lags(&self) -> Vec<(usize, f64)> {
+        self.inner.input_lags()
     }
     fn output_lags(&self) -> Vec<(usize, f64)> {
         self.inner.output_lags()
@@ -300,16 +340,9 @@ impl Dynamics for LaggedOutput {
         let n = self.inner.states();
         self.inner.f(&x[..n], u, &mut dx[..n], scratch)?;
         // The predictor integrates this state exactly and never uses its derivative here;
-        // the operating point's drift check does. A small model's outputs stay on the stack.
-        let p = self.inner.outputs();
-        let mut stack = [0.0; 16];
-        let mut heap = Vec::new();
-        let y = if p <= stack.len() {
-            &mut stack[..p]
-        } else {
-            heap.resize(p, 0.0);
-            &mut heap[..]
-        };
+        // the operating point's drift check does.
+        let (mut stack, mut heap) = ([0.0; STACK], Vec::new());
+        let y = room(&mut stack, &mut heap, self.inner.outputs());
         self.inner.h(&x[..n], u, y, scratch)?;
         dx[n] = (y[self.output] - x[n]) * self.rate;
         Ok(())
@@ -334,8 +367,8 @@ impl Dynamics for LaggedOutput {
     fn input_delay(&self) -> f64 {
         self.inner.input_delay()
     }
-    fn input_lag(&self) -> Option<f64> {
-        self.inner.input_lag()
+    fn input_lags(&self) -> Vec<(usize, f64)> {
+        self.inner.input_lags()
     }
     fn output_lags(&self) -> Vec<(usize, f64)> {
         let mut lags = self.inner.output_lags();

@@ -191,6 +191,12 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn filters_outputs(&self) -> bool {
         false
     }
+    /// The inputs (of `inputs`) it puts behind a lag with a state of its own: a second lag on
+    /// one of them is not offered once it is in (a lag behind a lag is not integrated exactly,
+    /// and the data seldom tell two apart).
+    fn lagged_inputs(&self, _inputs: usize) -> Vec<usize> {
+        Vec::new()
+    }
 }
 
 /// A model structure: base parameters plus named optional effects.
@@ -306,12 +312,20 @@ impl Model {
         }
     }
 
-    /// The effects discovery may still add: structure effects and pool effects not enabled.
+    /// The effects discovery may still add: structure effects and pool effects not enabled,
+    /// but none that lags an input an added effect already lags ([`Effect::lagged_inputs`]).
     pub fn candidates(&self) -> Vec<String> {
         let on = self.enabled();
+        let m = self.structure.inputs().len();
+        let lagged: Vec<usize> = self.added.iter().flat_map(|e| e.lagged_inputs(m)).collect();
+        let lags_again = |name: &str| {
+            self.offered()
+                .find(|e| e.name() == name)
+                .is_some_and(|e| e.lagged_inputs(m).iter().any(|j| lagged.contains(j)))
+        };
         self.known()
             .into_iter()
-            .filter(|e| !on.contains(e))
+            .filter(|e| !on.contains(e) && !lags_again(e))
             .collect()
     }
 

@@ -88,7 +88,8 @@ struct Record<'a> {
 /// The predictor of one model at one parameter vector.
 struct ExtendedPredictor {
     dynamics: Box<dyn Dynamics>,
-    /// The dynamics' output lags ([`Dynamics::output_lags`]).
+    /// The dynamics' input and output lags ([`Dynamics::input_lags`], [`Dynamics::output_lags`]).
+    input_lags: Vec<(usize, f64)>,
     output_lags: Vec<(usize, f64)>,
     gain: DMatrix<f64>,
     t: f64,
@@ -114,12 +115,7 @@ impl ExtendedPredictor {
         }
         let n = dynamics.states();
         // The plant's modes set the step; the lags' are integrated exactly.
-        let lagged = dynamics.output_lags().len()
-            + if dynamics.input_lag().is_some() {
-                dynamics.inputs()
-            } else {
-                0
-            };
+        let lagged = dynamics.output_lags().len() + dynamics.input_lags().len();
         let plant = ss.a.view((0, 0), (n - lagged, n - lagged)).clone_owned();
         let fastest = rigid_body::lti::spectral_radius(&plant)?;
         let substeps = ((fastest * t / STEP_RATE).ceil() as usize).clamp(1, MAX_SUBSTEPS);
@@ -133,6 +129,7 @@ impl ExtendedPredictor {
         let mut padded = DMatrix::zeros(n, gain.ncols());
         padded.rows_mut(0, gain.nrows()).copy_from(gain);
         Ok(Self {
+            input_lags: dynamics.input_lags(),
             output_lags: dynamics.output_lags(),
             dynamics,
             gain: padded,
@@ -141,9 +138,9 @@ impl ExtendedPredictor {
         })
     }
 
-    /// RK4 from `x` over `h` in `steps` steps with the input `u` held. An input lag's states
-    /// (the last `u.len()` before the output lags') end every step at their exact value
-    /// `u + (x_a - u) e^{-dt/tau}`, and the plant's stages see `u + c (x_a - u) e^{-t/tau}` at
+    /// RK4 from `x` over `h` in `steps` steps with the input `u` held. The input lags' states
+    /// (before the output lags') end every step at their exact value `u + (x_a - u)
+    /// e^{-dt/tau}`, and the plant's stages see `u + c (x_a - u) e^{-t/tau}` at
     /// their times, with `c` such that RK4's Simpson weights integrate that input exactly over
     /// the step: a lag far shorter than the step is neither stiff nor smeared (Simpson alone
     /// would give it `dt / 6`), and it tends to the model without it. An output lag's state
@@ -160,22 +157,27 @@ impl ExtendedPredictor {
         work: &mut Work,
     ) -> Result<()> {
         let outputs = &self.output_lags;
-        // The plant's and the input lag's states end at `core`; the output lags' follow.
+        // The plant's and the input lags' states end at `core`; the output lags' follow.
         let core = x.len() - outputs.len();
+        let lag = core - self.input_lags.len();
         let dt = h / steps as f64;
-        let (lag, half, full, c) = match self.dynamics.input_lag() {
-            Some(tau) => {
-                let (half, full) = ((-0.5 * dt / tau).exp(), (-dt / tau).exp());
-                // Exact integral of e^{-t/tau} over the step against Simpson's.
-                let c = tau * (1.0 - full) / (dt / 6.0 * (1.0 + 4.0 * half + full));
-                (core - u.len(), half, full, c)
-            }
-            None => (core, 1.0, 1.0, 1.0),
-        };
-        // The lag's states as a stage sees them, `weight` of the way from u to x_a.
-        let stage = |to: &mut [f64], from: &[f64], weight: f64| {
-            for ((t, a), u) in to[lag..core].iter_mut().zip(&from[lag..core]).zip(u) {
-                *t = u + (a - u) * weight;
+        // Per input lag state: its value `weight` of the way from u_j to x_a at the four
+        // stages is `[c, c half, c full, full]`, with `c` the exact integral of e^{-t/tau}
+        // over the step against Simpson's.
+        work.weights.clear();
+        work.weights.extend(self.input_lags.iter().map(|&(_, tau)| {
+            let (half, full) = ((-0.5 * dt / tau).exp(), (-dt / tau).exp());
+            let c = tau * (1.0 - full) / (dt / 6.0 * (1.0 + 4.0 * half + full));
+            [c, c * half, c * full, full]
+        }));
+        let stage = |to: &mut [f64], from: &[f64], weights: &[[f64; 4]], at: usize| {
+            for (((t, a), &(j, _)), w) in to[lag..core]
+                .iter_mut()
+                .zip(&from[lag..core])
+                .zip(&self.input_lags)
+                .zip(weights)
+            {
+                *t = u[j] + (a - u[j]) * w[at];
             }
         };
         if !outputs.is_empty() {
@@ -192,16 +194,17 @@ impl ExtendedPredictor {
                 scratch,
                 g0,
                 g1,
+                weights,
                 ..
             } = work;
             tmp[..lag].copy_from_slice(&x[..lag]);
             tmp[core..].copy_from_slice(&x[core..]);
-            stage(tmp, x, c);
+            stage(tmp, x, weights, 0);
             self.dynamics.f(tmp, u, k1, scratch)?;
             for i in 0..lag {
                 tmp[i] = x[i] + 0.5 * dt * k1[i];
             }
-            stage(tmp, x, c * half);
+            stage(tmp, x, weights, 1);
             self.dynamics.f(tmp, u, k2, scratch)?;
             for i in 0..lag {
                 tmp[i] = x[i] + 0.5 * dt * k2[i];
@@ -210,12 +213,12 @@ impl ExtendedPredictor {
             for i in 0..lag {
                 tmp[i] = x[i] + dt * k3[i];
             }
-            stage(tmp, x, c * full);
+            stage(tmp, x, weights, 2);
             self.dynamics.f(tmp, u, k4, scratch)?;
             for i in 0..lag {
                 x[i] += dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
             }
-            stage(tmp, x, full);
+            stage(tmp, x, weights, 3);
             x[lag..core].copy_from_slice(&tmp[lag..core]);
             if !outputs.is_empty() {
                 self.dynamics.h_unlagged(x, u, g1, scratch)?;
@@ -489,6 +492,8 @@ struct Work {
     /// The unlagged outputs at the start and the end of a step (output lags).
     g0: Vec<f64>,
     g1: Vec<f64>,
+    /// Each input lag state's weights at the four RK4 stages.
+    weights: Vec<[f64; 4]>,
     scratch: Vec<f64>,
 }
 
@@ -503,6 +508,7 @@ impl Work {
             y: vec![0.0; p],
             g0: vec![0.0; p],
             g1: vec![0.0; p],
+            weights: Vec::new(),
             scratch: Vec::new(),
         }
     }
@@ -1054,11 +1060,20 @@ impl Workbench {
             // flagged at p = 4e-4).
             progress("refitting the final model under its own predictor");
             if let Some(last) = done.last_mut() {
-                let refit = self.fit_time(&last.model, Some(&last.r.theta), None)?.0;
-                refit_note = self.refit_moved(last, &refit, &design)?;
-                if refit_note.is_none() {
-                    last.r = refit;
-                }
+                refit_note = match self.fit_time(&last.model, Some(&last.r.theta), None) {
+                    Ok((refit, _)) => {
+                        let note = self.refit_moved(last, &refit, &design)?;
+                        if note.is_none() {
+                            last.r = refit;
+                        }
+                        note
+                    }
+                    // The final model's own predictor can diverge where the starting one
+                    // does not (a double pendulum with a 19 ms lag on one link's encoder).
+                    Err(err) => Some(format!(
+                        "the final model's refit under its own predictor failed ({err}), so the parameters shown are the selection's, under the starting model's gain"
+                    )),
+                };
             }
             if refit_note.is_some() {
                 START_WEIGHTING
@@ -1082,7 +1097,9 @@ impl Workbench {
     /// at by more than noise alone varies a cost of that many residuals. A double pendulum's
     /// refit with a sensor bias went from 89 900 to 808 000 there (its cart mass a third of
     /// the documented), and the step table read a reduction of -747 %; a refit that corrects
-    /// a few standard errors (a planar quadrotor's inertia) raises it by a few units.
+    /// a few standard errors (a planar quadrotor's inertia) raises it by a few units. A refit
+    /// under which the starting predictor diverges has moved too (a double pendulum's refit
+    /// with a 19 ms lag on one link's encoder), and failed the whole discovery before.
     fn refit_moved(
         &self,
         chosen: &Fitted,
@@ -1090,9 +1107,18 @@ impl Workbench {
         design: &Design,
     ) -> Result<Option<String>> {
         let pe = PredictionError::new(self, &chosen.model, design);
-        let r = pe.residuals(&refit.theta)?;
+        let at = chosen.r.cost;
+        let r = match pe.residuals(&refit.theta) {
+            Ok(r) => r,
+            // Where the starting predictor diverges the refit has moved as far as it can.
+            Err(err) => {
+                return Ok(Some(format!(
+                    "the final model's refit under its own predictor moved to where the starting predictor diverges ({err}): the logs do not pin that refit, so the parameters shown are the selection's, under the starting model's gain"
+                )))
+            }
+        };
         let n = r.len().max(1) as f64;
-        let (at, moved) = (chosen.r.cost, r.norm_squared());
+        let moved = r.norm_squared();
         let spread = at / n * (2.0 * n).sqrt();
         Ok((moved > at + spread).then(|| {
             format!(
@@ -1852,14 +1878,15 @@ sample_rate_hz = 100
         }
     }
 
-    /// The pendulum measured by angle and rate (two outputs, so a sensor lag is offered).
+    /// The pendulum measured by angle and rate, driven by two torques (two outputs and two
+    /// inputs, so lags on one of each are offered).
     fn angle_and_rate() -> (Model, Vec<f64>) {
-        let text = "name = \"p2\"\nstates = [\"theta\", \"omega\"]\ninputs = [\"T\"]\n\
+        let text = "name = \"p2\"\nstates = [\"theta\", \"omega\"]\ninputs = [\"T\", \"W\"]\n\
                     outputs = [\"theta\", \"rate\"]\n[parameters]\nm = 0.5\nl = 0.4\nJ = 0.02\n\
                     [nonlinear]\nf.theta = \"omega\"\n\
-                    f.omega = \"(m*9.81*l*sin(theta) + T)/(J + m*l^2)\"\n\
+                    f.omega = \"(m*9.81*l*sin(theta) + T + 0.5*W)/(J + m*l^2)\"\n\
                     h.theta = \"theta\"\nh.rate = \"omega\"\n\
-                    operating_point = { theta = 0, omega = 0, T = 0 }\n";
+                    operating_point = { theta = 0, omega = 0, T = 0, W = 0 }\n";
         let file = ModelFile::parse(text, std::path::Path::new("p2.toml")).unwrap();
         let model = Model::new(Arc::new(file));
         let theta = model.documented().unwrap();
@@ -1876,10 +1903,10 @@ sample_rate_hz = 100
         let (model, base) = angle_and_rate();
         let t = 0.01;
         let names = ["theta".to_string(), "rate".to_string()];
-        let lag = Arc::new(crate::generic::SensorLag::for_data(&names, t, 1.0).remove(1));
+        let lag = Arc::new(crate::generic::ChannelLag::outputs_for_data(&names, t, 1.0).remove(1));
         let sensed = model.with_user_effect(lag).unwrap();
         let samples = 400;
-        let u = DMatrix::from_fn(samples, 1, |k, _| 1e-3 * (0.21 * k as f64).sin());
+        let u = DMatrix::from_fn(samples, 2, |k, i| 1e-3 * (0.21 * (k + 5 * i) as f64).sin());
         let y = DMatrix::from_fn(samples, 2, |k, j| {
             let wobble = ((k * 7 + j * 3) % 11) as f64 - 5.0;
             1e-4 * wobble
@@ -1917,21 +1944,24 @@ sample_rate_hz = 100
 
     /// A sensor lag at tiny amplitude, on the rate output of a pendulum measured by angle and
     /// rate: the predictor's free run equals the exact zero-order-hold discretization of the
-    /// lagged linearization (`SensorLag::apply`) on both outputs to 3e-4 of the response, for
-    /// lags from the candidate's bound (1e-4 sample) to 2 samples, alone and with an actuator
-    /// lag added before or after it (the same model either way: output lags' states come
-    /// last). Measured: 4.7e-7 at the bound, 2.2e-5 at 1/40 sample, 1.3e-4 at a quarter,
-    /// 1.6e-4 at 2 samples: the lag is exact for an output linear over the step, and the
-    /// rate's curvature within a sample is the rest. A shorter lag approaches the model
-    /// without one in proportion to tau.
+    /// lagged linearization (`ChannelLag::apply`) on both outputs to 3e-4 of the response, for
+    /// lags from the candidate's bound (1e-4 sample) to 2 samples, alone and with a lag of 1.5
+    /// samples on one of its two inputs added before or after it (the same model either way:
+    /// output lags' states come last). Measured: 4.7e-7 at the bound, 2.2e-5 at 1/40 sample,
+    /// 1.3e-4 at a quarter, 1.6e-4 at 2 samples: the lag is exact for an output linear over
+    /// the step, and the rate's curvature within a sample is the rest. A shorter lag
+    /// approaches the model without one in proportion to tau.
     #[test]
     fn an_output_lag_is_integrated_exactly_whatever_the_order_of_effects() {
         let (model, base) = angle_and_rate();
         let with = |extra: &[f64]| -> Vec<f64> { base.iter().chain(extra).copied().collect() };
         let t = 0.01;
         let names = ["theta".to_string(), "rate".to_string()];
-        let rate_lag = Arc::new(crate::generic::SensorLag::for_data(&names, t, 1.0).remove(1));
-        let actuator = Arc::new(crate::generic::ActuatorLag::for_data(t, 1.0));
+        let inputs = ["T".to_string(), "W".to_string()];
+        let rate_lag =
+            Arc::new(crate::generic::ChannelLag::outputs_for_data(&names, t, 1.0).remove(1));
+        let actuator =
+            Arc::new(crate::generic::ChannelLag::inputs_for_data(&inputs, t, 1.0).remove(1));
         let sensed = model.with_user_effect(rate_lag.clone()).unwrap();
         let sensed_then_lagged = sensed.with_user_effect(actuator.clone()).unwrap();
         let lagged_then_sensed = model
@@ -1940,9 +1970,7 @@ sample_rate_hz = 100
             .with_user_effect(rate_lag)
             .unwrap();
         let samples = 300;
-        let u = DMatrix::from_fn(samples, 1, |k, _| {
-            1e-7 * ((0.3 * k as f64).sin() + if k % 7 < 3 { 1.0 } else { -1.0 })
-        });
+        let u = two_inputs(samples);
         let exact = |m: &Model, theta: &[f64]| {
             let d = m.state_space(theta).unwrap().discretize(t).unwrap();
             let mut x = DVector::zeros(d.phi.nrows());
@@ -1962,7 +1990,7 @@ sample_rate_hz = 100
                 "tau {tau}: {worst:.3e} of {:.3e}",
                 y.amax()
             );
-            // With an actuator lag of 1.5 samples, added before or after.
+            // With a lag of 1.5 samples on the input W, added before or after.
             let a = free_run(&sensed_then_lagged, &with(&[tau, 1.5 * t]), t, &u);
             let b = free_run(&lagged_then_sensed, &with(&[1.5 * t, tau]), t, &u);
             assert_eq!(a, b, "tau {tau}: the order of the effects matters");
@@ -1982,5 +2010,65 @@ sample_rate_hz = 100
         for g in &gaps[1..] {
             assert!((g / gaps[0] - 1.0).abs() < 0.05, "gap x 1/tau: {gaps:?}");
         }
+    }
+
+    /// Two tiny torques, a square wave and a sine, unlike each other.
+    fn two_inputs(samples: usize) -> DMatrix<f64> {
+        DMatrix::from_fn(samples, 2, |k, i| {
+            1e-7 * if i == 0 {
+                (0.3 * k as f64).sin() + if k % 7 < 3 { 1.0 } else { -1.0 }
+            } else {
+                (0.11 * k as f64).cos()
+            }
+        })
+    }
+
+    /// Lags on each of two inputs, with time constants of a quarter and two samples, give the
+    /// exact discretization of their linear form (`ChannelLag::apply`, which shifts only the
+    /// lagged input's column: its state drives the plant in its place) to 1e-4 of the
+    /// response, in either order; and once one input is lagged, only the other's lag is still
+    /// a candidate (the lag of every input is no longer offered).
+    #[test]
+    fn lags_on_single_inputs_are_integrated_exactly_and_exclude_lagging_them_again() {
+        let (model, base) = angle_and_rate();
+        let t = 0.01;
+        let inputs = ["T".to_string(), "W".to_string()];
+        let lags = crate::generic::ChannelLag::inputs_for_data(&inputs, t, 1.0);
+        let (on_t, on_w) = (Arc::new(lags[0].clone()), Arc::new(lags[1].clone()));
+        let both = model
+            .with_user_effect(on_t.clone())
+            .unwrap()
+            .with_user_effect(on_w.clone())
+            .unwrap();
+        let swapped = model
+            .with_user_effect(on_w)
+            .unwrap()
+            .with_user_effect(on_t)
+            .unwrap();
+        let samples = 300;
+        let u = two_inputs(samples);
+        let theta: Vec<f64> = base.iter().copied().chain([0.25 * t, 2.0 * t]).collect();
+        let swapped_theta: Vec<f64> = base.iter().copied().chain([2.0 * t, 0.25 * t]).collect();
+        let y = free_run(&both, &theta, t, &u);
+        let d = both.state_space(&theta).unwrap().discretize(t).unwrap();
+        let mut x = DVector::zeros(d.phi.nrows());
+        let mut worst = 0.0f64;
+        for k in 0..samples {
+            worst = worst.max((&d.c * &x - y.row(k).transpose()).amax());
+            x = &d.phi * &x + &d.gamma0 * u.row(k).transpose();
+        }
+        assert!(worst < 1e-4 * y.amax(), "{worst:.3e} of {:.3e}", y.amax());
+        let z = free_run(&swapped, &swapped_theta, t, &u);
+        assert!((&z - &y).amax() < 1e-12 * y.amax());
+
+        let generic = model.with_effect("actuator_lag_T").unwrap();
+        let left = generic.candidates();
+        assert!(left.contains(&"actuator_lag_W".to_string()), "{left:?}");
+        assert!(!left.contains(&"actuator_lag".to_string()), "{left:?}");
+        let all = model.with_effect("actuator_lag").unwrap().candidates();
+        assert!(
+            !all.iter().any(|c| c.starts_with("actuator_lag")),
+            "{all:?}"
+        );
     }
 }

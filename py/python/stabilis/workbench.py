@@ -31,6 +31,10 @@ by the one-step prediction error of its extended Kalman predictor in absolute un
 ``criterion="frf"`` uses its linearization; ``discover()`` and the others take no arguments),
 which tells dry from viscous friction and sees sensor offsets (the generic ``sensor_bias``).
 
+Discovery tries the model's own effects and the generic ones every model gets: ``actuator_lag``
+and ``input_delay`` on every input, and with two to four inputs (outputs) a lag on each input
+(output) alone, ``actuator_lag_<input>`` (``sensor_lag_<output>``).
+
 Exceptions raised inside the callable reach the caller unchanged; a wrong shape or a
 non-finite entry raises ``ValueError`` naming the effect and the matrix.
 """
