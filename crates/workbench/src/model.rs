@@ -168,6 +168,11 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn has_dynamics(&self) -> bool {
         false
     }
+    /// Whether the time-domain discovery tries it: by default when it has a nonlinear form.
+    /// It may still be enabled by name under that criterion.
+    fn searched_in_time(&self) -> bool {
+        self.has_dynamics()
+    }
     /// The effect on a nonlinear model, for parameter values `theta`.
     fn apply_dynamics(
         &self,
@@ -337,11 +342,14 @@ impl Model {
             .collect()
     }
 
-    /// The candidates the time-domain criterion can test (those with a nonlinear form).
+    /// The candidates the time-domain criterion tests ([`Effect::searched_in_time`]).
     pub fn dynamics_candidates(&self) -> Vec<String> {
         self.candidates()
             .into_iter()
-            .filter(|c| self.offered().all(|e| e.name() != c || e.has_dynamics()))
+            .filter(|c| {
+                self.offered()
+                    .all(|e| e.name() != c || e.searched_in_time())
+            })
             .collect()
     }
 

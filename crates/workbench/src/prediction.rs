@@ -1069,7 +1069,7 @@ impl Workbench {
                         note
                     }
                     // The final model's own predictor can diverge where the starting one
-                    // does not (a double pendulum with a 19 ms lag on one link's encoder).
+                    // does not (a double pendulum's, once a sensor lag was added).
                     Err(err) => Some(format!(
                         "the final model's refit under its own predictor failed ({err}), so the parameters shown are the selection's, under the starting model's gain"
                     )),
@@ -1098,8 +1098,8 @@ impl Workbench {
     /// refit with a sensor bias went from 89 900 to 808 000 there (its cart mass a third of
     /// the documented), and the step table read a reduction of -747 %; a refit that corrects
     /// a few standard errors (a planar quadrotor's inertia) raises it by a few units. A refit
-    /// under which the starting predictor diverges has moved too (a double pendulum's refit
-    /// with a 19 ms lag on one link's encoder), and failed the whole discovery before.
+    /// under which the starting predictor diverges has moved too; it failed the whole
+    /// discovery before.
     fn refit_moved(
         &self,
         chosen: &Fitted,
