@@ -401,7 +401,7 @@ pub const MIN_BAND_DOF: usize = 64;
 /// The bands of the noise check within `band` (Hz): octaves from its lower edge, merged
 /// until each holds [`MIN_BAND_DOF`] degrees of freedom of the period-to-period noise (two per
 /// line of the period's DFT and period less one, per experiment); a short last band joins the
-/// one before it.
+/// one before it, and an excited band too short for one band leaves none.
 pub fn noise_bands(data: &Dataset, band: (f64, f64)) -> Vec<(f64, f64)> {
     let Some((layouts, _)) = data.periodic_layouts() else {
         return Vec::new();
@@ -432,8 +432,6 @@ pub fn noise_bands(data: &Dataset, band: (f64, f64)) -> Vec<(f64, f64)> {
         if dof(start, end) < MIN_BAND_DOF {
             if let Some(last) = bands.last_mut() {
                 last.1 = end;
-            } else if dof(start, end) > 0 {
-                bands.push((start, end));
             }
             break;
         }
@@ -1984,6 +1982,54 @@ D = [[-4.0, -3.0]]
                 }
             }
             proptest::prop_assert!(residual <= best + 1e-9, "{residual} > {best}");
+        }
+    }
+
+    #[test]
+    fn band_noise_over_every_line_is_the_period_noise_by_parseval() {
+        // With an odd period (no Nyquist line) and deviations of zero mean (no DC line), the
+        // lines 1..(P-1)/2 carry half of each period's energy (Parseval), so their mean power
+        // is the period-to-period variance times P / (P - 1).
+        let (period, periods) = (63, 3);
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        for seed in 0..3 {
+            let mut y = DMatrix::from_fn(period * periods, 2, |_, _| {
+                Distribution::<f64>::sample(&StandardNormal, &mut rng) * (1.0 + seed as f64)
+            });
+            for j in 0..periods {
+                for i in 0..2 {
+                    let mean = y.view((j * period, i), (period, 1)).mean();
+                    y.view_mut((j * period, i), (period, 1))
+                        .add_scalar_mut(-mean);
+                }
+            }
+            let samples = y.nrows();
+            let data = Dataset {
+                sample_rate_hz: 63.0,
+                inputs: vec!["F".into()],
+                outputs: vec!["a".into(), "b".into()],
+                experiments: vec![Experiment {
+                    name: "e".into(),
+                    u: DMatrix::zeros(samples, 1),
+                    y,
+                    r: Some(DMatrix::zeros(samples, 1)),
+                    periodic: Some(Periodic {
+                        period,
+                        periods,
+                        transient: 0,
+                    }),
+                }],
+            };
+            let band = band_noise(&data, &[(0.5, 31.6)]).unwrap();
+            let rms = period_noise_rms(&data).unwrap();
+            for i in 0..2 {
+                let expected = rms[i].powi(2) * period as f64 / (period - 1) as f64;
+                assert!(
+                    (band[(i, 0)] / expected - 1.0).abs() < 1e-12,
+                    "{} {expected}",
+                    band[(i, 0)]
+                );
+            }
         }
     }
 
