@@ -1707,12 +1707,12 @@ D = [[-4.0, -3.0]]
     /// A periodic multisine excitation and noisy closed-loop logs of [`MODEL`]'s structure
     /// (the values and the noise level do not matter for what the tests check).
     fn logs(experiments: usize) -> Dataset {
-        logs_of(MODEL, experiments, &[1e-4])
+        logs_of(MODEL, experiments, 1e-3, &[1e-4])
     }
 
-    /// The same for the model file `model`, with white process noise of rms 1e-3 on the
-    /// velocity and sensor noise of rms `sensor_sd` on each output.
-    fn logs_of(model: &str, experiments: usize, sensor_sd: &[f64]) -> Dataset {
+    /// The same for the model file `model`, with white process noise of rms `process_sd` on
+    /// the velocity and sensor noise of rms `sensor_sd` on each output.
+    fn logs_of(model: &str, experiments: usize, process_sd: f64, sensor_sd: &[f64]) -> Dataset {
         let (period, periods, transient) = (250, 4, 100);
         let samples = transient + period * periods;
         let structure = Arc::new(ModelFile::parse(model, Path::new("cart.toml")).unwrap());
@@ -1742,7 +1742,7 @@ D = [[-4.0, -3.0]]
                             * 0.1
                     });
                     let (u, y) = run_loop(&disc, &controller, &r, &mut |w, v| {
-                        w[1] = 1e-3 * Distribution::<f64>::sample(&StandardNormal, &mut rng);
+                        w[1] = process_sd * Distribution::<f64>::sample(&StandardNormal, &mut rng);
                         for (vi, sd) in v.iter_mut().zip(sensor_sd) {
                             *vi = sd * Distribution::<f64>::sample(&StandardNormal, &mut rng);
                         }
@@ -1883,15 +1883,22 @@ D = [[-4.0, -3.0]]
         // Not exactly 2 sigma^2: the loop feeds the sensor noise back into the state.
         assert!((ms / (2.0 * 4e-6) - 1.0).abs() < 0.25, "{ms}");
         assert!(spec.sensor_noise[0] > 0.0 && spec.process_noise.len() == 2);
-        // Calibrated: the campaigns' period-to-period noise is the logs' on every output (rms
-        // over campaigns), also where the position sensor's noise reaches the velocity
-        // through the controller: the velocity's own sensor is 20 times quieter.
-        for (model, sensor_sd) in [(MODEL, vec![1e-4]), (MEASURED_BOTH, vec![1e-3, 5e-5])] {
+        // Calibrated: on every output the campaigns' period-to-period noise (rms over 32
+        // campaigns, an estimate independent of the check's eight records) is the logs', or
+        // the study warns about that output with that ratio. On the cart measured in position
+        // alone it is the logs'. Measured in both, most of the velocity's noise is the
+        // position sensor's, reaching it through the controller's force (4e-3 N rms, 7e-5 m/s
+        // per sample; its own sensor noise is 5e-5 and its process noise 2e-5 per sample),
+        // and the Kalman estimate's noise sources cannot give both outputs their logged noise.
+        for (model, process_sd, sensor_sd) in [
+            (MODEL, 1e-3, vec![1e-4]),
+            (MEASURED_BOTH, 2e-5, vec![1e-3, 5e-5]),
+        ] {
             for seed in [3, 4] {
                 let spec = prepare(
                     model,
                     Path::new("cart.toml"),
-                    logs_of(model, 2, &sensor_sd),
+                    logs_of(model, 2, process_sd, &sensor_sd),
                     &StudyOptions {
                         seed,
                         ..options(vec![0.0], 1)
@@ -1909,13 +1916,23 @@ D = [[-4.0, -3.0]]
                     }
                 }
                 for (i, (s, m)) in simulated.iter().zip(&measured).enumerate() {
-                    assert!(
-                        (s.sqrt() / m - 1.0).abs() < 0.15,
-                        "output {i}: {} {m}",
-                        s.sqrt()
-                    );
+                    let ratio = s.sqrt() / m;
+                    let warned = spec
+                        .noise_warnings
+                        .iter()
+                        .find(|w| w.band_hz.is_none() && w.output == study.outputs[i]);
+                    match warned {
+                        None => assert!((ratio - 1.0).abs() < 0.15, "output {i}: {ratio}"),
+                        Some(w) => assert!(
+                            (w.ratio / ratio - 1.0).abs() < 0.1 && (ratio - 1.0).abs() > 0.1,
+                            "output {i}: {ratio} warned {}",
+                            w.ratio
+                        ),
+                    }
                 }
-                assert!(spec.noise_warnings.is_empty(), "{:?}", spec.noise_warnings);
+                if model == MODEL {
+                    assert!(spec.noise_warnings.is_empty(), "{:?}", spec.noise_warnings);
+                }
             }
         }
     }
