@@ -11,7 +11,9 @@
 //! that value, sampled with a zero-order hold at the logs' rate, runs in closed loop with the
 //! file's controller from zero states, driven by each experiment's excitation (same lengths,
 //! same number of experiments, same periodic layout), with Gaussian process and sensor noise of
-//! the estimated covariances; the full discovery then runs on the simulated logs. The spec is
+//! the estimated covariances (scaled to the logs' period-to-period noise,
+//! [`calibration_factors`], and compared with it per output and band, [`Study::noise_check`],
+//! which warns where they differ); the full discovery then runs on the simulated logs. The spec is
 //! plain JSON (model-file text and excitation arrays, no paths), so campaigns run anywhere: in
 //! threads here ([`run`]) or in Dask tasks through the Python package. Outcomes are aggregated
 //! in one place ([`aggregate`]), whatever ran them.
