@@ -978,8 +978,8 @@ impl Study {
 
     /// Compares the study's simulated period-to-period noise with the logs' on every output,
     /// in all and per band of the excited band `band` ([`noise_bands`]), over
-    /// [`CALIBRATION_DRAWS`] records of the nominal model (random stream `u64::MAX - 1`, which
-    /// no campaign uses): a warning for every ratio beyond [`NOISE_TOTAL_TOLERANCE`] or
+    /// eight (`CALIBRATION_DRAWS`) records of the nominal model (random stream
+    /// `u64::MAX - 1`, which no campaign uses): a warning for every ratio beyond [`NOISE_TOTAL_TOLERANCE`] or
     /// [`NOISE_BAND_TOLERANCE`]. Where the simulated noise is lower than the logged one an
     /// effect acting there stands out more in the study than in the logs, so its detection
     /// rates are likely too high; where higher, too low.
