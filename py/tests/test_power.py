@@ -268,3 +268,30 @@ def test_every_plot_of_the_power_report_draws_in_a_browser(logs, tmp_path):
     for p in plots:
         assert p["width"] > 100 and p["height"] > 100 and p["marks"] >= 2, p
     assert "power" in plots[0]["title"]
+
+
+def test_the_study_names_noise_it_does_not_reproduce(tmp_path):
+    # The independent simulator's pole torque disturbance enters where the noise the study
+    # estimates (the Kalman predictor's, scaled) does not put it: with ten times its default,
+    # the study's calibrated noise on the pole angle is 2.3-3.1 times the logs' at 3-7 Hz
+    # (measured, seeds 1 and 2), and the study says where, by how much and that its rates
+    # may be too low there. With the default noise (the README's study, full-length logs) it
+    # reproduces the logs within the check's tolerances and says nothing. (On the short logs
+    # of the other tests the logged noise per band is too uncertain for this check: one
+    # nominal seed of two warned at 0.59.)
+    for seed in (1, 2):
+        plain, torque = tmp_path / f"plain{seed}", tmp_path / f"torque{seed}"
+        ic.campaign(plain, plant=ic.Plant(), seed=seed)
+        ic.campaign(torque, plant=ic.Plant(), seed=seed, torque_noise=0.02)
+        quiet = stabilis.power(MODEL, [plain], effect="cart_friction", values=[0.0],
+                               campaigns=1, seed=3, progress=False)
+        assert quiet["noise_warnings"] == [], quiet["noise_warnings"]
+        r = stabilis.power(MODEL, [torque], effect="cart_friction", values=[0.0],
+                           campaigns=1, seed=3, progress=False)
+        print(seed, [(w["output"], w["band_hz"], round(w["ratio"], 2))
+                     for w in r["noise_warnings"]])
+        assert r["noise_warnings"], r
+        for w in r["noise_warnings"]:
+            assert w["output"] == "theta" and w["band_hz"] is not None, w
+            assert w["ratio"] > 1.5 and "likely too low" in w["message"], w
+            assert w["band_hz"][0] >= 3 and "theta at" in w["message"], w
