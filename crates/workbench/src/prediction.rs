@@ -307,7 +307,7 @@ impl ExtendedPredictor {
             }
             self.advance(&mut x, (&early, &late), &mut work)
                 .map_err(|err| self.diverged(rec, k, &err.to_string()))?;
-            self.correct(&mut x, e.row(k).transpose().as_slice(), &late, &mut work)
+            self.correct(&mut x, (&e, k), &late, &mut work)
                 .map_err(|err| self.diverged(rec, k, &err.to_string()))?;
             if let Some(i) = x.iter().position(|v| !v.is_finite()) {
                 return Err(self.diverged(rec, k, &format!("state {i} is {}", x[i])));
@@ -322,17 +322,22 @@ impl ExtendedPredictor {
     /// of the sample to a ramp over it (the correction stands for the disturbance the sample
     /// accumulated). So a short lag follows the corrected output wholly, and the lagged model
     /// nests the one without.
-    fn correct(&self, x: &mut [f64], e: &[f64], u: &[f64], work: &mut Work) -> Result<()> {
+    /// `e` holds the innovations of sample `k` in its row `k`.
+    fn correct(
+        &self,
+        x: &mut [f64],
+        (e, k): (&DMatrix<f64>, usize),
+        u: &[f64],
+        work: &mut Work,
+    ) -> Result<()> {
         let lagged = !self.output_lags.is_empty();
         if lagged {
             self.dynamics
                 .h_unlagged(x, u, &mut work.g0, &mut work.scratch)?;
         }
         for (i, xi) in x.iter_mut().enumerate() {
-            *xi += e
-                .iter()
-                .enumerate()
-                .map(|(j, ej)| self.gain[(i, j)] * ej)
+            *xi += (0..e.ncols())
+                .map(|j| self.gain[(i, j)] * e[(k, j)])
                 .sum::<f64>();
         }
         if lagged {
