@@ -720,7 +720,8 @@ fn py_parameter(name: &str, spec: &Bound<'_, PyAny>) -> PyResult<(Parameter, boo
 /// where `matrices(params)` returns `(A, B, C, D)` (numpy arrays) of the continuous-time model
 /// for the parameter values `{name: float}`, and `effects` are [`Effect`]s that discovery
 /// tries next to the generic `actuator_lag`, `input_delay` and, with two to four inputs or
-/// outputs, `actuator_lag_<input>` and `sensor_lag_<output>`. A nonlinear model gives
+/// outputs, `actuator_lag_<input>`, `actuator_gain_<input>` and `sensor_lag_<output>`. A
+/// nonlinear model gives
 /// `f=`, `h=` (`f(x, u, params) -> dx`, `h(x, u, params) -> y`) and `operating_point=`
 /// (`{name: value}` for every state and input) instead of `matrices`.
 #[pyclass(name = "Model", module = "stabilis._stabilis.workbench", frozen)]
@@ -1522,7 +1523,8 @@ impl Workbench {
 
     /// Enables an effect: the name of one the model knows (those declared in its model file's
     /// `[effects]` or given to `stabilis.Model`, the generic `sensor_bias`, `actuator_lag`,
-    /// `input_delay`, `actuator_lag_<input>` and `sensor_lag_<output>`, or a shipped system's
+    /// `input_delay`, `actuator_lag_<input>`, `actuator_gain_<input>` and `sensor_lag_<output>`,
+    /// or a shipped system's
     /// own; an unknown name raises
     /// `stabilis.SimError` listing the known ones), or a `stabilis.Effect`, which is
     /// evaluated once at its documented values to catch errors now: in matrix form

@@ -89,9 +89,10 @@ fn fit_compare_and_discover_print_the_fitted_parameters() {
         stdout.contains("parameters (value ± standard error"),
         "{stdout}"
     );
+    // An effect's parameter names where its fit started, not a documented value.
     let c = line("c_alpha1");
     assert!(
-        c.contains(" ± ") && c.contains("N s/m") && c.contains("documented"),
+        c.contains(" ± ") && c.contains("N s/m") && c.contains("its fit started at"),
         "{c}"
     );
     // Held fixed by the structure, with the reason.
@@ -108,7 +109,7 @@ fn fit_compare_and_discover_print_the_fitted_parameters() {
         .find("effect added")
         .unwrap_or_else(|| panic!("{stdout}"));
     let table = stdout
-        .find("parameters (value ± standard error, unit; documented value) of the final model:")
+        .find("parameters (value ± standard error, unit; documented value, or where an effect's fit started) of the final model:")
         .unwrap_or_else(|| panic!("{stdout}"));
     assert!(steps < table, "{stdout}");
     let params = &stdout[table..];
@@ -117,8 +118,21 @@ fn fit_compare_and_discover_print_the_fitted_parameters() {
             .lines()
             .find(|l| l.trim_start().starts_with(&format!("{name} ")))
             .unwrap_or_else(|| panic!("no row for {name}:\n{stdout}"));
-        assert!(row.contains(" ± ") && row.contains("documented"), "{row}");
+        // An effect's parameter starts from a guess, not a documented value.
+        assert!(
+            row.contains(" ± ")
+                && row.contains("its fit started at")
+                && !row.contains("documented"),
+            "{row}"
+        );
     }
+    assert!(
+        params
+            .lines()
+            .any(|l| l.contains(" ± ") && l.contains("(documented ")),
+        "no base parameter names its documented value:
+{params}"
+    );
     assert!(params.contains("fixed ("), "{params}");
 }
 

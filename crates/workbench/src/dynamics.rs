@@ -233,6 +233,97 @@ fn room<'a>(stack: &'a mut [f64; STACK], heap: &'a mut Vec<f64>, len: usize) -> 
     }
 }
 
+/// One input scaled where it drives the plant: `f(x, u')`, `h(x, u')` with `u'_j = gain u_j`.
+#[derive(Debug)]
+pub struct ScaledInput {
+    inner: Box<dyn Dynamics>,
+    input: usize,
+    gain: f64,
+}
+
+impl ScaledInput {
+    /// `inner` with input `input` times `gain` (finite, non-zero); `inner` has no input lag
+    /// (whose state the predictor integrates towards the logged input, so the gain must act
+    /// inside it).
+    pub fn new(inner: Box<dyn Dynamics>, input: usize, gain: f64) -> Result<Self> {
+        if !(gain.is_finite() && gain != 0.0) {
+            return Err(SimError::invalid(
+                "gain",
+                gain,
+                "must be finite and non-zero",
+            ));
+        }
+        let m = inner.inputs();
+        if input >= m {
+            return Err(SimError::invalid(
+                "input",
+                input,
+                format!("the model has {m} inputs"),
+            ));
+        }
+        if !inner.input_lags().is_empty() {
+            return Err(SimError::invalid(
+                "gain",
+                gain,
+                "an input's gain must act inside the input lags",
+            ));
+        }
+        Ok(Self { inner, input, gain })
+    }
+
+    /// `u` with the scaled input, into `v`.
+    fn driven<'a>(&self, u: &[f64], v: &'a mut [f64]) -> &'a [f64] {
+        v.copy_from_slice(u);
+        v[self.input] *= self.gain;
+        v
+    }
+}
+
+impl Dynamics for ScaledInput {
+    fn states(&self) -> usize {
+        self.inner.states()
+    }
+    fn inputs(&self) -> usize {
+        self.inner.inputs()
+    }
+    fn outputs(&self) -> usize {
+        self.inner.outputs()
+    }
+    fn f(&self, x: &[f64], u: &[f64], dx: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
+        let (mut stack, mut heap) = ([0.0; STACK], Vec::new());
+        let v = room(&mut stack, &mut heap, u.len());
+        self.inner.f(x, self.driven(u, v), dx, scratch)
+    }
+    fn h(&self, x: &[f64], u: &[f64], y: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
+        let (mut stack, mut heap) = ([0.0; STACK], Vec::new());
+        let v = room(&mut stack, &mut heap, u.len());
+        self.inner.h(x, self.driven(u, v), y, scratch)
+    }
+    /// The inner model's, its input divided by the gain: the logged input that holds it.
+    fn operating_point(&self) -> (Vec<f64>, Vec<f64>) {
+        let (x, mut u) = self.inner.operating_point();
+        u[self.input] /= self.gain;
+        (x, u)
+    }
+    fn input_delay(&self) -> f64 {
+        self.inner.input_delay()
+    }
+    fn output_lags(&self) -> Vec<(usize, f64)> {
+        self.inner.output_lags()
+    }
+    fn h_unlagged(
+        &self,
+        x: &[f64],
+        u: &[f64],
+        y: &mut [f64],
+        scratch: &mut Vec<f64>,
+    ) -> Result<()> {
+        let (mut stack, mut heap) = ([0.0; STACK], Vec::new());
+        let v = room(&mut stack, &mut heap, u.len());
+        self.inner.h_unlagged(x, self.driven(u, v), y, scratch)
+    }
+}
+
 /// A transport delay `td` of every input, added to the inner model's.
 #[derive(Debug)]
 pub struct DelayedInputs {

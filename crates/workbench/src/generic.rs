@@ -10,16 +10,19 @@ use std::sync::Arc;
 use nalgebra::DMatrix;
 
 use super::dataset::Dataset;
-use super::dynamics::{DelayedInputs, Dynamics, LaggedInputs, LaggedOutput, OutputBias};
+use super::dynamics::{
+    DelayedInputs, Dynamics, LaggedInputs, LaggedOutput, OutputBias, ScaledInput,
+};
 use super::model::{Effect, ModelStructure, Parameter, StateSpace};
 use crate::error::Result;
 
-/// Most channels on one side (inputs, or outputs) that get a lag of their own as a candidate:
-/// each is one more fit per discovery step and per search a rival is followed into. The
+/// Most channels on one side (inputs, or outputs) that get a lag (or an input a gain) of their
+/// own as a candidate: each is one more fit per discovery step and per search a rival is
+/// followed into. The
 /// flying platform's discovery tests (9 inputs, 6 outputs) took 128 s with a lag on each of
 /// its 6 outputs offered against 49 s without, one on logs without the excitation (where a
 /// biased estimate makes the search add and follow many effects) 40 s alone.
-pub const MAX_CHANNEL_LAGS: usize = 4;
+pub const MAX_CHANNELS: usize = 4;
 
 /// The range a lag's time constant `tau` is searched in, and where its fit starts.
 #[derive(Debug, Clone, Copy)]
@@ -131,7 +134,7 @@ enum Channel {
 
 /// A first-order lag on one input or one output alone (`actuator_lag_<input>`, time constant
 /// `tau_<input>`; `sensor_lag_<output>`, `tau_<output>`). Offered per channel when a side has
-/// two to [`MAX_CHANNEL_LAGS`]: with one input it is `actuator_lag`, and with one output the
+/// two to [`MAX_CHANNELS`]: with one input it is `actuator_lag`, and with one output the
 /// actuator lag's twin in every response from the inputs.
 #[derive(Debug, Clone)]
 pub struct ChannelLag {
@@ -164,14 +167,14 @@ impl ChannelLag {
         Self::each(outputs, Channel::Output, "sensor_lag", range)
     }
 
-    /// One lag per channel of `names` (none unless two to [`MAX_CHANNEL_LAGS`]).
+    /// One lag per channel of `names` (none unless two to [`MAX_CHANNELS`]).
     fn each(
         names: &[String],
         channel: fn(usize) -> Channel,
         effect: &str,
         range: LagRange,
     ) -> Vec<Self> {
-        if !(2..=MAX_CHANNEL_LAGS).contains(&names.len()) {
+        if !(2..=MAX_CHANNELS).contains(&names.len()) {
             return Vec::new();
         }
         names
@@ -184,6 +187,72 @@ impl ChannelLag {
                 range,
             })
             .collect()
+    }
+}
+
+/// Input `j` times `gain_<input>` where it drives the plant (`actuator_gain_<input>`): one
+/// actuator weaker or stronger than documented (a worn rotor, a motor driver's scaling).
+/// Offered per input with two to [`MAX_CHANNELS`] inputs; with one, its gain trades against
+/// the model's own parameters. Searched from 0.2 to 5: a factor beyond is a unit (which the
+/// unit hints name) more than an actuator's strength.
+#[derive(Debug, Clone)]
+pub struct ActuatorGain {
+    input: usize,
+    name: String,
+    parameter: String,
+}
+
+impl ActuatorGain {
+    /// A gain on each of `inputs` (none unless two to [`MAX_CHANNELS`]).
+    pub fn for_inputs(inputs: &[String]) -> Vec<Self> {
+        if !(2..=MAX_CHANNELS).contains(&inputs.len()) {
+            return Vec::new();
+        }
+        inputs
+            .iter()
+            .enumerate()
+            .map(|(input, name)| Self {
+                input,
+                name: format!("actuator_gain_{name}"),
+                parameter: format!("gain_{name}"),
+            })
+            .collect()
+    }
+}
+
+impl Effect for ActuatorGain {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn description(&self) -> &str {
+        "gain on one input alone (an actuator weaker or stronger than documented)"
+    }
+
+    fn parameters(&self) -> Vec<Parameter> {
+        vec![Parameter::new(self.parameter.clone(), 1.0, 0.2, 5.0, "")]
+    }
+
+    fn qualified_names(&self) -> bool {
+        false
+    }
+
+    fn apply(&self, theta: &[f64], ss: &mut StateSpace) -> Result<()> {
+        ss.b.column_mut(self.input).scale_mut(theta[0]);
+        ss.d.column_mut(self.input).scale_mut(theta[0]);
+        Ok(())
+    }
+
+    fn has_dynamics(&self) -> bool {
+        true
+    }
+
+    fn apply_dynamics(&self, theta: &[f64], inner: Box<dyn Dynamics>) -> Result<Box<dyn Dynamics>> {
+        Ok(Box::new(ScaledInput::new(inner, self.input, theta[0])?))
+    }
+
+    fn scales_inputs(&self) -> bool {
+        true
     }
 }
 
@@ -472,9 +541,13 @@ pub fn for_structure(structure: &dyn ModelStructure) -> Vec<Arc<dyn Effect>> {
     if structure.is_nonlinear() {
         all.push(Arc::new(SensorBias::new(&outputs)));
     }
-    let lags = ChannelLag::for_inputs(&structure.inputs());
+    let inputs = structure.inputs();
+    let lags = ChannelLag::for_inputs(&inputs);
     for lag in lags.into_iter().chain(ChannelLag::for_outputs(&outputs)) {
         all.push(Arc::new(lag));
+    }
+    for gain in ActuatorGain::for_inputs(&inputs) {
+        all.push(Arc::new(gain));
     }
     undeclared(structure, all)
 }
@@ -515,6 +588,9 @@ pub fn for_data(
     {
         all.push(Arc::new(lag));
     }
+    for gain in ActuatorGain::for_inputs(&data.inputs) {
+        all.push(Arc::new(gain));
+    }
     undeclared(structure, all)
 }
 
@@ -539,6 +615,39 @@ mod tests {
             d: DMatrix::from_row_slice(2, 1, &[0.0, 0.5]),
             delay: 0.0,
         }
+    }
+
+    /// An input's gain multiplies its column of the response and nothing else, and commutes
+    /// with a lag on the same input (the nonlinear model applies it inside the lag).
+    #[test]
+    fn an_actuator_gain_scales_its_column_alone() {
+        let names = ["p".to_string(), "v".to_string()];
+        let mut two = plant();
+        two.b = DMatrix::from_row_slice(2, 2, &[0.0, 1.0, 2.0, 0.5]);
+        two.d = DMatrix::from_row_slice(2, 2, &[0.0, 0.3, 0.5, 0.2]);
+        let (gain, tau) = (0.85, 0.02);
+        let effect = &ActuatorGain::for_inputs(&names)[1];
+        assert_eq!(effect.name(), "actuator_gain_v");
+        let mut scaled = two.clone();
+        effect.apply(&[gain], &mut scaled).unwrap();
+        let lag = &ChannelLag::for_inputs(&names)[1];
+        let (mut gain_then_lag, mut lag_then_gain) = (scaled.clone(), two.clone());
+        lag.apply(&[tau], &mut gain_then_lag).unwrap();
+        lag.apply(&[tau], &mut lag_then_gain).unwrap();
+        effect.apply(&[gain], &mut lag_then_gain).unwrap();
+        let freqs = [0.1, 0.7, 3.0, 11.0];
+        let g = two.frf_lines(&freqs, None).unwrap();
+        let gs = scaled.frf_lines(&freqs, None).unwrap();
+        let a = gain_then_lag.frf_lines(&freqs, None).unwrap();
+        let b = lag_then_gain.frf_lines(&freqs, None).unwrap();
+        for k in 0..freqs.len() {
+            for i in 0..2 {
+                assert!((gs[k][(i, 0)] - g[k][(i, 0)]).norm() < 1e-12);
+                assert!((gs[k][(i, 1)] - g[k][(i, 1)] * gain).norm() < 1e-12);
+                assert!((a[k][(i, 1)] - b[k][(i, 1)]).norm() < 1e-12);
+            }
+        }
+        assert!(ActuatorGain::for_inputs(&names[..1]).is_empty());
     }
 
     /// The lagged response is the plant's times `1 / (1 + j w tau)` (closed form), and the
@@ -596,11 +705,11 @@ mod tests {
             }
         }
         assert!(ChannelLag::for_inputs(&names[..1]).is_empty());
-        // Up to MAX_CHANNEL_LAGS channels a side get one each, more get none.
-        let many: Vec<String> = (0..=MAX_CHANNEL_LAGS).map(|i| format!("c{i}")).collect();
-        let most = &many[..MAX_CHANNEL_LAGS];
-        assert_eq!(ChannelLag::for_outputs(most).len(), MAX_CHANNEL_LAGS);
-        assert_eq!(ChannelLag::for_inputs(most).len(), MAX_CHANNEL_LAGS);
+        // Up to MAX_CHANNELS channels a side get one each, more get none.
+        let many: Vec<String> = (0..=MAX_CHANNELS).map(|i| format!("c{i}")).collect();
+        let most = &many[..MAX_CHANNELS];
+        assert_eq!(ChannelLag::for_outputs(most).len(), MAX_CHANNELS);
+        assert_eq!(ChannelLag::for_inputs(most).len(), MAX_CHANNELS);
         assert!(
             ChannelLag::for_outputs(&many).is_empty() && ChannelLag::for_inputs(&many).is_empty()
         );

@@ -196,6 +196,12 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn filters_outputs(&self) -> bool {
         false
     }
+    /// Whether it scales inputs where they drive the plant (an actuator's gain): such effects
+    /// apply before all others, inside any input lag, whose state the predictor integrates
+    /// towards the logged input.
+    fn scales_inputs(&self) -> bool {
+        false
+    }
     /// The inputs (of `inputs`) it puts behind a lag with a state of its own: a second lag on
     /// one of them is not offered once it is in (a lag behind a lag is not integrated exactly,
     /// and the data seldom tell two apart).
@@ -518,6 +524,16 @@ impl Model {
             .collect())
     }
 
+    /// The names of the parameters every enabled effect brings: guesses where their fits
+    /// start, not documented properties of the system.
+    pub fn effect_parameter_names(&self) -> Result<Vec<String>> {
+        let mut names = Vec::new();
+        for e in self.enabled() {
+            names.extend(self.effect_parameters(&e)?);
+        }
+        Ok(names)
+    }
+
     /// Offers a further effect as a discovery candidate (replacing a generic effect of the same
     /// name); it is not enabled.
     pub fn with_candidate(&self, effect: Arc<dyn Effect>) -> Result<Self> {
@@ -592,7 +608,12 @@ impl Model {
                 (e, start)
             })
             .collect();
-        order.sort_by_key(|(e, _)| e.filters_outputs());
+        // Input gains first, inside every input lag; output lags last.
+        order.sort_by_key(|(e, _)| match (e.scales_inputs(), e.filters_outputs()) {
+            (true, _) => 0,
+            (false, false) => 1,
+            (false, true) => 2,
+        });
         order
     }
 

@@ -1089,7 +1089,7 @@ impl Study {
                     criterion: self.spec.criterion,
                 },
             )?
-            .discover()
+            .discover_alone(&mut |_: &str| {})
         });
         match result {
             Err(e) => out.error = Some(e.to_string()),

@@ -272,6 +272,10 @@ fn parameter_lines(wb: &Workbench, d: &Discovery) -> String {
         return String::new();
     };
     let documented = documented(wb, d);
+    // An effect's parameters start from a guess, which is not documented.
+    let guesses = with_effects(wb, &last.effects)
+        .and_then(|m| m.effect_parameter_names())
+        .unwrap_or_default();
     let fixed = wb.model().structure().fixed();
     let width = last
         .params
@@ -281,7 +285,7 @@ fn parameter_lines(wb: &Workbench, d: &Discovery) -> String {
         .max()
         .unwrap_or(0);
     let mut s = String::from(
-        "parameters (value ± standard error, unit; documented value) of the final model:\n",
+        "parameters (value ± standard error, unit; documented value, or where an effect's fit started) of the final model:\n",
     );
     for p in &last.params {
         // Dimensionless ("1" or none) shows no unit.
@@ -300,7 +304,12 @@ fn parameter_lines(wb: &Workbench, d: &Discovery) -> String {
         let mut notes: Vec<String> = Vec::new();
         if !p.held {
             if let Some(doc) = documented.iter().find(|q| q.name == p.name) {
-                notes.push(format!("documented {}", fmt_num(doc.value)));
+                let what = if guesses.contains(&p.name) {
+                    "its fit started at"
+                } else {
+                    "documented"
+                };
+                notes.push(format!("{what} {}", fmt_num(doc.value)));
             }
         }
         if p.at_bound {

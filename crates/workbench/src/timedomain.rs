@@ -455,7 +455,8 @@ pub fn time_fit(
                 policy: format!(
                     "stationary Kalman predictor of the sampled model, started at zero state, \
                      noise covariances estimated from the data (sensor noise from first \
-                     differences, input-referred and state process noise and per-output sensor \
+                     differences, input-referred process noise with a share per direction the \
+                     inputs reach, state process noise and per-output sensor \
                      factors chosen to minimise the innovation log-determinant, then every \
                      entry of the gain refined on the same criterion); one-step and \
                      {k}-step predictions ({:.3} s) from the filtered state, scored from samples \

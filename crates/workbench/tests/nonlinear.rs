@@ -1002,3 +1002,247 @@ fn a_misfit_names_the_quantization_and_the_frf_criterions_reading() {
         d.conclusion.warnings
     );
 }
+
+/// A balancing stand's roll (unstable, `mgh`) and yaw, two rotors: roll torque `d (T1 - T2)`,
+/// yaw torque `kd (T1 + T2)` (the rotors' drag, 5 times weaker per newton than the lever
+/// `d`, relative to the inertia), and a disturbance torque of the same size on both axes.
+const STAND: &str = r#"
+name = "stand"
+states = ["phi", "psi", "p", "r"]
+inputs = ["T1", "T2"]
+outputs = ["phi", "psi", "gx", "gz"]
+[parameters]
+Ixx = { value = 0.010, min = 0.0 }
+Izz = { value = 0.018, min = 0.0 }
+mgh = { value = 0.15, min = 0.0 }
+d = { value = 0.085, fixed = true }
+kd = { value = 0.016, fixed = true }
+[nonlinear]
+f.phi = "p"
+f.psi = "r"
+f.p = "(d*(T1 - T2) + mgh*sin(phi))/Ixx"
+f.r = "kd*(T1 + T2)/Izz"
+h.phi = "phi"
+h.psi = "psi"
+h.gx = "p"
+h.gz = "r"
+operating_point = { phi = 0, psi = 0, p = 0, r = 0, T1 = 0, T2 = 0 }
+"#;
+
+/// Two records of 6000 samples at 250 Hz of [`STAND`] with `Ixx = 0.0104`, `Izz = 0.0185`,
+/// `mgh = 0.157` under PD control of both axes on the measured angles and rates, white
+/// excitation of 0.4 N per rotor, torque noise of 0.003 N m on each axis held per sample,
+/// angle noise 3 mrad, rate noise 0.02 rad/s; RK4 on 4 sub-steps per sample.
+fn stand(seed: u64) -> Dataset {
+    stand_with(seed, STAND_TRUTH)
+}
+
+/// What [`stand_with`] simulates beside [`STAND`].
+#[derive(Clone, Copy)]
+struct StandTruth {
+    /// Rotor T1's share of its commanded thrust.
+    gain: f64,
+    /// Time constant of a first-order filter on the roll gyro `gx`, s.
+    gyro_lag: f64,
+    /// Yaw torque per roll rate, N m s: a coupling no effect of the file describes.
+    coupling: f64,
+}
+
+const STAND_TRUTH: StandTruth = StandTruth {
+    gain: 1.0,
+    gyro_lag: 0.0,
+    coupling: 0.0,
+};
+
+/// [`stand`] under `truth`.
+fn stand_with(seed: u64, truth: StandTruth) -> Dataset {
+    let (ixx, izz, mgh, d, kd, t) = (0.0104, 0.0185, 0.157, 0.085, 0.016, 1.0 / 250.0);
+    let mut rng = StdRng::seed_from_u64(seed);
+    let mut normal = move || rng.sample::<f64, _>(StandardNormal);
+    let f = |x: [f64; 4], u: [f64; 2], w: [f64; 2]| {
+        [
+            x[2],
+            x[3],
+            (d * (u[0] - u[1]) + mgh * x[0].sin() + w[0]) / ixx,
+            (kd * (u[0] + u[1]) + truth.coupling * x[2] + w[1]) / izz,
+        ]
+    };
+    let step = |x: [f64; 4], k: [f64; 4], h: f64| std::array::from_fn(|i| x[i] + h * k[i]);
+    let mut experiments = Vec::new();
+    for e in 0..2 {
+        let n = 6000;
+        let (mut u, mut y, mut r) = (
+            DMatrix::zeros(n, 2),
+            DMatrix::zeros(n, 4),
+            DMatrix::zeros(n, 2),
+        );
+        let (mut x, mut gyro) = ([0.0f64; 4], 0.0f64);
+        for i in 0..n {
+            let noise = [3e-3, 3e-3, 0.02, 0.02];
+            for (j, s) in noise.iter().enumerate() {
+                let read = if j == 2 && truth.gyro_lag > 0.0 {
+                    gyro
+                } else {
+                    x[j]
+                };
+                y[(i, j)] = read + s * normal();
+            }
+            let roll = -(2.5 * y[(i, 0)] + 0.22 * y[(i, 2)]);
+            let yaw = -(1.2 * y[(i, 1)] + 0.2 * y[(i, 3)]);
+            for j in 0..2 {
+                r[(i, j)] = 0.4 * normal();
+                let sign = if j == 0 { 1.0 } else { -1.0 };
+                u[(i, j)] = sign * roll / (2.0 * d) + yaw / (2.0 * kd) + r[(i, j)];
+            }
+            let (ui, w) = (
+                [truth.gain * u[(i, 0)], u[(i, 1)]],
+                [3e-3 * normal(), 3e-3 * normal()],
+            );
+            let h = t / 4.0;
+            for _ in 0..4 {
+                let k1 = f(x, ui, w);
+                let k2 = f(step(x, k1, h / 2.0), ui, w);
+                let k3 = f(step(x, k2, h / 2.0), ui, w);
+                let k4 = f(step(x, k3, h), ui, w);
+                x = std::array::from_fn(|j| {
+                    x[j] + h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+                });
+                if truth.gyro_lag > 0.0 {
+                    gyro += (x[2] - gyro) * (1.0 - (-h / truth.gyro_lag).exp());
+                }
+            }
+        }
+        experiments.push(Experiment {
+            name: format!("experiment {}", e + 1),
+            u,
+            y,
+            r: Some(r),
+            periodic: None,
+        });
+    }
+    Dataset {
+        sample_rate_hz: 250.0,
+        inputs: vec!["T1".into(), "T2".into()],
+        outputs: ["phi", "psi", "gx", "gz"].map(String::from).to_vec(),
+        experiments,
+    }
+}
+
+/// The noise model gives each direction the inputs reach its own share. With one share for
+/// all, the stand's yaw (which the rotors reach 9 times more weakly per newton than its roll,
+/// where the disturbance torque is the same) got too little process noise, and the true
+/// model's fit put `Izz` 4.5-7.5 standard errors high on 4 of 4 seeds (a misfit on seed 1).
+/// Now 4 of 4 read explained with `Izz` at -0.3 .. +2.2 and `Ixx` at -0.6 .. +1.0 standard
+/// errors; the test allows 4 and 3.
+#[test]
+fn process_noise_along_each_direction_the_inputs_reach_keeps_the_fit_unbiased() {
+    for seed in 1..=4 {
+        let wb = Workbench::with_options(
+            Arc::new(file(STAND).unwrap()),
+            stand(seed),
+            EstimatorChoice::Auto,
+            DataOptions::default(),
+        )
+        .unwrap();
+        let d = wb.compared().unwrap();
+        let p = &d.steps.last().unwrap().params;
+        let z = |name: &str, truth: f64| {
+            let q = p.iter().find(|q| q.name == name).unwrap();
+            (q.value - truth) / q.std.unwrap()
+        };
+        let summary = workbench::report::table(&wb, &d);
+        assert!(!d.conclusion.unexplained, "seed {seed}: {summary}");
+        assert!(z("Izz", 0.0185).abs() < 4.0, "seed {seed}: {summary}");
+        assert!(z("Ixx", 0.0104).abs() < 3.0, "seed {seed}: {summary}");
+    }
+}
+
+/// One rotor at 85 % of its commanded thrust, the yaw inertia known (fixed at the truth: with
+/// both inertias free a weaker T1 and a stronger T2 fit alike, the inertias rescaled, and the
+/// two gains are rivals): discovery adds its gain under either criterion and reads the logs
+/// explained, the gain within 3 standard errors and 3 % of the truth, 3 of 3 seeds (measured
+/// 0.836-0.855 under the time-domain criterion, standard errors 0.006; 0.841-0.865 under the
+/// FRF, 0.007); with both rotors true, nothing is added (the same seeds).
+#[test]
+fn a_weak_actuator_is_found_by_its_gain() {
+    for seed in 1..=3 {
+        for criterion in [Criterion::Time, Criterion::Frf] {
+            let options = DataOptions {
+                criterion: Some(criterion),
+                ..DataOptions::default()
+            };
+            let known = STAND.replace(
+                "Izz = { value = 0.018, min = 0.0 }",
+                "Izz = { value = 0.0185, fixed = true }",
+            );
+            let wb = |gain: f64| {
+                Workbench::with_options(
+                    Arc::new(file(&known).unwrap()),
+                    stand_with(
+                        seed,
+                        StandTruth {
+                            gain,
+                            ..STAND_TRUTH
+                        },
+                    ),
+                    EstimatorChoice::Auto,
+                    options,
+                )
+                .unwrap()
+            };
+            let weak = wb(0.85);
+            let d = weak.discover().unwrap();
+            let summary = workbench::report::table(&weak, &d);
+            assert_eq!(d.conclusion.found, ["actuator_gain_T1"], "{summary}");
+            assert!(!d.conclusion.unexplained, "{summary}");
+            let p = d.steps.last().unwrap().params.iter();
+            let g = p.clone().find(|p| p.name == "gain_T1").unwrap();
+            let z = (g.value - 0.85) / g.std.unwrap();
+            assert!(
+                z.abs() < 3.0 && (g.value - 0.85).abs() < 0.03 * 0.85,
+                "{summary}"
+            );
+            let nominal = wb(1.0);
+            let d = nominal.discover().unwrap();
+            let summary = workbench::report::table(&nominal, &d);
+            assert!(d.conclusion.found.is_empty(), "{summary}");
+        }
+    }
+}
+
+/// A 10 ms filter on the roll gyro, which the time-domain criterion does not search: its
+/// misfit verdict names what the FRF criterion reads, explained with `sensor_lag_gx` found
+/// (3 of 3 seeds), and with a roll-to-yaw coupling no effect describes, under which the FRF
+/// criterion reads a misfit too, still the lag and how to fit it (3 of 3; before, nothing).
+#[test]
+fn an_output_lag_the_frf_criterion_adds_is_named_beside_a_misfit() {
+    for seed in 1..=3 {
+        for coupling in [0.0, 0.03] {
+            let truth = StandTruth {
+                gyro_lag: 0.01,
+                coupling,
+                ..STAND_TRUTH
+            };
+            let wb = Workbench::with_options(
+                Arc::new(file(STAND).unwrap()),
+                stand_with(seed, truth),
+                EstimatorChoice::Auto,
+                DataOptions::default(),
+            )
+            .unwrap();
+            let d = wb.discover().unwrap();
+            let summary = workbench::report::table(&wb, &d);
+            assert!(d.conclusion.unexplained, "{summary}");
+            let said = d.conclusion.warnings.join(" ");
+            let expected = if coupling == 0.0 {
+                "read explained, sensor_lag_gx found"
+            } else {
+                "read a misfit too, with sensor_lag_gx tentative"
+            };
+            assert!(said.contains(expected), "seed {seed}: {summary}");
+            if coupling > 0.0 {
+                assert!(said.contains("`fit --with sensor_lag_gx`"), "{summary}");
+            }
+        }
+    }
+}
