@@ -174,20 +174,22 @@ impl ChannelLag {
         effect: &str,
         range: LagRange,
     ) -> Vec<Self> {
-        if !(2..=MAX_CHANNELS).contains(&names.len()) {
-            return Vec::new();
-        }
-        names
-            .iter()
-            .enumerate()
-            .map(|(i, name)| Self {
-                channel: channel(i),
-                name: format!("{effect}_{name}"),
-                parameter: format!("tau_{name}"),
-                range,
-            })
-            .collect()
+        per_channel(names, |i, name| Self {
+            channel: channel(i),
+            name: format!("{effect}_{name}"),
+            parameter: format!("tau_{name}"),
+            range,
+        })
     }
+}
+
+/// `make(index, name)` for each channel of `names`, none unless there are two to
+/// [`MAX_CHANNELS`] of them.
+fn per_channel<T>(names: &[String], make: impl Fn(usize, &str) -> T) -> Vec<T> {
+    if !(2..=MAX_CHANNELS).contains(&names.len()) {
+        return Vec::new();
+    }
+    names.iter().enumerate().map(|(i, n)| make(i, n)).collect()
 }
 
 /// Input `j` times `gain_<input>` where it drives the plant (`actuator_gain_<input>`): one
@@ -205,18 +207,11 @@ pub struct ActuatorGain {
 impl ActuatorGain {
     /// A gain on each of `inputs` (none unless two to [`MAX_CHANNELS`]).
     pub fn for_inputs(inputs: &[String]) -> Vec<Self> {
-        if !(2..=MAX_CHANNELS).contains(&inputs.len()) {
-            return Vec::new();
-        }
-        inputs
-            .iter()
-            .enumerate()
-            .map(|(input, name)| Self {
-                input,
-                name: format!("actuator_gain_{name}"),
-                parameter: format!("gain_{name}"),
-            })
-            .collect()
+        per_channel(inputs, |input, name| Self {
+            input,
+            name: format!("actuator_gain_{name}"),
+            parameter: format!("gain_{name}"),
+        })
     }
 }
 

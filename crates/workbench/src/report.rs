@@ -26,6 +26,34 @@ pub fn table(wb: &Workbench, d: &Discovery) -> String {
     summary(wb, d, true)
 }
 
+/// `+q params` of a candidate, and why when `q` is not its own count: an effect can let the
+/// data separate parameters of the model that were held without it (a quadrotor's rotational
+/// damping separates its yaw inertia from its rotor drag), and have parameters of its own held.
+fn added_parameters(wb: &Workbench, c: &CandidateScore) -> String {
+    let own = wb
+        .model()
+        .with_effect(&c.effect)
+        .and_then(|m| m.effect_parameters(&c.effect))
+        .map(|p| p.len())
+        .unwrap_or(c.added_parameters);
+    params_phrase(c.added_parameters, own)
+}
+
+/// `+q params` of an effect with `own` parameters of its own.
+fn params_phrase(q: usize, own: usize) -> String {
+    let why = match q.cmp(&own) {
+        std::cmp::Ordering::Greater => {
+            format!(
+                " (its {own} and {} of the model's it lets the data separate)",
+                q - own
+            )
+        }
+        std::cmp::Ordering::Less if q > 0 => format!(" (of its {own}, {} held)", own - q),
+        _ => String::new(),
+    };
+    format!("+{q} params{why}")
+}
+
 /// `n` and the noun, in the plural unless `n` is 1 (`1 experiment`, `4 experiments`).
 pub fn count(n: usize, noun: &str) -> String {
     if n == 1 {
@@ -176,8 +204,9 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
                 let _ = writeln!(
                     s,
                     "  not added: {:<15} fit stopped: the linear model of its cost cannot reach \
-                     the significance threshold  +{} params{seen}",
-                    c.effect, c.added_parameters,
+                     the significance threshold  {}{seen}",
+                    c.effect,
+                    added_parameters(wb, c),
                 );
                 continue;
             }
@@ -203,10 +232,10 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
             };
             let _ = writeln!(
                 s,
-                "  not added: {:<15} reduction {:>6.2}%  +{} params  p = {:.2e}  robust p = {:.2e}  dBIC {:+.1}{noise}",
+                "  not added: {:<15} reduction {:>6.2}%  {}  p = {:.2e}  robust p = {:.2e}  dBIC {:+.1}{noise}",
                 c.effect,
                 c.reduction_percent,
-                c.added_parameters,
+                added_parameters(wb, c),
                 c.p_value,
                 c.robust_p_value,
                 c.delta_bic,
@@ -1457,5 +1486,16 @@ mod tests {
         assert_eq!(fmt_num(0.030113), "0.03011");
         assert_eq!(fmt_num(123592.1), "1.236e5");
         assert_eq!(fmt_num(-4.98e-5), "-4.980e-5");
+    }
+
+    /// A candidate's parameter count says why it differs from the effect's own.
+    #[test]
+    fn added_parameters_say_why_they_differ_from_the_effects_own() {
+        assert_eq!(params_phrase(1, 1), "+1 params");
+        assert_eq!(
+            params_phrase(2, 1),
+            "+2 params (its 1 and 1 of the model's it lets the data separate)"
+        );
+        assert_eq!(params_phrase(4, 6), "+4 params (of its 6, 2 held)");
     }
 }
