@@ -167,13 +167,17 @@ impl LaggedInputs {
         })
     }
 
-    /// `u` with the lagged inputs replaced by their states `xa`, into `v`.
-    fn driven<'a>(&self, u: &[f64], xa: &[f64], v: &'a mut [f64]) -> &'a [f64] {
-        v.copy_from_slice(u);
-        for (&j, a) in self.lagged.iter().zip(xa) {
-            v[j] = *a;
-        }
-        v
+    /// `g` of `u` with the lagged inputs replaced by their states `xa`.
+    fn driven<R>(&self, u: &[f64], xa: &[f64], g: impl FnOnce(&[f64]) -> R) -> R {
+        with_inputs(
+            u,
+            |v| {
+                for (&j, a) in self.lagged.iter().zip(xa) {
+                    v[j] = *a;
+                }
+            },
+            g,
+        )
     }
 }
 
@@ -194,9 +198,7 @@ impl Dynamics for LaggedInputs {
         let n = self.inner.states();
         let (xp, xa) = x.split_at(n);
         let (dp, da) = dx.split_at_mut(n);
-        let (mut stack, mut heap) = ([0.0; STACK], Vec::new());
-        let v = room(&mut stack, &mut heap, u.len());
-        self.inner.f(xp, self.driven(u, xa, v), dp, scratch)?;
+        self.driven(u, xa, |v| self.inner.f(xp, v, dp, scratch))?;
         for ((d, a), &j) in da.iter_mut().zip(xa).zip(&self.lagged) {
             *d = (u[j] - a) * self.rate;
         }
@@ -204,9 +206,7 @@ impl Dynamics for LaggedInputs {
     }
     fn h(&self, x: &[f64], u: &[f64], y: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
         let (xp, xa) = x.split_at(self.inner.states());
-        let (mut stack, mut heap) = ([0.0; STACK], Vec::new());
-        let v = room(&mut stack, &mut heap, u.len());
-        self.inner.h(xp, self.driven(u, xa, v), y, scratch)
+        self.driven(u, xa, |v| self.inner.h(xp, v, y, scratch))
     }
     fn operating_point(&self) -> (Vec<f64>, Vec<f64>) {
         let (mut x, u) = self.inner.operating_point();
@@ -221,6 +221,16 @@ impl Dynamics for LaggedInputs {
         lags.extend(self.lagged.iter().map(|&j| (j, 1.0 / self.rate)));
         lags
     }
+}
+
+/// `g` of a copy of the inputs `u` that `edit` changes (on the stack for a small model: the
+/// predictor evaluates the model four times per integration step).
+fn with_inputs<R>(u: &[f64], edit: impl FnOnce(&mut [f64]), g: impl FnOnce(&[f64]) -> R) -> R {
+    let (mut stack, mut heap) = ([0.0; STACK], Vec::new());
+    let v = room(&mut stack, &mut heap, u.len());
+    v.copy_from_slice(u);
+    edit(v);
+    g(v)
 }
 
 /// `len` numbers of `stack`, or of `heap` when the stack is too small.
@@ -271,11 +281,9 @@ impl ScaledInput {
         Ok(Self { inner, input, gain })
     }
 
-    /// `u` with the scaled input, into `v`.
-    fn driven<'a>(&self, u: &[f64], v: &'a mut [f64]) -> &'a [f64] {
-        v.copy_from_slice(u);
-        v[self.input] *= self.gain;
-        v
+    /// `g` of `u` with the scaled input.
+    fn driven<R>(&self, u: &[f64], g: impl FnOnce(&[f64]) -> R) -> R {
+        with_inputs(u, |v| v[self.input] *= self.gain, g)
     }
 }
 
@@ -290,14 +298,10 @@ impl Dynamics for ScaledInput {
         self.inner.outputs()
     }
     fn f(&self, x: &[f64], u: &[f64], dx: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
-        let (mut stack, mut heap) = ([0.0; STACK], Vec::new());
-        let v = room(&mut stack, &mut heap, u.len());
-        self.inner.f(x, self.driven(u, v), dx, scratch)
+        self.driven(u, |v| self.inner.f(x, v, dx, scratch))
     }
     fn h(&self, x: &[f64], u: &[f64], y: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
-        let (mut stack, mut heap) = ([0.0; STACK], Vec::new());
-        let v = room(&mut stack, &mut heap, u.len());
-        self.inner.h(x, self.driven(u, v), y, scratch)
+        self.driven(u, |v| self.inner.h(x, v, y, scratch))
     }
     /// The inner model's, its input divided by the gain: the logged input that holds it.
     fn operating_point(&self) -> (Vec<f64>, Vec<f64>) {
@@ -318,9 +322,7 @@ impl Dynamics for ScaledInput {
         y: &mut [f64],
         scratch: &mut Vec<f64>,
     ) -> Result<()> {
-        let (mut stack, mut heap) = ([0.0; STACK], Vec::new());
-        let v = room(&mut stack, &mut heap, u.len());
-        self.inner.h_unlagged(x, self.driven(u, v), y, scratch)
+        self.driven(u, |v| self.inner.h_unlagged(x, v, y, scratch))
     }
 }
 

@@ -18,10 +18,10 @@ use crate::error::Result;
 
 /// Most channels on one side (inputs, or outputs) that get a lag (or an input a gain) of their
 /// own as a candidate: each is one more fit per discovery step and per search a rival is
-/// followed into. The
-/// flying platform's discovery tests (9 inputs, 6 outputs) took 128 s with a lag on each of
-/// its 6 outputs offered against 49 s without, one on logs without the excitation (where a
-/// biased estimate makes the search add and follow many effects) 40 s alone.
+/// followed into. The flying platform's discovery tests (9 inputs, 6 outputs) took 128 s with
+/// a lag on each of its 6 outputs offered against 49 s without, one on logs without the
+/// excitation (where a biased estimate makes the search add and follow many effects) 40 s
+/// alone.
 pub const MAX_CHANNELS: usize = 4;
 
 /// The range a lag's time constant `tau` is searched in, and where its fit starts.

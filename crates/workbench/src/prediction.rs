@@ -1137,17 +1137,15 @@ impl Workbench {
     /// `sensor_lag_alpha` at 3.997 ms under the FRF criterion, a misfit and a wrong actuator
     /// lag under this one). `None` otherwise or when it fails.
     pub(crate) fn frf_cross_check(&self) -> Option<String> {
-        let mut wb = self.clone();
-        wb.criterion = Criterion::Frf;
-        let d = wb.discover_alone(&mut |_: &str| {}).ok()?;
+        let d = self.discover_under(Criterion::Frf)?;
         // Effects the FRF reading adds that this criterion does not search (an output's lag).
-        let searched = self.model.dynamics_candidates();
+        let (searched, on) = (self.model.dynamics_candidates(), self.model.enabled());
         let unsearched: Vec<&String> = d
             .conclusion
             .found
             .iter()
             .chain(&d.conclusion.tentative)
-            .filter(|e| !searched.contains(e) && !self.model.enabled().contains(e))
+            .filter(|e| !searched.contains(e) && !on.contains(e))
             .collect();
         if d.conclusion.unexplained && unsearched.is_empty() {
             return None;
@@ -1206,6 +1204,13 @@ impl Workbench {
         ))
     }
 
+    /// The discovery on the same logs under `criterion` alone; `None` when it fails.
+    fn discover_under(&self, criterion: Criterion) -> Option<Discovery> {
+        let mut wb = self.clone();
+        wb.criterion = criterion;
+        wb.discover_alone(&mut |_: &str| {}).ok()
+    }
+
     /// What the time-domain criterion reads when it explains logs the FRF criterion reads as
     /// a misfit of a nonlinear model: the FRF criterion compares the model's linearization at
     /// the operating point, which the logs' excursions can leave short of their best linear
@@ -1213,9 +1218,7 @@ impl Workbench {
     /// the noise under it on 3 of 3 sets and explained under the time-domain criterion, which
     /// runs the nonlinear model). `None` when that misfits too or fails.
     pub(crate) fn time_cross_check(&self) -> Option<String> {
-        let mut wb = self.clone();
-        wb.criterion = Criterion::Time;
-        let d = wb.discover_alone(&mut |_: &str| {}).ok()?;
+        let d = self.discover_under(Criterion::Time)?;
         if d.conclusion.unexplained {
             return None;
         }
