@@ -38,6 +38,7 @@ the 0.5 ms grid); the violation is the largest excess over |u| <= 0.5, x_1 >= 0 
                                             [--peers daqp osqp proxqp] [--quick] [--starts N]
                                             [--evict MiB]
     .venv/bin/python py/bench/pmpc_peers.py --scan-nu 0.5 0.7 1.0 1.3 [--s 10 12]
+    .venv/bin/python py/bench/pmpc_peers.py --switch-nu 1.3 1.8 [--s 12]
     .venv/bin/python py/bench/pmpc_peers.py --scan-horizons 80 82 83 90 92 93
     .venv/bin/python py/bench/pmpc_peers.py --chain 7
 """
@@ -234,8 +235,6 @@ def run_discrete(ctrl, ad, bd, x0, steps, sub):
 def run_pmpc(ctrl, s, x0, steps, a=A, b=B, nu=NU):
     """Closed loop with the continuous plan: (x, tau) evolves by expm([[A, B U], [0, M]] h)."""
     n = a.shape[0]
-    m = laguerre_generator(s, nu)
-    tau0 = np.full(s, np.sqrt(2 * nu))
     x, times, cost, viol, fallbacks, iters, own = x0.copy(), [], 0.0, -INF, 0, [], []
     integral, beyond, bound = 0.0, 0, ctrl.work_bound()
     ctrl.reset()
@@ -253,24 +252,54 @@ def run_pmpc(ctrl, s, x0, steps, a=A, b=B, nu=NU):
             beyond += any(info[key] > limit for key, limit in bound.items())
         if k >= 1:
             cost += 0.5 * (x @ x + u * u) * TD
-        eta_u = np.asarray(ctrl.plan)[n * s:]
-        aug = np.zeros((n + s, n + s))
-        aug[:n, :n] = a
-        aug[:n, n:] = b @ eta_u[None, :]
-        aug[n:, n:] = m
-        e = scipy.linalg.expm(aug * (TD / GRID))
-        xi = np.concatenate([x, tau0])
-        stage = [0.5 * (x @ x + (eta_u @ tau0) ** 2)]
-        for _ in range(GRID):
-            xi = e @ xi
-            ut = eta_u @ xi[n:]
-            viol = max(viol, -xi[0], abs(ut) - 0.5)
-            stage.append(0.5 * (xi[:n] @ xi[:n] + ut * ut))
+        x, stage, excess = apply_plan(np.asarray(ctrl.plan)[n * s:], x, s, nu, a, b)
+        viol = max(viol, excess)
         if k >= 1:
             integral += simpson(stage)
-        x = xi[:n]
     return (np.array(times[1:]) * 1e-9, (cost, integral), viol, fallbacks, np.array(iters[1:]),
             np.array(own[1:]), beyond)
+
+
+def apply_plan(eta_u, x, s, nu, a=A, b=B):
+    """One interval of the plant under the continuous plan u(t) = eta_u' tau(t): (x, tau)
+    evolves by expm([[A, B eta_u'], [0, M]] h). Returns the state at T_d, the stage cost on the
+    GRID sub-steps and the largest excess over |u| <= 0.5 and x_1 >= 0 there."""
+    n = a.shape[0]
+    aug = np.zeros((n + s, n + s))
+    aug[:n, :n] = a
+    aug[:n, n:] = b @ eta_u[None, :]
+    aug[n:, n:] = laguerre_generator(s, nu)
+    e = scipy.linalg.expm(aug * (TD / GRID))
+    tau0 = np.full(s, np.sqrt(2 * nu))
+    xi = np.concatenate([x, tau0])
+    stage, viol = [0.5 * (x @ x + (eta_u @ tau0) ** 2)], -INF
+    for _ in range(GRID):
+        xi = e @ xi
+        ut = eta_u @ xi[n:]
+        viol = max(viol, -xi[0], abs(ut) - 0.5)
+        stage.append(0.5 * (xi[:n] @ xi[:n] + ut * ut))
+    return xi[:n], stage, viol
+
+
+def run_switched(s, nus, x0, steps):
+    """Closed loop of one unbudgeted controller per decay rate in `nus`, all stepped from the
+    same state; the plan of least predicted cost is applied. Each step's plan costs at most the
+    shifted plan applied before, which lies in its own basis's span, so the value still
+    decreases. Returns J_cl, the largest excess and how often each rate was applied."""
+    ctrls = [quad_pmpc(s, nu) for nu in nus]
+    x, cost, viol, picks = x0.copy(), 0.0, -INF, np.zeros(len(nus), dtype=int)
+    for k in range(steps + 1):
+        plans = []
+        for i, c in enumerate(ctrls):
+            u = float(c.step(x)[0])
+            plans.append((c.last_step()["cost"], i, u))
+        _, i, u = min(plans)
+        picks[i] += 1
+        if k >= 1:
+            cost += 0.5 * (x @ x + u * u) * TD
+        x, _, excess = apply_plan(np.asarray(ctrls[i].plan)[4 * s:], x, s, nus[i])
+        viol = max(viol, excess)
+    return cost, viol, picks
 
 
 def simpson(values):
@@ -364,6 +393,21 @@ def scan_nu(ss, nus):
             print(f"| {s} | {nu:g} | " + " | ".join(cells) + " |", flush=True)
 
 
+def switched(ss, nus):
+    """J_cl of the least-cost plan over several decay rates per step, on both sets."""
+    print("| s | decay rates | J_cl x0 = 0.3 | applied per rate | J_cl random | applied per rate |"
+          " max violation |\n|---|---|---|---|---|---|---|")
+    for s in ss:
+        cells, viol = [], -INF
+        for _, starts, steps in trajectory_sets():
+            out = [run_switched(s, nus, x0, steps) for x0 in starts]
+            viol = max(viol, *(o[1] for o in out))
+            picks = sum(o[2] for o in out)
+            cells.append(f"{np.mean([o[0] for o in out]):.4f} | {' / '.join(map(str, picks))}")
+        print(f"| {s} | {', '.join(f'{nu:g}' for nu in nus)} | " + " | ".join(cells)
+              + f" | {viol:.1e} |", flush=True)
+
+
 def main():
     global EVICT
     ap = argparse.ArgumentParser()
@@ -371,6 +415,9 @@ def main():
                     help="only scan the discrete MPC's stabilizing horizons (e.g. 80 81 82 83 92 93)")
     ap.add_argument("--scan-nu", type=float, nargs="*", default=None,
                     help="only the closed-loop cost of pmpc over these basis decay rates (1/s)")
+    ap.add_argument("--switch-nu", type=float, nargs="*", default=None,
+                    help="only the closed-loop cost of applying, per step, the least-cost plan "
+                         "of one controller per decay rate given (1/s)")
     ap.add_argument("--chain", type=int, default=None,
                     help="only the chain of n integrators: pmpc s = 12 against DAQP N = 450")
     ap.add_argument("--s", type=int, nargs="*", default=[8, 10, 12], help="pmpc basis sizes")
@@ -394,6 +441,9 @@ def main():
         return
     if args.scan_nu:
         scan_nu(args.s, args.scan_nu)
+        return
+    if args.switch_nu:
+        switched(args.s, args.switch_nu)
         return
     if args.chain:
         chain(args.chain, 12, 450)
