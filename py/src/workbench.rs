@@ -1522,7 +1522,7 @@ impl Workbench {
     }
 
     /// Enables an effect: the name of one the model knows (those declared in its model file's
-    /// `[effects]` or given to `stabilis.Model`, the generic `sensor_bias`, `actuator_lag`,
+    /// `[effects]` or given to `stabilis.Model`, the generic `sensor_bias`, `input_bias`, `actuator_lag`,
     /// `input_delay`, `actuator_lag_<input>`, `actuator_gain_<input>` and `sensor_lag_<output>`,
     /// or a shipped system's
     /// own; an unknown name raises

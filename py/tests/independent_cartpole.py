@@ -9,8 +9,9 @@ Written with numpy/scipy and the official `mcap` writer only (no stabilis code):
       (M + m) x'' + m l cos(theta) theta'' - m l sin(theta) theta'^2 = F_c
       m l cos(theta) x'' + (J + m l^2) theta'' - m g l sin(theta)    = T_d
 
-  with the force on the cart F_c = F_a + w - b x' - F_coul tanh(x' / v_coul) + F_s: F_a the
-  actuator force, w a force disturbance (process noise, held over each sample), b the cart's
+  with the force on the cart F_c = F_a + w - b x' - F_coul tanh(x' / v_coul) + F_s + F_0: F_a
+  the actuator force, F_0 a constant force (force_offset: a cable's pull, a driver's zero), w a
+  force disturbance (process noise, held over each sample), b the cart's
   viscous friction, F_coul its dry (Coulomb) friction, smoothed over v_coul (v_coul = 0: the
   unsmoothed F_coul sign(x'), the cart chattering about rest while the force on it is below
   F_coul), and T_d a small torque disturbance on the pole.
@@ -81,6 +82,7 @@ class Plant:
     offset_x: float = 0.0  # constant offset of the cart position sensor, m
     offset_theta: float = 0.0  # constant offset of the pole angle sensor, rad
     theta_lag: float = 0.0  # first-order low-pass of the pole angle sensor, s (0: none)
+    force_offset: float = 0.0  # constant force on the cart (a cable's pull, a driver's zero), N
 
 
 def documented_plant() -> Plant:
@@ -208,7 +210,7 @@ def derivative(p: Plant, s: list[float], f_in: float, w: float, torque: float) -
         out.append((f - s[i]) / p.tau)
         f = s[i]
         i += 1
-    force = f + w - p.b * xd
+    force = f + w - p.b * xd + p.force_offset
     if p.flex_hz > 0:  # the appendage's spring and damper pull on the cart
         wn = 2 * math.pi * p.flex_hz
         spring = p.flex_mass * wn * (wn * s[i] + 2 * p.flex_zeta * s[i + 1])

@@ -49,6 +49,7 @@ FC_TRUE = 0.3  # cart dry friction, N (the file documents 0.5)
 EPS = 0.05  # the file's smoothing speed of the dry friction, m/s
 OFFSET_THETA = 0.01  # pole angle sensor offset, rad (the case)
 OFFSET_X = 0.02  # cart position sensor offset, m
+FORCE_OFFSET = 0.2  # constant force on the cart, N (the excitation's rms is 1 N)
 FLEX_HZ = 4.0  # a flexible appendage on the cart that no effect describes, Hz
 CASES = {
     "nothing": {},
@@ -57,11 +58,12 @@ CASES = {
     "dry_sharp": {"coulomb": FC_TRUE, "coulomb_v": 0.0},  # unsmoothed: a sign
     "offset_theta": {"offset_theta": OFFSET_THETA},
     "offset_x": {"offset_x": OFFSET_X},
+    "force_offset": {"force_offset": FORCE_OFFSET},
     "flex": {"flex_hz": FLEX_HZ},
 }
 SEEDS = {"nothing": (101, 102, 103), "viscous": (111, 112, 113), "dry": (121, 122, 123),
          "dry_sharp": (151, 152, 153), "offset_theta": (131, 132, 133),
-         "offset_x": (141, 142, 143), "flex": (161, 162, 163)}
+         "offset_x": (141, 142, 143), "flex": (161, 162, 163), "force_offset": (171, 172, 173)}
 
 
 # --- the nonlinear model file, read independently -----------------------------------------
@@ -339,14 +341,16 @@ def test_a_missing_mode_is_located_at_its_frequency(campaigns, tmp_path, case, s
 # The hidden effect, the effect the discovery must name (and no other), its parameter, level.
 FOUND = {"viscous": ("cart_viscous", "b", B_TRUE), "dry": ("cart_coulomb", "fc", FC_TRUE),
          "dry_sharp": ("cart_coulomb", "fc", FC_TRUE),
-         "offset_theta": ("sensor_bias", "bias_theta", OFFSET_THETA)}
+         "offset_theta": ("sensor_bias", "bias_theta", OFFSET_THETA),
+         "force_offset": ("input_bias", "bias_F", FORCE_OFFSET)}
 
 
 @pytest.mark.parametrize("case, seed", cases(*FOUND))
 def test_a_hidden_effect_is_found_as_its_effect_at_its_level(campaigns, tmp_path, case, seed):
     # Viscous friction as cart_viscous, not cart_coulomb; dry friction as cart_coulomb, not
     # cart_viscous; the angle offset as sensor_bias (its bias_x stays unidentified: no test on
-    # it). The unsmoothed dry friction is outside the file's class (smoothed over 0.05 m/s):
+    # it); a constant force on the cart as input_bias, not as an angle offset (the loop holds
+    # the force with a mean input, the offset by moving the cart with none). The unsmoothed dry friction is outside the file's class (smoothed over 0.05 m/s):
     # the best fit of the file's law leaves a misfit (23 % above the noise in the reference
     # below), so cart_coulomb may be tentative there, but it must be the only effect added,
     # its level the one the file's law fits best (8-10 % above the truth's by the references

@@ -1359,6 +1359,7 @@ impl Workbench {
                 Drift::describe(&drift)
             ));
         }
+        why.extend(super::Level::resting_elsewhere(model, &self.data)?);
         Ok(why)
     }
 
@@ -1572,7 +1573,23 @@ impl Workbench {
             match self.criterion {
                 super::Criterion::Time => {
                     progress("cross-checking under the FRF criterion");
-                    d.conclusion.warnings.extend(self.frf_cross_check());
+                    let quantized = super::prediction::quantization_warning(&self.data);
+                    let coloured: Vec<String> = d
+                        .steps
+                        .last()
+                        .filter(|_| quantized.is_none())
+                        .map(|s| {
+                            s.residual_tests
+                                .channels
+                                .iter()
+                                .filter(|c| c.not_white)
+                                .map(|c| c.output.clone())
+                                .collect()
+                        })
+                        .unwrap_or_default();
+                    d.conclusion
+                        .warnings
+                        .extend(self.frf_cross_check(&coloured));
                 }
                 super::Criterion::Frf if self.model.structure().is_nonlinear() => {
                     progress("cross-checking under the time-domain criterion");

@@ -326,6 +326,97 @@ impl Dynamics for ScaledInput {
     }
 }
 
+/// A constant offset on every input where it drives the plant: `f(x, u + bias)`,
+/// `h(x, u + bias)`.
+#[derive(Debug)]
+pub struct BiasedInputs {
+    inner: Box<dyn Dynamics>,
+    bias: Vec<f64>,
+}
+
+impl BiasedInputs {
+    /// `inner` with `bias` (finite, one per input) added to its inputs; `inner` has no input
+    /// lag (whose state the predictor integrates towards the logged input, so the offset must
+    /// act inside it).
+    pub fn new(inner: Box<dyn Dynamics>, bias: &[f64]) -> Result<Self> {
+        if bias.len() != inner.inputs() {
+            return Err(SimError::LengthMismatch {
+                what: "input biases (one per input)".into(),
+                expected: inner.inputs(),
+                found: bias.len(),
+            });
+        }
+        if let Some(b) = bias.iter().find(|b| !b.is_finite()) {
+            return Err(SimError::invalid("input bias", b, "must be finite"));
+        }
+        if !inner.input_lags().is_empty() {
+            return Err(SimError::invalid(
+                "input bias",
+                format!("{bias:?}"),
+                "an input's offset must act inside the input lags",
+            ));
+        }
+        Ok(Self {
+            inner,
+            bias: bias.to_vec(),
+        })
+    }
+
+    /// `g` of `u` with the offsets added.
+    fn driven<R>(&self, u: &[f64], g: impl FnOnce(&[f64]) -> R) -> R {
+        with_inputs(
+            u,
+            |v| {
+                for (v, b) in v.iter_mut().zip(&self.bias) {
+                    *v += b;
+                }
+            },
+            g,
+        )
+    }
+}
+
+impl Dynamics for BiasedInputs {
+    fn states(&self) -> usize {
+        self.inner.states()
+    }
+    fn inputs(&self) -> usize {
+        self.inner.inputs()
+    }
+    fn outputs(&self) -> usize {
+        self.inner.outputs()
+    }
+    fn f(&self, x: &[f64], u: &[f64], dx: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
+        self.driven(u, |v| self.inner.f(x, v, dx, scratch))
+    }
+    fn h(&self, x: &[f64], u: &[f64], y: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
+        self.driven(u, |v| self.inner.h(x, v, y, scratch))
+    }
+    /// The inner model's, its inputs less the offsets: the logged inputs that hold it.
+    fn operating_point(&self) -> (Vec<f64>, Vec<f64>) {
+        let (x, mut u) = self.inner.operating_point();
+        for (u, b) in u.iter_mut().zip(&self.bias) {
+            *u -= b;
+        }
+        (x, u)
+    }
+    fn input_delay(&self) -> f64 {
+        self.inner.input_delay()
+    }
+    fn output_lags(&self) -> Vec<(usize, f64)> {
+        self.inner.output_lags()
+    }
+    fn h_unlagged(
+        &self,
+        x: &[f64],
+        u: &[f64],
+        y: &mut [f64],
+        scratch: &mut Vec<f64>,
+    ) -> Result<()> {
+        self.driven(u, |v| self.inner.h_unlagged(x, v, y, scratch))
+    }
+}
+
 /// A transport delay `td` of every input, added to the inner model's.
 #[derive(Debug)]
 pub struct DelayedInputs {

@@ -3,15 +3,16 @@
 //! (`input_delay`, `td`), with two to four inputs a first-order lag on each input alone
 //! (`actuator_lag_<input>`, `tau_<input>`), with two to four outputs one on each output alone
 //! (`sensor_lag_<output>`, `tau_<output>`), and for a nonlinear model a constant offset on
-//! every output (`sensor_bias`, `bias_<output>`). A structure that declares an effect of the
-//! same name (the flying platform does) keeps its own.
+//! every output (`sensor_bias`, `bias_<output>`) and on every input (`input_bias`,
+//! `bias_<input>`). A structure that declares an effect of the same name (the flying platform
+//! does) keeps its own.
 use std::sync::Arc;
 
 use nalgebra::DMatrix;
 
 use super::dataset::Dataset;
 use super::dynamics::{
-    DelayedInputs, Dynamics, LaggedInputs, LaggedOutput, OutputBias, ScaledInput,
+    BiasedInputs, DelayedInputs, Dynamics, LaggedInputs, LaggedOutput, OutputBias, ScaledInput,
 };
 use super::model::{Effect, ModelStructure, Parameter, StateSpace};
 use crate::error::Result;
@@ -246,7 +247,7 @@ impl Effect for ActuatorGain {
         Ok(Box::new(ScaledInput::new(inner, self.input, theta[0])?))
     }
 
-    fn scales_inputs(&self) -> bool {
+    fn edits_inputs(&self) -> bool {
         true
     }
 }
@@ -308,28 +309,14 @@ impl SensorBias {
     /// Bounds from the data: each offset within the output's logged range (or one, for an
     /// output that never moves).
     pub fn for_data(data: &Dataset) -> Self {
-        let outputs = data
-            .outputs
-            .iter()
-            .enumerate()
-            .map(|(i, name)| {
-                let (lo, hi) = data
-                    .output_samples(i)
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-                        (a.min(v), b.max(v))
-                    });
-                let range = hi - lo;
-                (
-                    name.clone(),
-                    if range.is_finite() && range > 0.0 {
-                        range
-                    } else {
-                        1.0
-                    },
-                )
-            })
-            .collect();
-        Self { outputs }
+        Self {
+            outputs: data
+                .outputs
+                .iter()
+                .enumerate()
+                .map(|(i, name)| (name.clone(), logged_range(data.output_samples(i))))
+                .collect(),
+        }
     }
 }
 
@@ -368,6 +355,96 @@ impl Effect for SensorBias {
 
     fn apply_dynamics(&self, theta: &[f64], inner: Box<dyn Dynamics>) -> Result<Box<dyn Dynamics>> {
         Ok(Box::new(OutputBias::new(inner, theta)?))
+    }
+}
+
+/// `f(x, u + bias)` with one constant per input where it drives the plant: a driver's zero,
+/// or a constant force or torque the model lacks (a cable's pull, an unbalanced mass), which
+/// the loop of an unstable plant holds with a mean input the model does not predict. Invisible
+/// to the FRF, like [`SensorBias`]; on a plant whose loop holds its outputs where the
+/// operating point puts them the two differ by the logged inputs' mean (a cart-pole's angle
+/// offset moves the cart and leaves the mean force at zero, a constant force on the cart is
+/// held by a mean force).
+#[derive(Debug, Clone)]
+pub struct InputBias {
+    /// `(input, bound)`: the offset is searched within `±bound`.
+    inputs: Vec<(String, f64)>,
+}
+
+impl InputBias {
+    /// For inputs `names`, each offset bounded by one (in the input's unit).
+    pub fn new(names: &[String]) -> Self {
+        Self {
+            inputs: names.iter().map(|n| (n.clone(), 1.0)).collect(),
+        }
+    }
+
+    /// Bounds from the data: each offset within the input's logged range (or one, for an
+    /// input that never moves).
+    pub fn for_data(data: &Dataset) -> Self {
+        Self {
+            inputs: data
+                .inputs
+                .iter()
+                .enumerate()
+                .map(|(j, name)| (name.clone(), logged_range(data.input_samples(j))))
+                .collect(),
+        }
+    }
+}
+
+/// The spread of `samples`, or one for a channel that never moves.
+fn logged_range(samples: impl Iterator<Item = f64>) -> f64 {
+    let (lo, hi) = samples.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+        (a.min(v), b.max(v))
+    });
+    let range = hi - lo;
+    if range.is_finite() && range > 0.0 {
+        range
+    } else {
+        1.0
+    }
+}
+
+impl Effect for InputBias {
+    fn name(&self) -> &str {
+        "input_bias"
+    }
+
+    fn description(&self) -> &str {
+        "a constant offset on every input where it drives the plant (bias_<input>): a driver's zero, or a constant force the model lacks"
+    }
+
+    fn parameters(&self) -> Vec<Parameter> {
+        self.inputs
+            .iter()
+            .map(|(i, bound)| Parameter::new(format!("bias_{i}"), 0.0, -bound, *bound, ""))
+            .collect()
+    }
+
+    fn qualified_names(&self) -> bool {
+        false
+    }
+
+    fn apply(&self, _theta: &[f64], _ss: &mut StateSpace) -> Result<()> {
+        // A constant offset does not change a linear model's response.
+        Ok(())
+    }
+
+    fn frf_visible(&self) -> bool {
+        false
+    }
+
+    fn has_dynamics(&self) -> bool {
+        true
+    }
+
+    fn apply_dynamics(&self, theta: &[f64], inner: Box<dyn Dynamics>) -> Result<Box<dyn Dynamics>> {
+        Ok(Box::new(BiasedInputs::new(inner, theta)?))
+    }
+
+    fn edits_inputs(&self) -> bool {
+        true
     }
 }
 
@@ -525,18 +602,20 @@ impl Effect for InputDelay {
     }
 }
 
-/// The generic effects `structure` does not declare itself (the sensor bias only for a
-/// nonlinear structure: the linear path compares deviations, where an offset cannot show).
+/// The generic effects `structure` does not declare itself (the sensor and input biases only
+/// for a nonlinear structure: the linear path compares deviations, where an offset cannot
+/// show).
 pub fn for_structure(structure: &dyn ModelStructure) -> Vec<Arc<dyn Effect>> {
     let outputs = structure.outputs();
     let mut all: Vec<Arc<dyn Effect>> = vec![
         Arc::new(ActuatorLag::default()),
         Arc::new(InputDelay::default()),
     ];
+    let inputs = structure.inputs();
     if structure.is_nonlinear() {
         all.push(Arc::new(SensorBias::new(&outputs)));
+        all.push(Arc::new(InputBias::new(&inputs)));
     }
-    let inputs = structure.inputs();
     let lags = ChannelLag::for_inputs(&inputs);
     for lag in lags.into_iter().chain(ChannelLag::for_outputs(&outputs)) {
         all.push(Arc::new(lag));
@@ -548,7 +627,7 @@ pub fn for_structure(structure: &dyn ModelStructure) -> Vec<Arc<dyn Effect>> {
 }
 
 /// The generic effects sized to the data, for those `structure` does not declare: the
-/// offsets within each output's logged range (nonlinear structure), and the lag's and the
+/// offsets within each output's and input's logged range (nonlinear structure), and the lag's and the
 /// delay's ranges from the sample period and the data's frequency resolution: the closest
 /// spacing of the lines, `line_spacing` Hz, or with fewer than two lines one over the
 /// shortest record. Both criteria search the same ranges.
@@ -573,6 +652,7 @@ pub fn for_data(
     let mut all: Vec<Arc<dyn Effect>> = Vec::new();
     if structure.is_nonlinear() {
         all.push(Arc::new(SensorBias::for_data(data)));
+        all.push(Arc::new(InputBias::for_data(data)));
     }
     all.push(Arc::new(ActuatorLag::for_data(h, resolution)));
     all.push(Arc::new(InputDelay::for_data(h, resolution)));

@@ -196,10 +196,10 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn filters_outputs(&self) -> bool {
         false
     }
-    /// Whether it scales inputs where they drive the plant (an actuator's gain): such effects
-    /// apply before all others, inside any input lag, whose state the predictor integrates
-    /// towards the logged input.
-    fn scales_inputs(&self) -> bool {
+    /// Whether it changes inputs where they drive the plant (an actuator's gain or offset):
+    /// such effects apply before all others, inside any input lag, whose state the predictor
+    /// integrates towards the logged input.
+    fn edits_inputs(&self) -> bool {
         false
     }
     /// The inputs (of `inputs`) it puts behind a lag with a state of its own: a second lag on
@@ -608,8 +608,8 @@ impl Model {
                 (e, start)
             })
             .collect();
-        // Input gains first, inside every input lag; output lags last.
-        order.sort_by_key(|(e, _)| match (e.scales_inputs(), e.filters_outputs()) {
+        // Input gains and offsets first, inside every input lag; output lags last.
+        order.sort_by_key(|(e, _)| match (e.edits_inputs(), e.filters_outputs()) {
             (true, _) => 0,
             (false, false) => 1,
             (false, true) => 2,

@@ -1135,8 +1135,14 @@ impl Workbench {
     /// 14.9-15.0 ms on 3 of 3 seeds). When it reads a misfit too, what it adds that this
     /// criterion does not search (a Furuta pendulum's 4 ms filter on its pendulum angle:
     /// `sensor_lag_alpha` at 3.997 ms under the FRF criterion, a misfit and a wrong actuator
-    /// lag under this one). `None` otherwise or when it fails.
-    pub(crate) fn frf_cross_check(&self) -> Option<String> {
+    /// lag under this one). `None` otherwise or when it fails. `coloured` are the outputs
+    /// whose innovations under this criterion are not white (left empty for coarsely
+    /// quantized logs, whose steps the verdict names instead): with an explained FRF reading
+    /// the sentence then names a disturbance that is not white as one cause (a maglev rig's
+    /// low-pass force disturbance, 10 ms: a misfit on the true model and its coil inductance
+    /// 7 standard errors off, explained under the FRF criterion and under this one with the
+    /// same disturbance white).
+    pub(crate) fn frf_cross_check(&self, coloured: &[String]) -> Option<String> {
         let d = self.discover_under(Criterion::Frf)?;
         // Effects the FRF reading adds that this criterion does not search (an output's lag).
         let (searched, on) = (self.model.dynamics_candidates(), self.model.enabled());
@@ -1194,8 +1200,16 @@ impl Workbench {
                 if names.len() == 1 { "it" } else { "them" },
             ));
         }
+        let colour = if coloured.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; this criterion's innovations of [{}] are not white: a disturbance that is not white (a low-pass force) biases a closed loop's one-step prediction error, whose noise model is white, and not the FRF criterion, which the excitation alone drives; what the linearization does not hold (an offset, a friction law's shape) is the other cause of such a difference",
+                coloured.join(", ")
+            )
+        };
         Some(format!(
-            "{criterion} explained, {}{values}",
+            "{criterion} explained, {}{values}{colour}",
             if read.is_empty() {
                 "nothing added".to_string()
             } else {
@@ -1263,7 +1277,7 @@ impl Workbench {
         let why: Vec<String> = why.into_iter().chain(rivals).collect();
         let offset = found
             .iter()
-            .any(|f| f == "sensor_bias")
+            .any(|f| f == "sensor_bias" || f == "input_bias")
             .then(|| OFFSET_CAVEAT.to_string());
         let conclusion = Conclusion::settle(found, why, unexplained, verdict, LEVEL)
             .with_candidates(super::discover::Candidates::of(&self.model, true))
@@ -1504,7 +1518,7 @@ impl Search for TimeSearch<'_> {
 
 /// Why a misfit verdict may be the logs' quantization rather than the model
 /// ([`Dataset::coarse_quantization`]); `None` when no output is coarsely quantized.
-fn quantization_warning(data: &Dataset) -> Option<String> {
+pub(crate) fn quantization_warning(data: &Dataset) -> Option<String> {
     let coarse = data.coarse_quantization();
     (!coarse.is_empty()).then(|| {
         format!(
@@ -1545,11 +1559,11 @@ const DESIGN_ROUNDS: usize = 4;
 /// consistent with the fit.
 const DESIGN_TOLERANCE: f64 = 0.03;
 
-/// What a found sensor offset may be instead: the logs' levels show it, and a static error
-/// of the model shifts the levels as an offset does. (A magnetic levitation rig whose magnet
-/// constant was fixed 3 % off read "found: sensor_bias, explained" in 6 of 6 campaigns, the
-/// same as one with a real offset.)
-const OFFSET_CAVEAT: &str = "a sensor offset is found from the logs' levels, and any static error of the model moves the levels of the equilibrium the loop holds as an offset does (a fixed parameter's wrong value, a force law's shape): before reading it as an offset, check what the model fixes";
+/// What a found sensor or input offset may be instead: the logs' levels show it, and a static
+/// error of the model shifts the levels as an offset does. (A magnetic levitation rig whose
+/// magnet constant was fixed 3 % off read "found: sensor_bias, explained" in 6 of 6
+/// campaigns, the same as one with a real offset.)
+const OFFSET_CAVEAT: &str = "an offset is found from the logs' levels, and any static error of the model moves the levels of the equilibrium the loop holds as an offset does (a fixed parameter's wrong value, a force law's shape): before reading it as an offset, check what the model fixes";
 
 /// What the time criterion's verdict tests.
 const EXCITATION_TEST: &str =

@@ -29,7 +29,8 @@ A model file with a ``[nonlinear]`` section (``stabilis.Model.from_file``) is fi
 by the one-step prediction error of its extended Kalman predictor in absolute units
 (``stabilis.Workbench(..., criterion="time")``, the default for such a file; the constructor's
 ``criterion="frf"`` uses its linearization; ``discover()`` and the others take no arguments),
-which tells dry from viscous friction and sees sensor offsets (the generic ``sensor_bias``).
+which tells dry from viscous friction and sees offsets (the generic ``sensor_bias`` on every
+output and ``input_bias`` on every input).
 
 Discovery tries the model's own effects and the generic ones every model gets: ``actuator_lag``
 and ``input_delay`` on every input, and with two to four inputs (outputs) a lag on each input
