@@ -770,6 +770,50 @@ impl Workbench {
         ))
     }
 
+    /// The pair of outputs (or of inputs) under whose swap the documented model fits the logs
+    /// best: columns logged in another order than the model names them (a maglev's gap and
+    /// coil current given as `[i, z]` read a misfit "largest in u->i" and nothing more). `g`
+    /// the documented model's response on the logs' lines, `own` its cost.
+    fn swapped(&self, g: &[CMatrix], own: f64) -> Option<Rescaled> {
+        let data = self.data();
+        let pairs = |n: usize| (0..n).flat_map(move |a| (a + 1..n).map(move |b| (a, b)));
+        let outputs = pairs(data.outputs.len()).map(|(a, b)| {
+            let swapped: Vec<CMatrix> = g
+                .iter()
+                .map(|m| {
+                    let mut m = m.clone();
+                    m.swap_rows(a, b);
+                    m
+                })
+                .collect();
+            let names = format!("outputs {} and {}", data.outputs[a], data.outputs[b]);
+            (self.cost.cost(&swapped), names)
+        });
+        let inputs = pairs(data.inputs.len()).map(|(a, b)| {
+            let swapped: Vec<CMatrix> = g
+                .iter()
+                .map(|m| {
+                    let mut m = m.clone();
+                    m.swap_columns(a, b);
+                    m
+                })
+                .collect();
+            let names = format!("inputs {} and {}", data.inputs[a], data.inputs[b]);
+            (self.cost.cost(&swapped), names)
+        });
+        let (v, names) = outputs
+            .chain(inputs)
+            .filter(|(v, _)| v.is_finite())
+            .min_by(|a, b| a.0.total_cmp(&b.0))?;
+        Some((
+            v,
+            format!(
+                "{} with {names} swapped: are the logs' columns in the order the model names them?",
+                self.better(v, own)
+            ),
+        ))
+    }
+
     /// "the documented model fits the logs N times better (...)", rescaled cost `v` against
     /// `own`, with the cost of noise alone they both stand against.
     fn better(&self, v: f64, own: f64) -> String {
@@ -780,18 +824,23 @@ impl Workbench {
         )
     }
 
-    /// The sentence naming the logs' clock or channels in another unit than the model's: the
-    /// better of the [clock](Self::clock_rescaled) and the [channel](Self::unit_rescaled)
-    /// rescaling (rival explanations of one misfit), when it fits the logs [`CLOCK_GAIN`]
+    /// The sentence naming the logs' clock or channels in another unit than the model's, or
+    /// two channels swapped: the best of the [clock](Self::clock_rescaled) and the
+    /// [channel](Self::unit_rescaled) rescaling and the [swap](Self::swapped) (rival
+    /// explanations of one misfit), when it fits the logs [`CLOCK_GAIN`]
     /// times better than none and to within [`NEAR_NOISE`] times the cost of noise alone.
     /// `theta` the documented values, `g` their response on the logs' lines, `own` its cost.
     fn rescaled_sentence(&self, theta: &[f64], g: &[CMatrix], own: f64) -> Option<String> {
-        [self.clock_rescaled(theta, own), self.unit_rescaled(g, own)]
-            .into_iter()
-            .flatten()
-            .min_by(|a, b| a.0.total_cmp(&b.0))
-            .filter(|(v, _)| *v * CLOCK_GAIN < own && *v <= NEAR_NOISE * self.noise.mean())
-            .map(|(_, sentence)| sentence)
+        [
+            self.clock_rescaled(theta, own),
+            self.unit_rescaled(g, own),
+            self.swapped(g, own),
+        ]
+        .into_iter()
+        .flatten()
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .filter(|(v, _)| *v * CLOCK_GAIN < own && *v <= NEAR_NOISE * self.noise.mean())
+        .map(|(_, sentence)| sentence)
     }
 
     /// The [`far_from_documented`] warning on the parameters of the starting model (not those

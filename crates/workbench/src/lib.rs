@@ -442,14 +442,32 @@ impl Level<'_> {
 /// logged as deviations its predictor diverged with a message about the reaction rate.
 /// Channels whose operating value is zero are not judged: there nothing sets a scale.
 fn check_operating_point(model: &Model, data: &Dataset) -> Result<()> {
-    for l in Level::of(model, data)? {
+    let levels = Level::of(model, data)?;
+    // Whether `a` averages near the operating value of `b`.
+    let near = |a: &Level, b: &Level| {
+        b.op != 0.0 && (a.mean - b.op).abs() <= OFF_OPERATING_POINT * b.op.abs()
+    };
+    for l in &levels {
         let apart = l.apart();
         if l.op != 0.0 && apart > OFF_OPERATING_POINT * l.op.abs() && apart > 10.0 * l.spread {
+            // Two columns of one side, each averaging near the other's operating value.
+            let swap = levels
+                .iter()
+                .find(|o| o.kind == l.kind && o.name != l.name && near(l, o) && near(o, l))
+                .map_or(String::new(), |o| {
+                    format!(
+                        "; {} averages {:.6}, near what the operating point {} for {} and the other way round: are the two columns swapped?",
+                        o.name,
+                        o.mean,
+                        if l.kind == "input" { "holds" } else { "gives" },
+                        l.name
+                    )
+                });
             return Err(SimError::invalid(
                 "operating point",
                 model.structure().system(),
                 format!(
-                    "{} ({apart:.4} apart, {:.0} % of it and {:.0} times the logged spread): the time criterion compares absolute values; are the logs in the model's units, and absolute rather than deviations from the operating point? If the loop ran there, give that operating point; the FRF criterion (--criterion frf) compares deviations",
+                    "{} ({apart:.4} apart, {:.0} % of it and {:.0} times the logged spread){swap}: the time criterion compares absolute values; are the logs in the model's units, and absolute rather than deviations from the operating point? If the loop ran there, give that operating point; the FRF criterion (--criterion frf) compares deviations",
                     l.describe(),
                     100.0 * apart / l.op.abs(),
                     apart / l.spread.max(f64::MIN_POSITIVE)
@@ -551,5 +569,42 @@ mod tests {
         far.inputs = vec!["u".into()];
         far.outputs = vec!["x".into()];
         assert!(check_operating_point(&Model::new(Arc::new(file)), &far).is_ok());
+    }
+
+    /// A gap at 8 mm and a coil current at 0.8 A logged in the other order: both columns are
+    /// named as swapped; in the model's order the logs pass.
+    #[test]
+    fn two_columns_logged_in_each_others_place_are_named_swapped() {
+        let text = "name = \"lev\"\nstates = [\"z\", \"i\"]\ninputs = [\"u\"]\n\
+                    outputs = [\"z\", \"i\"]\n[parameters]\na = 1.0\n[nonlinear]\n\
+                    f.z = \"a*(i - 100*z)\"\nf.i = \"u - a*i\"\nh.z = \"z\"\nh.i = \"i\"\n\
+                    operating_point = { z = 0.008, i = 0.8, u = 0.8 }\n";
+        let file = crate::ModelFile::parse(text, std::path::Path::new("lev.toml")).unwrap();
+        let model = Model::new(Arc::new(file));
+        let data = |first: f64, second: f64| Dataset {
+            sample_rate_hz: 1000.0,
+            inputs: vec!["u".into()],
+            outputs: vec!["z".into(), "i".into()],
+            experiments: vec![Experiment {
+                name: "e".into(),
+                u: DMatrix::from_fn(500, 1, |k, _| 0.8 + 0.01 * (0.1 * k as f64).sin()),
+                y: DMatrix::from_fn(500, 2, |k, j| {
+                    let level = if j == 0 { first } else { second };
+                    level * (1.0 + 0.001 * (0.07 * k as f64).cos())
+                }),
+                r: None,
+                periodic: None,
+            }],
+        };
+        assert!(check_operating_point(&model, &data(0.008, 0.8)).is_ok());
+        let err = check_operating_point(&model, &data(0.8, 0.008))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("the logged output z averages")
+                && err.contains("i averages 0.008000, near what the operating point gives for z")
+                && err.contains("are the two columns swapped?"),
+            "{err}"
+        );
     }
 }

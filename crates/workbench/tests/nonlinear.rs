@@ -948,6 +948,39 @@ fn logs_resting_away_from_the_operating_point_are_named_under_the_frf_criterion(
     }
 }
 
+/// Under the FRF criterion, the stand's roll and yaw gyros logged in each other's column, or
+/// its two rotors' commands, are named as swapped (the documented model fits the swapped
+/// logs to the noise level), and logs in the model's order name no swap.
+#[test]
+fn two_columns_logged_in_each_others_place_are_named_under_the_frf_criterion() {
+    let named = |data: Dataset| {
+        let d = workbench_with(STAND, data, Some(Criterion::Frf))
+            .compared()
+            .unwrap();
+        d.conclusion
+            .warnings
+            .iter()
+            .find(|w| w.contains("swapped"))
+            .cloned()
+    };
+    assert_eq!(named(stand(3)), None);
+    let mut outputs = stand(3);
+    for e in &mut outputs.experiments {
+        e.y.swap_columns(2, 3);
+    }
+    let said = named(outputs).expect("the swapped gyros are named");
+    assert!(said.contains("with outputs gx and gz swapped"), "{said}");
+    let mut inputs = stand(3);
+    for e in &mut inputs.experiments {
+        e.u.swap_columns(0, 1);
+        if let Some(r) = &mut e.r {
+            r.swap_columns(0, 1);
+        }
+    }
+    let said = named(inputs).expect("the swapped rotors are named");
+    assert!(said.contains("with inputs T1 and T2 swapped"), "{said}");
+}
+
 /// A fit an order of magnitude from the documented values is named beside the verdict, under
 /// either criterion: the pendulum's `k` documented at 2 where the plant has 25 fits near 25,
 /// 12.5 times it; documented at 20 it is not named.
