@@ -777,29 +777,24 @@ impl Workbench {
     fn swapped(&self, g: &[CMatrix], own: f64) -> Option<Rescaled> {
         let data = self.data();
         let pairs = |n: usize| (0..n).flat_map(move |a| (a + 1..n).map(move |b| (a, b)));
-        let outputs = pairs(data.outputs.len()).map(|(a, b)| {
-            let swapped: Vec<CMatrix> = g
+        let cost = |edit: &dyn Fn(&mut CMatrix)| {
+            let edited: Vec<CMatrix> = g
                 .iter()
                 .map(|m| {
                     let mut m = m.clone();
-                    m.swap_rows(a, b);
+                    edit(&mut m);
                     m
                 })
                 .collect();
+            self.cost.cost(&edited)
+        };
+        let outputs = pairs(data.outputs.len()).map(|(a, b)| {
             let names = format!("outputs {} and {}", data.outputs[a], data.outputs[b]);
-            (self.cost.cost(&swapped), names)
+            (cost(&|m| m.swap_rows(a, b)), names)
         });
         let inputs = pairs(data.inputs.len()).map(|(a, b)| {
-            let swapped: Vec<CMatrix> = g
-                .iter()
-                .map(|m| {
-                    let mut m = m.clone();
-                    m.swap_columns(a, b);
-                    m
-                })
-                .collect();
             let names = format!("inputs {} and {}", data.inputs[a], data.inputs[b]);
-            (self.cost.cost(&swapped), names)
+            (cost(&|m| m.swap_columns(a, b)), names)
         });
         let (v, names) = outputs
             .chain(inputs)
@@ -1055,7 +1050,7 @@ const REWEIGHTINGS: usize = 1;
 /// Values tried for a new parameter: 17 points over its bounds (logarithmic for a positive
 /// range spanning decades, or one from zero without an upper bound), plus zero and the
 /// documented value when inside. An open bound is taken 100 typical magnitudes away.
-fn scan_grid(p: &super::model::Parameter) -> Vec<f64> {
+pub(crate) fn scan_grid(p: &super::model::Parameter) -> Vec<f64> {
     let n = 17;
     let reach = 100.0 * p.scale();
     let lower = if p.lower.is_finite() {

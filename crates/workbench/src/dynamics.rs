@@ -243,51 +243,95 @@ fn room<'a>(stack: &'a mut [f64; STACK], heap: &'a mut Vec<f64>, len: usize) -> 
     }
 }
 
-/// One input scaled where it drives the plant: `f(x, u')`, `h(x, u')` with `u'_j = gain u_j`.
-#[derive(Debug)]
-pub struct ScaledInput {
-    inner: Box<dyn Dynamics>,
-    input: usize,
-    gain: f64,
+/// How [`EditedInputs`] changes the inputs where they drive the plant.
+#[derive(Debug, Clone, PartialEq)]
+pub enum InputEdit {
+    /// Input `input` times `gain` (an actuator weaker or stronger than documented).
+    Gain { input: usize, gain: f64 },
+    /// One constant added to each input (a driver's zero, a constant force the model lacks).
+    Offsets(Vec<f64>),
 }
 
-impl ScaledInput {
-    /// `inner` with input `input` times `gain` (finite, non-zero); `inner` has no input lag
-    /// (whose state the predictor integrates towards the logged input, so the gain must act
-    /// inside it).
-    pub fn new(inner: Box<dyn Dynamics>, input: usize, gain: f64) -> Result<Self> {
-        if !(gain.is_finite() && gain != 0.0) {
-            return Err(SimError::invalid(
-                "gain",
-                gain,
-                "must be finite and non-zero",
-            ));
+impl InputEdit {
+    /// `u` as it drives the plant.
+    fn apply(&self, u: &mut [f64]) {
+        match self {
+            Self::Gain { input, gain } => u[*input] *= gain,
+            Self::Offsets(b) => u.iter_mut().zip(b).for_each(|(u, b)| *u += b),
         }
+    }
+
+    /// The logged inputs that drive the plant with `u`.
+    fn undo(&self, u: &mut [f64]) {
+        match self {
+            Self::Gain { input, gain } => u[*input] /= gain,
+            Self::Offsets(b) => u.iter_mut().zip(b).for_each(|(u, b)| *u -= b),
+        }
+    }
+}
+
+/// The inputs changed where they drive the plant: `f(x, u')`, `h(x, u')` with `u'` the
+/// logged `u` under an [`InputEdit`].
+#[derive(Debug)]
+pub struct EditedInputs {
+    inner: Box<dyn Dynamics>,
+    edit: InputEdit,
+}
+
+impl EditedInputs {
+    /// `inner` with its inputs changed by `edit` (a finite, non-zero gain on one of its
+    /// inputs, or one finite offset per input); `inner` has no input lag (whose state the
+    /// predictor integrates towards the logged input, so the edit must act inside it).
+    pub fn new(inner: Box<dyn Dynamics>, edit: InputEdit) -> Result<Self> {
         let m = inner.inputs();
-        if input >= m {
-            return Err(SimError::invalid(
-                "input",
-                input,
-                format!("the model has {m} inputs"),
-            ));
+        match &edit {
+            InputEdit::Gain { gain, .. } if !(gain.is_finite() && *gain != 0.0) => {
+                return Err(SimError::invalid(
+                    "gain",
+                    gain,
+                    "must be finite and non-zero",
+                ));
+            }
+            InputEdit::Gain { input, .. } if *input >= m => {
+                return Err(SimError::invalid(
+                    "input",
+                    input,
+                    format!("the model has {m} inputs"),
+                ));
+            }
+            InputEdit::Offsets(b) if b.len() != m => {
+                return Err(SimError::LengthMismatch {
+                    what: "input offsets (one per input)".into(),
+                    expected: m,
+                    found: b.len(),
+                });
+            }
+            InputEdit::Offsets(b) if b.iter().any(|b| !b.is_finite()) => {
+                return Err(SimError::invalid(
+                    "input offsets",
+                    format!("{b:?}"),
+                    "must be finite",
+                ));
+            }
+            _ => {}
         }
         if !inner.input_lags().is_empty() {
             return Err(SimError::invalid(
-                "gain",
-                gain,
-                "an input's gain must act inside the input lags",
+                "input edit",
+                format!("{edit:?}"),
+                "an input's gain or offset must act inside the input lags",
             ));
         }
-        Ok(Self { inner, input, gain })
+        Ok(Self { inner, edit })
     }
 
-    /// `g` of `u` with the scaled input.
+    /// `g` of `u` as it drives the plant.
     fn driven<R>(&self, u: &[f64], g: impl FnOnce(&[f64]) -> R) -> R {
-        with_inputs(u, |v| v[self.input] *= self.gain, g)
+        with_inputs(u, |v| self.edit.apply(v), g)
     }
 }
 
-impl Dynamics for ScaledInput {
+impl Dynamics for EditedInputs {
     fn states(&self) -> usize {
         self.inner.states()
     }
@@ -303,101 +347,10 @@ impl Dynamics for ScaledInput {
     fn h(&self, x: &[f64], u: &[f64], y: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
         self.driven(u, |v| self.inner.h(x, v, y, scratch))
     }
-    /// The inner model's, its input divided by the gain: the logged input that holds it.
+    /// The inner model's, its inputs the logged ones that hold it.
     fn operating_point(&self) -> (Vec<f64>, Vec<f64>) {
         let (x, mut u) = self.inner.operating_point();
-        u[self.input] /= self.gain;
-        (x, u)
-    }
-    fn input_delay(&self) -> f64 {
-        self.inner.input_delay()
-    }
-    fn output_lags(&self) -> Vec<(usize, f64)> {
-        self.inner.output_lags()
-    }
-    fn h_unlagged(
-        &self,
-        x: &[f64],
-        u: &[f64],
-        y: &mut [f64],
-        scratch: &mut Vec<f64>,
-    ) -> Result<()> {
-        self.driven(u, |v| self.inner.h_unlagged(x, v, y, scratch))
-    }
-}
-
-/// A constant offset on every input where it drives the plant: `f(x, u + bias)`,
-/// `h(x, u + bias)`.
-#[derive(Debug)]
-pub struct BiasedInputs {
-    inner: Box<dyn Dynamics>,
-    bias: Vec<f64>,
-}
-
-impl BiasedInputs {
-    /// `inner` with `bias` (finite, one per input) added to its inputs; `inner` has no input
-    /// lag (whose state the predictor integrates towards the logged input, so the offset must
-    /// act inside it).
-    pub fn new(inner: Box<dyn Dynamics>, bias: &[f64]) -> Result<Self> {
-        if bias.len() != inner.inputs() {
-            return Err(SimError::LengthMismatch {
-                what: "input biases (one per input)".into(),
-                expected: inner.inputs(),
-                found: bias.len(),
-            });
-        }
-        if let Some(b) = bias.iter().find(|b| !b.is_finite()) {
-            return Err(SimError::invalid("input bias", b, "must be finite"));
-        }
-        if !inner.input_lags().is_empty() {
-            return Err(SimError::invalid(
-                "input bias",
-                format!("{bias:?}"),
-                "an input's offset must act inside the input lags",
-            ));
-        }
-        Ok(Self {
-            inner,
-            bias: bias.to_vec(),
-        })
-    }
-
-    /// `g` of `u` with the offsets added.
-    fn driven<R>(&self, u: &[f64], g: impl FnOnce(&[f64]) -> R) -> R {
-        with_inputs(
-            u,
-            |v| {
-                for (v, b) in v.iter_mut().zip(&self.bias) {
-                    *v += b;
-                }
-            },
-            g,
-        )
-    }
-}
-
-impl Dynamics for BiasedInputs {
-    fn states(&self) -> usize {
-        self.inner.states()
-    }
-    fn inputs(&self) -> usize {
-        self.inner.inputs()
-    }
-    fn outputs(&self) -> usize {
-        self.inner.outputs()
-    }
-    fn f(&self, x: &[f64], u: &[f64], dx: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
-        self.driven(u, |v| self.inner.f(x, v, dx, scratch))
-    }
-    fn h(&self, x: &[f64], u: &[f64], y: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
-        self.driven(u, |v| self.inner.h(x, v, y, scratch))
-    }
-    /// The inner model's, its inputs less the offsets: the logged inputs that hold it.
-    fn operating_point(&self) -> (Vec<f64>, Vec<f64>) {
-        let (x, mut u) = self.inner.operating_point();
-        for (u, b) in u.iter_mut().zip(&self.bias) {
-            *u -= b;
-        }
+        self.edit.undo(&mut u);
         (x, u)
     }
     fn input_delay(&self) -> f64 {

@@ -12,7 +12,7 @@ use nalgebra::DMatrix;
 
 use super::dataset::Dataset;
 use super::dynamics::{
-    BiasedInputs, DelayedInputs, Dynamics, LaggedInputs, LaggedOutput, OutputBias, ScaledInput,
+    DelayedInputs, Dynamics, EditedInputs, InputEdit, LaggedInputs, LaggedOutput, OutputBias,
 };
 use super::model::{Effect, ModelStructure, Parameter, StateSpace};
 use crate::error::Result;
@@ -244,7 +244,13 @@ impl Effect for ActuatorGain {
     }
 
     fn apply_dynamics(&self, theta: &[f64], inner: Box<dyn Dynamics>) -> Result<Box<dyn Dynamics>> {
-        Ok(Box::new(ScaledInput::new(inner, self.input, theta[0])?))
+        Ok(Box::new(EditedInputs::new(
+            inner,
+            InputEdit::Gain {
+                input: self.input,
+                gain: theta[0],
+            },
+        )?))
     }
 
     fn edits_inputs(&self) -> bool {
@@ -289,136 +295,92 @@ impl InputDelay {
     }
 }
 
-/// `y = h(x, u) + bias` with one constant per output: an encoder's zero, a gyro's offset.
-/// Invisible to the FRF (it has no DC line); the time-domain criterion, which compares
-/// signals in absolute units, sees it.
-#[derive(Debug, Clone)]
-pub struct SensorBias {
-    /// `(output, bound)`: the offset is searched within `±bound`.
-    outputs: Vec<(String, f64)>,
+/// Which side of the model an [`Offsets`] shifts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Side {
+    /// `y = h(x, u) + b` (`sensor_bias`): an encoder's zero, a gyro's offset.
+    Outputs,
+    /// `f(x, u + b)` where the inputs drive the plant (`input_bias`): a driver's zero, or a
+    /// constant force or torque the model lacks (a cable's pull, an unbalanced mass), which
+    /// the loop of an unstable plant holds with a mean input the model does not predict.
+    Inputs,
 }
 
-impl SensorBias {
-    /// For outputs `names`, each offset bounded by one (in the output's unit).
-    pub fn new(names: &[String]) -> Self {
+/// One constant per channel of a side (`bias_<channel>`). Invisible to the FRF (it has no DC
+/// line); the time-domain criterion, which compares signals in absolute units, sees it. On a
+/// plant whose loop holds its outputs, a sensor's and an input's offset differ by the logged
+/// inputs' mean (a cart-pole's angle offset moves the cart and leaves the mean force at zero, a
+/// constant force on the cart is held by a mean force); with one input and one output they
+/// hold the same levels.
+#[derive(Debug, Clone)]
+pub struct Offsets {
+    side: Side,
+    /// `(channel, bound)`: the offset is searched within `±bound`.
+    channels: Vec<(String, f64)>,
+}
+
+impl Offsets {
+    /// For the channels `names` of `side`, each offset bounded by one (in its unit).
+    pub fn new(side: Side, names: &[String]) -> Self {
         Self {
-            outputs: names.iter().map(|n| (n.clone(), 1.0)).collect(),
+            side,
+            channels: names.iter().map(|n| (n.clone(), 1.0)).collect(),
         }
     }
 
-    /// Bounds from the data: each offset within the output's logged range (or one, for an
-    /// output that never moves).
-    pub fn for_data(data: &Dataset) -> Self {
-        Self {
-            outputs: data
+    /// Bounds from the data: each offset within the channel's logged range (or one, for a
+    /// channel that never moves).
+    pub fn for_data(side: Side, data: &Dataset) -> Self {
+        let range = |samples: &mut dyn Iterator<Item = f64>| {
+            let (lo, hi) = samples.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(v), b.max(v))
+            });
+            let range = hi - lo;
+            if range.is_finite() && range > 0.0 {
+                range
+            } else {
+                1.0
+            }
+        };
+        let channels = match side {
+            Side::Outputs => data
                 .outputs
                 .iter()
                 .enumerate()
-                .map(|(i, name)| (name.clone(), logged_range(data.output_samples(i))))
+                .map(|(i, n)| (n.clone(), range(&mut data.output_samples(i))))
                 .collect(),
-        }
-    }
-}
-
-impl Effect for SensorBias {
-    fn name(&self) -> &str {
-        "sensor_bias"
-    }
-
-    fn description(&self) -> &str {
-        "a constant offset on every output (bias_<output>)"
-    }
-
-    fn parameters(&self) -> Vec<Parameter> {
-        self.outputs
-            .iter()
-            .map(|(o, bound)| Parameter::new(format!("bias_{o}"), 0.0, -bound, *bound, ""))
-            .collect()
-    }
-
-    fn qualified_names(&self) -> bool {
-        false
-    }
-
-    fn apply(&self, _theta: &[f64], _ss: &mut StateSpace) -> Result<()> {
-        // A constant offset does not change a linear model's response.
-        Ok(())
-    }
-
-    fn frf_visible(&self) -> bool {
-        false
-    }
-
-    fn has_dynamics(&self) -> bool {
-        true
-    }
-
-    fn apply_dynamics(&self, theta: &[f64], inner: Box<dyn Dynamics>) -> Result<Box<dyn Dynamics>> {
-        Ok(Box::new(OutputBias::new(inner, theta)?))
-    }
-}
-
-/// `f(x, u + bias)` with one constant per input where it drives the plant: a driver's zero,
-/// or a constant force or torque the model lacks (a cable's pull, an unbalanced mass), which
-/// the loop of an unstable plant holds with a mean input the model does not predict. Invisible
-/// to the FRF, like [`SensorBias`]; on a plant whose loop holds its outputs where the
-/// operating point puts them the two differ by the logged inputs' mean (a cart-pole's angle
-/// offset moves the cart and leaves the mean force at zero, a constant force on the cart is
-/// held by a mean force).
-#[derive(Debug, Clone)]
-pub struct InputBias {
-    /// `(input, bound)`: the offset is searched within `±bound`.
-    inputs: Vec<(String, f64)>,
-}
-
-impl InputBias {
-    /// For inputs `names`, each offset bounded by one (in the input's unit).
-    pub fn new(names: &[String]) -> Self {
-        Self {
-            inputs: names.iter().map(|n| (n.clone(), 1.0)).collect(),
-        }
-    }
-
-    /// Bounds from the data: each offset within the input's logged range (or one, for an
-    /// input that never moves).
-    pub fn for_data(data: &Dataset) -> Self {
-        Self {
-            inputs: data
+            Side::Inputs => data
                 .inputs
                 .iter()
                 .enumerate()
-                .map(|(j, name)| (name.clone(), logged_range(data.input_samples(j))))
+                .map(|(j, n)| (n.clone(), range(&mut data.input_samples(j))))
                 .collect(),
-        }
+        };
+        Self { side, channels }
     }
 }
 
-/// The spread of `samples`, or one for a channel that never moves.
-fn logged_range(samples: impl Iterator<Item = f64>) -> f64 {
-    let (lo, hi) = samples.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-        (a.min(v), b.max(v))
-    });
-    let range = hi - lo;
-    if range.is_finite() && range > 0.0 {
-        range
-    } else {
-        1.0
-    }
-}
-
-impl Effect for InputBias {
+impl Effect for Offsets {
     fn name(&self) -> &str {
-        "input_bias"
+        match self.side {
+            Side::Outputs => "sensor_bias",
+            Side::Inputs => "input_bias",
+        }
     }
 
     fn description(&self) -> &str {
-        "a constant offset on every input where it drives the plant (bias_<input>): a driver's zero, or a constant force the model lacks"
+        match self.side {
+            Side::Outputs => "a constant offset on every output (bias_<output>)",
+            Side::Inputs => {
+                "a constant offset on every input where it drives the plant (bias_<input>): a driver's zero, or a constant force the model lacks"
+            }
+        }
     }
 
     fn parameters(&self) -> Vec<Parameter> {
-        self.inputs
+        self.channels
             .iter()
-            .map(|(i, bound)| Parameter::new(format!("bias_{i}"), 0.0, -bound, *bound, ""))
+            .map(|(c, bound)| Parameter::new(format!("bias_{c}"), 0.0, -bound, *bound, ""))
             .collect()
     }
 
@@ -440,11 +402,17 @@ impl Effect for InputBias {
     }
 
     fn apply_dynamics(&self, theta: &[f64], inner: Box<dyn Dynamics>) -> Result<Box<dyn Dynamics>> {
-        Ok(Box::new(BiasedInputs::new(inner, theta)?))
+        Ok(match self.side {
+            Side::Outputs => Box::new(OutputBias::new(inner, theta)?),
+            Side::Inputs => Box::new(EditedInputs::new(
+                inner,
+                InputEdit::Offsets(theta.to_vec()),
+            )?),
+        })
     }
 
     fn edits_inputs(&self) -> bool {
-        true
+        self.side == Side::Inputs
     }
 }
 
@@ -613,8 +581,8 @@ pub fn for_structure(structure: &dyn ModelStructure) -> Vec<Arc<dyn Effect>> {
     ];
     let inputs = structure.inputs();
     if structure.is_nonlinear() {
-        all.push(Arc::new(SensorBias::new(&outputs)));
-        all.push(Arc::new(InputBias::new(&inputs)));
+        all.push(Arc::new(Offsets::new(Side::Outputs, &outputs)));
+        all.push(Arc::new(Offsets::new(Side::Inputs, &inputs)));
     }
     let lags = ChannelLag::for_inputs(&inputs);
     for lag in lags.into_iter().chain(ChannelLag::for_outputs(&outputs)) {
@@ -651,8 +619,8 @@ pub fn for_data(
     };
     let mut all: Vec<Arc<dyn Effect>> = Vec::new();
     if structure.is_nonlinear() {
-        all.push(Arc::new(SensorBias::for_data(data)));
-        all.push(Arc::new(InputBias::for_data(data)));
+        all.push(Arc::new(Offsets::for_data(Side::Outputs, data)));
+        all.push(Arc::new(Offsets::for_data(Side::Inputs, data)));
     }
     all.push(Arc::new(ActuatorLag::for_data(h, resolution)));
     all.push(Arc::new(InputDelay::for_data(h, resolution)));

@@ -1368,3 +1368,149 @@ fn an_output_lag_the_frf_criterion_adds_is_named_beside_a_misfit() {
         }
     }
 }
+
+/// A reaction-wheel pendulum: body angle and rate, wheel speed relative to the body, the motor
+/// torque `T` turning the wheel against the body.
+const WHEEL: &str = r#"
+name = "wheel"
+states = ["theta", "omega", "ws"]
+inputs = ["T"]
+outputs = ["theta", "ws"]
+[parameters]
+mgl = { value = 0.3, min = 0.01 }
+Jb = { value = 0.01, min = 1e-4 }
+Jw = { value = 5e-4, min = 1e-6 }
+[definitions]
+thdd = "(mgl*sin(theta) - T)/Jb"
+[nonlinear]
+f.theta = "omega"
+f.omega = "thdd"
+f.ws = "T/Jw - thdd"
+h.theta = "theta"
+h.ws = "ws"
+operating_point = { theta = 0, omega = 0, ws = 0, T = 0 }
+"#;
+
+/// Three records of 40 s at 200 Hz of the [`WHEEL`] (truth mgl 0.3, Jb 0.0103, Jw 5.12e-4)
+/// balanced by state feedback on the measured angle, a 30 Hz filtered difference of it and the
+/// wheel speed, a multisine of 0.02 N m rms on the torque, a white torque disturbance of 0.002
+/// N m rms held per sample, sensor noise 2e-4 rad and 0.05 rad/s, and the encoder `offset`.
+fn wheel(seed: u64, offset: f64) -> Dataset {
+    let (mgl, jb, jw, t): (f64, f64, f64, f64) = (0.3, 0.0103, 5.12e-4, 1.0 / 200.0);
+    let mut rng = StdRng::seed_from_u64(seed);
+    let mut normal = move || rng.sample::<f64, _>(StandardNormal);
+    let f = |x: [f64; 3], tm: f64| {
+        let thdd = (mgl * x[0].sin() - tm) / jb;
+        [x[1], thdd, tm / jw - thdd]
+    };
+    let step = |x: [f64; 3], k: [f64; 3], h: f64| std::array::from_fn(|i| x[i] + h * k[i]);
+    let (period, n) = (1000, 8000);
+    let phases: Vec<f64> = (0..100).map(|_| 6.283 * normal()).collect();
+    let sines: Vec<f64> = (0..period)
+        .map(|k| {
+            (1..=100)
+                .map(|l| (6.283185 * l as f64 * k as f64 / period as f64 + phases[l - 1]).cos())
+                .sum::<f64>()
+        })
+        .collect();
+    let rms = (sines.iter().map(|v| v * v).sum::<f64>() / period as f64).sqrt();
+    let filter = (-6.283185 * 30.0 * t).exp();
+    let experiments = (0..3)
+        .map(|e| {
+            let (mut u, mut y, mut r) = (
+                DMatrix::zeros(n, 1),
+                DMatrix::zeros(n, 2),
+                DMatrix::zeros(n, 1),
+            );
+            let (mut x, mut last, mut rate) = ([0.01 * normal(), 0.0, 0.0], None, 0.0);
+            for i in 0..n {
+                y[(i, 0)] = x[0] + offset + 2e-4 * normal();
+                y[(i, 1)] = x[2] + 0.05 * normal();
+                let d = (y[(i, 0)] - last.unwrap_or(y[(i, 0)])) / t;
+                last = Some(y[(i, 0)]);
+                rate = filter * rate + (1.0 - filter) * d;
+                r[(i, 0)] = 0.02 * sines[i % period] / rms;
+                u[(i, 0)] = 4.12 * y[(i, 0)] + 0.627 * rate + 0.00886 * y[(i, 1)] + r[(i, 0)];
+                let tm = u[(i, 0)] + 0.002 * normal();
+                let h = t / 10.0;
+                for _ in 0..10 {
+                    let k1 = f(x, tm);
+                    let k2 = f(step(x, k1, h / 2.0), tm);
+                    let k3 = f(step(x, k2, h / 2.0), tm);
+                    let k4 = f(step(x, k3, h), tm);
+                    x = std::array::from_fn(|j| {
+                        x[j] + h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+                    });
+                }
+            }
+            Experiment {
+                name: format!("record {e}"),
+                u,
+                y,
+                r: Some(r),
+                periodic: None,
+            }
+        })
+        .collect();
+    Dataset {
+        sample_rate_hz: 200.0,
+        inputs: vec!["T".into()],
+        outputs: vec!["theta".into(), "ws".into()],
+        experiments,
+    }
+}
+
+/// The reaction-wheel pendulum's wheel speed moves with the torque noise, so its first
+/// differences read 18 times its sensor noise (the angle's 2.5 times): with the sensors'
+/// factors searched only together the predictor's gain was off, and its true model read a
+/// misfit (seed 1 here: p = 3e-6, the body inertia 5.5 standard errors low; an outside
+/// simulator of the same rig 3 of 3). Each sensor's factor is now searched alone too:
+/// explained on at least 2 of 3 (measured 2), the body inertia within 1 % and 4 standard
+/// errors on every seed (measured 0.25-0.56 %, 1.6-3.9). With its encoder 0.02 rad off the
+/// starting fit drives the gravity torque to its bound, and the offset's candidate stopped
+/// short there (nothing added, 3 of 3 on the outside simulator); fitted again from the
+/// documented values it is added (found or tentative), within 1 % of the offset, on 3 of 3
+/// (measured within 0.13 %).
+#[test]
+fn a_wheel_speed_moved_by_the_noise_and_an_encoder_offset_read_as_themselves() {
+    let mut explained = 0;
+    for seed in [1, 2, 3] {
+        let d = workbench_with(WHEEL, wheel(seed, 0.0), None)
+            .discover()
+            .unwrap();
+        assert!(
+            d.conclusion.found.is_empty() && d.conclusion.tentative.is_empty(),
+            "seed {seed}: {}",
+            d.conclusion.verdict_sentence()
+        );
+        explained += usize::from(!d.conclusion.unexplained);
+        let last = d.steps.last().unwrap();
+        let jb = last.params.iter().find(|p| p.name == "Jb").unwrap();
+        let std = jb.std.unwrap();
+        assert!(
+            (jb.value - 0.0103).abs() < 4.0 * std && (jb.value / 0.0103 - 1.0).abs() < 0.01,
+            "seed {seed}: Jb {} ± {std}",
+            jb.value
+        );
+    }
+    assert!(explained >= 2, "explained on {explained} of 3");
+    for seed in [11, 12, 13] {
+        let d = workbench_with(WHEEL, wheel(seed, 0.02), None)
+            .discover()
+            .unwrap();
+        let added: Vec<&String> = d
+            .conclusion
+            .found
+            .iter()
+            .chain(&d.conclusion.tentative)
+            .collect();
+        assert_eq!(added, ["sensor_bias"], "seed {seed}");
+        let last = d.steps.last().unwrap();
+        let bias = last.params.iter().find(|p| p.name == "bias_theta").unwrap();
+        assert!(
+            (bias.value / 0.02 - 1.0).abs() < 0.01,
+            "seed {seed}: bias {}",
+            bias.value
+        );
+    }
+}
