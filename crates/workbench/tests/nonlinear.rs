@@ -1396,6 +1396,7 @@ operating_point = { theta = 0, omega = 0, ws = 0, T = 0 }
 /// wheel speed, a multisine of 0.02 N m rms on the torque, a white torque disturbance of 0.002
 /// N m rms held per sample, sensor noise 2e-4 rad and 0.05 rad/s, and the encoder `offset`.
 fn wheel(seed: u64, offset: f64) -> Dataset {
+    use std::f64::consts::TAU;
     let (mgl, jb, jw, t): (f64, f64, f64, f64) = (0.3, 0.0103, 5.12e-4, 1.0 / 200.0);
     let mut rng = StdRng::seed_from_u64(seed);
     let mut normal = move || rng.sample::<f64, _>(StandardNormal);
@@ -1405,16 +1406,16 @@ fn wheel(seed: u64, offset: f64) -> Dataset {
     };
     let step = |x: [f64; 3], k: [f64; 3], h: f64| std::array::from_fn(|i| x[i] + h * k[i]);
     let (period, n) = (1000, 8000);
-    let phases: Vec<f64> = (0..100).map(|_| 6.283 * normal()).collect();
+    let phases: Vec<f64> = (0..100).map(|_| TAU * normal()).collect();
     let sines: Vec<f64> = (0..period)
         .map(|k| {
             (1..=100)
-                .map(|l| (6.283185 * l as f64 * k as f64 / period as f64 + phases[l - 1]).cos())
+                .map(|l| (TAU * l as f64 * k as f64 / period as f64 + phases[l - 1]).cos())
                 .sum::<f64>()
         })
         .collect();
     let rms = (sines.iter().map(|v| v * v).sum::<f64>() / period as f64).sqrt();
-    let filter = (-6.283185 * 30.0 * t).exp();
+    let filter = (-TAU * 30.0 * t).exp();
     let experiments = (0..3)
         .map(|e| {
             let (mut u, mut y, mut r) = (
