@@ -28,11 +28,12 @@ use super::dataset::Dataset;
 use super::diagnose::{diagnose, LEVEL};
 use super::discover::{
     in_parallel, CandidateScore, Conclusion, Discovery, NestedCosts, Robustness, Step, Verdict,
+    FAR_FROM_DOCUMENTED,
 };
 use super::dynamics::Dynamics;
 use super::fit::{solve, FitResult, LeastSquares};
 use super::kalman::{Gain, Predictor, BURN_IN};
-use super::model::{Drift, Model, StateSpace};
+use super::model::{Drift, Model, Parameter, StateSpace};
 use super::model_file::Controller;
 use super::residual::{residual_tests, ResidualTests, DEFAULT_LAGS};
 use super::search::{forward_selection, Search};
@@ -963,26 +964,30 @@ impl Workbench {
             .filter(|&i| !old.iter().any(|q| q.name == params[i].name))
             .collect();
         let pe = PredictionError::new(self, &with, design);
-        // The better of zero (or the nearest bound) and the documented value starts each new
-        // parameter.
-        for &i in &new {
-            let mut grid = vec![
-                0.0f64.clamp(params[i].lower, params[i].upper),
-                params[i].value,
-            ];
-            grid.dedup();
-            let mut best = (f64::INFINITY, start[i]);
-            for v in grid {
-                let mut t = start.clone();
-                t[i] = v;
-                if let Ok(c) = pe.residuals(&t).map(|r| r.norm_squared()) {
-                    if c < best.0 {
-                        best = (c, v);
+        // Each new parameter of `theta` set to the value of `values(parameter)` that costs
+        // least, in turn.
+        let choose = |theta: &mut Vec<f64>, values: &dyn Fn(&Parameter) -> Vec<f64>| {
+            for &i in &new {
+                let mut best = (f64::INFINITY, theta[i]);
+                for v in values(&params[i]) {
+                    let mut t = theta.clone();
+                    t[i] = v;
+                    if let Ok(c) = pe.residuals(&t).map(|r| r.norm_squared()) {
+                        if c < best.0 {
+                            best = (c, v);
+                        }
                     }
                 }
+                theta[i] = best.1;
             }
-            start[i] = best.1;
-        }
+        };
+        // The better of zero (or the nearest bound) and the documented value starts each new
+        // parameter.
+        choose(&mut start, &|q| {
+            let mut grid = vec![0.0f64.clamp(q.lower, q.upper), q.value];
+            grid.dedup();
+            grid
+        });
         // A candidate is significant only if its cost falls below the base's by more than
         // noise alone varies it (below); its fit stops once it cannot get there.
         let n = r0.len() as f64;
@@ -999,26 +1004,14 @@ impl Workbench {
         // `sensor_bias` stopped short there, where `fit --with` from the documented values
         // found 0.01997): it is fitted again from the documented values, each new parameter
         // scanned over its bounds, and the better fit kept.
+        let far = 1.0 / FAR_FROM_DOCUMENTED..=FAR_FROM_DOCUMENTED;
         let bent = old.iter().zip(&current.r.theta).any(|(q, &v)| {
-            let ratio = v / q.value;
             (q.lower < q.upper && (v <= q.lower || v >= q.upper))
-                || (q.value != 0.0 && !(0.1..=10.0).contains(&ratio))
+                || (q.value != 0.0 && !far.contains(&(v / q.value)))
         });
         if bent {
             let mut scanned: Vec<f64> = params.iter().map(|q| q.value).collect();
-            for &i in &new {
-                let mut best = (f64::INFINITY, scanned[i]);
-                for v in super::discover::scan_grid(&params[i]) {
-                    let mut t = scanned.clone();
-                    t[i] = v;
-                    if let Ok(c) = pe.residuals(&t).map(|r| r.norm_squared()) {
-                        if c < best.0 {
-                            best = (c, v);
-                        }
-                    }
-                }
-                scanned[i] = best.1;
-            }
+            choose(&mut scanned, &super::discover::scan_grid);
             if let Ok(b) = solve(&pe, &params, Some(&scanned), &opts) {
                 if b.cost < r.cost {
                     r = b;

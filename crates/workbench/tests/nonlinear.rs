@@ -1176,6 +1176,17 @@ const STAND_TRUTH: StandTruth = StandTruth {
     coupling: 0.0,
 };
 
+/// One classical Runge-Kutta step of `x' = f(x)` over `h` (the test simulators' integrator,
+/// with inputs held over the step).
+fn rk4<const N: usize>(f: impl Fn([f64; N]) -> [f64; N], x: [f64; N], h: f64) -> [f64; N] {
+    let step = |k: [f64; N], a: f64| std::array::from_fn(|i| x[i] + a * k[i]);
+    let k1 = f(x);
+    let k2 = f(step(k1, h / 2.0));
+    let k3 = f(step(k2, h / 2.0));
+    let k4 = f(step(k3, h));
+    std::array::from_fn(|j| x[j] + h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]))
+}
+
 /// [`stand`] under `truth`.
 fn stand_with(seed: u64, truth: StandTruth) -> Dataset {
     let (ixx, izz, mgh, d, kd, t) = (0.0104, 0.0185, 0.157, 0.085, 0.016, 1.0 / 250.0);
@@ -1189,7 +1200,6 @@ fn stand_with(seed: u64, truth: StandTruth) -> Dataset {
             (kd * (u[0] + u[1]) + truth.coupling * x[2] + w[1]) / izz,
         ]
     };
-    let step = |x: [f64; 4], k: [f64; 4], h: f64| std::array::from_fn(|i| x[i] + h * k[i]);
     let mut experiments = Vec::new();
     for e in 0..2 {
         let n = 6000;
@@ -1222,13 +1232,7 @@ fn stand_with(seed: u64, truth: StandTruth) -> Dataset {
             );
             let h = t / 4.0;
             for _ in 0..4 {
-                let k1 = f(x, ui, w);
-                let k2 = f(step(x, k1, h / 2.0), ui, w);
-                let k3 = f(step(x, k2, h / 2.0), ui, w);
-                let k4 = f(step(x, k3, h), ui, w);
-                x = std::array::from_fn(|j| {
-                    x[j] + h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-                });
+                x = rk4(|x| f(x, ui, w), x, h);
                 if truth.gyro_lag > 0.0 {
                     gyro += (x[2] - gyro) * (1.0 - (-h / truth.gyro_lag).exp());
                 }
@@ -1404,7 +1408,6 @@ fn wheel(seed: u64, offset: f64) -> Dataset {
         let thdd = (mgl * x[0].sin() - tm) / jb;
         [x[1], thdd, tm / jw - thdd]
     };
-    let step = |x: [f64; 3], k: [f64; 3], h: f64| std::array::from_fn(|i| x[i] + h * k[i]);
     let (period, n) = (1000, 8000);
     let phases: Vec<f64> = (0..100).map(|_| TAU * normal()).collect();
     let sines: Vec<f64> = (0..period)
@@ -1435,13 +1438,7 @@ fn wheel(seed: u64, offset: f64) -> Dataset {
                 let tm = u[(i, 0)] + 0.002 * normal();
                 let h = t / 10.0;
                 for _ in 0..10 {
-                    let k1 = f(x, tm);
-                    let k2 = f(step(x, k1, h / 2.0), tm);
-                    let k3 = f(step(x, k2, h / 2.0), tm);
-                    let k4 = f(step(x, k3, h), tm);
-                    x = std::array::from_fn(|j| {
-                        x[j] + h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-                    });
+                    x = rk4(|x| f(x, tm), x, h);
                 }
             }
             Experiment {
