@@ -47,16 +47,19 @@ def test_correct_logs_name_the_quantization_and_read_explained_under_the_frf_cri
     assert frf.endswith("the same logs read explained, nothing added"), frf
 
 
-def test_an_offset_refit_that_wanders_is_not_kept(tmp_path):
-    # A 0.01 rad offset of the first link's encoder: the final model's refit under its own
-    # predictor went to a cart mass a third of the documented one, where the starting
-    # predictor's cost is nine times the one its effects were chosen at; it is not kept, so
-    # every step's cost falls and the verdict says why.
+def test_an_encoder_offset_is_added_alone_and_its_refit_kept(tmp_path):
+    # A 0.01 rad offset of the first link's encoder. With each record's predictor started at
+    # the operating point (not at its fitted state) a rod's viscous friction was added beside
+    # it, and the final model's refit went to a cart mass a third of the documented one and
+    # was not kept (the first link's length then fitted 1.79 m for 0.515). Now the offset
+    # alone is added and the refit kept near the truth: seeds 1-3, bias 0.01002-0.01008, M
+    # within 0.6 % and L1 within 0.6 % of the truth (1.04 kg, 0.515 m).
     doc = discover(tmp_path, "f")
     costs = [step["cost"] for step in doc["steps"]]
     assert all(b < a for a, b in zip(costs, costs[1:])), costs
-    assert "sensor_bias" in doc["found"] + doc["tentative"], doc["verdict_text"]
-    note = warning(doc, "the final model's refit under its own predictor moved")
-    assert "the parameters shown are the selection's" in note, note
-    bias = doc["steps"][-1]["params"]["bias_th1"]
-    assert abs(bias - 0.01) < 0.001, bias
+    assert doc["found"] + doc["tentative"] == ["sensor_bias"], doc["verdict_text"]
+    assert not any("refit under its own predictor" in w for w in doc["warnings"]), doc["warnings"]
+    params = doc["steps"][-1]["params"]
+    assert abs(params["bias_th1"] - 0.01) < 1e-4, params
+    assert abs(params["M"] / dp.TRUE["M"] - 1) < 0.02, params
+    assert abs(params["L1"] / dp.TRUE["L1"] - 1) < 0.02, params

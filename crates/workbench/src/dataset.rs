@@ -223,6 +223,34 @@ impl Dataset {
         self.experiments.iter().all(|e| e.r.is_some())
     }
 
+    /// The records without the excitation when others log it, named: the excitation is used
+    /// only when every record carries it, so one record without it turns it off for all (a
+    /// ball-and-beam campaign with `r_tau` missing from one of three files read "explained"
+    /// with its tests run against the inputs, "no excitation logged", and nothing else said).
+    pub fn excitation_gap(&self) -> Option<String> {
+        let (with, without): (Vec<&Experiment>, Vec<&Experiment>) =
+            self.experiments.iter().partition(|e| e.r.is_some());
+        if with.is_empty() || without.is_empty() {
+            return None;
+        }
+        let names = |es: &[&Experiment]| {
+            es.iter()
+                .map(|e| e.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        Some(format!(
+            "the excitation ({}) is logged in {} but not in {}: it is used only when every record carries it, so none of it is used (the FRF is then a Welch estimate of the inputs, biased under feedback, and the time criterion's residual tests run against the inputs); log it in those records too, or leave them out",
+            self.inputs
+                .iter()
+                .map(|i| format!("r_{i}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            names(&with),
+            names(&without)
+        ))
+    }
+
     /// True when every experiment logs its excitation and the input equals it (to 1e-9 of
     /// its size): no feedback, so an estimator that uses the input as its instrument is unbiased.
     pub fn is_open_loop(&self) -> bool {
@@ -615,6 +643,32 @@ mod tests {
                 periodic: None,
             }],
         }
+    }
+
+    /// The excitation logged in some records only is named with the records that lack it;
+    /// logged in all or in none, nothing is said.
+    #[test]
+    fn an_excitation_missing_from_some_records_is_named() {
+        let mut d = one_output(|k| (0.1 * k as f64).sin());
+        let mut second = d.experiments[0].clone();
+        second.name = "run2.csv".into();
+        second.r = Some(DMatrix::from_fn(2000, 1, |k, _| (0.3 * k as f64).cos()));
+        d.experiments.push(second);
+        let gap = d.excitation_gap().unwrap();
+        assert!(
+            gap.starts_with("the excitation (r_u) is logged in run2.csv but not in e:"),
+            "{gap}"
+        );
+        let all = Dataset {
+            experiments: vec![d.experiments[1].clone(); 2],
+            ..d.clone()
+        };
+        assert_eq!(all.excitation_gap(), None);
+        let none = Dataset {
+            experiments: vec![d.experiments[0].clone(); 2],
+            ..d
+        };
+        assert_eq!(none.excitation_gap(), None);
     }
 
     /// A slow angle on 4096-count encoder steps is coarse, with its step and stillness; the

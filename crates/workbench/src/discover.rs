@@ -1416,6 +1416,8 @@ impl Workbench {
             let fix = if self.data.has_excitation() {
                 "use the instrumental variable (`--estimator auto`): the excitation is logged"
                     .to_string()
+            } else if let Some(gap) = self.data.excitation_gap() {
+                gap
             } else {
                 format!(
                     "log the excitation (MCAP topic `/{}/excitation`, CSV columns `r_<input>`) for the instrumental variable",

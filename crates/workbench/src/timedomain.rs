@@ -453,7 +453,8 @@ pub fn time_fit(
             }
             let fit = KalmanFit {
                 policy: format!(
-                    "stationary Kalman predictor of the sampled model, started at zero state, \
+                    "stationary Kalman predictor of the sampled model, started at the state fitted \
+                     by least squares to the first {} outputs, \
                      noise covariances estimated from the data (sensor noise from first \
                      differences, input-referred process noise with a share per direction the \
                      inputs reach, state process noise and per-output sensor \
@@ -461,6 +462,7 @@ pub fn time_fit(
                      entry of the gain refined on the same criterion); one-step and \
                      {k}-step predictions ({:.3} s) from the filtered state, scored from samples \
                      {} and {}",
+                    super::kalman::START_WINDOW + 1,
                     k as f64 * t,
                     m + 1,
                     m + k

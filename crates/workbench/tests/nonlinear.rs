@@ -1462,13 +1462,17 @@ fn wheel(seed: u64, offset: f64) -> Dataset {
 /// differences read 18 times its sensor noise (the angle's 2.5 times): with the sensors'
 /// factors searched only together the predictor's gain was off, and its true model read a
 /// misfit (seed 1 here: p = 3e-6, the body inertia 5.5 standard errors low; an outside
-/// simulator of the same rig 3 of 3). Each sensor's factor is now searched alone too:
-/// explained on at least 2 of 3 (measured 2), the body inertia within 1 % and 4 standard
-/// errors on every seed (measured 0.25-0.56 %, 1.6-3.9). With its encoder 0.02 rad off the
-/// starting fit drives the gravity torque to its bound, and the offset's candidate stopped
-/// short there (nothing added, 3 of 3 on the outside simulator); fitted again from the
-/// documented values it is added (found or tentative), within 1 % of the offset, on 3 of 3
-/// (measured within 0.13 %).
+/// simulator of the same rig 3 of 3). Each sensor's factor is searched alone too, and each
+/// record's predictor starts from the state fitted to its first outputs (from the zero state
+/// the wheel speed's slow start-up moved the noise search's optimum: explained on 2 of 3, the
+/// inertia up to 3.9 standard errors off): explained on 3 of 3, the body inertia within 0.5 %
+/// and 3 standard errors on every seed (measured on seeds 1-10: 10 of 10, within 0.32 % and
+/// 2.4). With its encoder 0.02 rad off the starting fit drives the gravity torque to its
+/// bound, and the offset's candidate stopped short there (nothing added, 3 of 3 on the outside
+/// simulator); fitted again from the documented values it is found, explained, within 0.1 %
+/// of the offset with the inertia within 1 %, on 3 of 3 (measured on seeds 11-17: 7 of 7,
+/// within 0.03 % and 0.32 %; tentative beside a misfit with the inertia 9-10 % low from the
+/// zero state).
 #[test]
 fn a_wheel_speed_moved_by_the_noise_and_an_encoder_offset_read_as_themselves() {
     let mut explained = 0;
@@ -1486,29 +1490,27 @@ fn a_wheel_speed_moved_by_the_noise_and_an_encoder_offset_read_as_themselves() {
         let jb = last.params.iter().find(|p| p.name == "Jb").unwrap();
         let std = jb.std.unwrap();
         assert!(
-            (jb.value - 0.0103).abs() < 4.0 * std && (jb.value / 0.0103 - 1.0).abs() < 0.01,
+            (jb.value - 0.0103).abs() < 3.0 * std && (jb.value / 0.0103 - 1.0).abs() < 0.005,
             "seed {seed}: Jb {} ± {std}",
             jb.value
         );
     }
-    assert!(explained >= 2, "explained on {explained} of 3");
+    assert_eq!(explained, 3, "explained on {explained} of 3");
     for seed in [11, 12, 13] {
         let d = workbench_with(WHEEL, wheel(seed, 0.02), None)
             .discover()
             .unwrap();
-        let added: Vec<&String> = d
-            .conclusion
-            .found
-            .iter()
-            .chain(&d.conclusion.tentative)
-            .collect();
-        assert_eq!(added, ["sensor_bias"], "seed {seed}");
+        assert_eq!(d.conclusion.found, ["sensor_bias"], "seed {seed}");
+        assert!(d.conclusion.tentative.is_empty(), "seed {seed}");
+        assert!(!d.conclusion.unexplained, "seed {seed}");
         let last = d.steps.last().unwrap();
         let bias = last.params.iter().find(|p| p.name == "bias_theta").unwrap();
+        let jb = last.params.iter().find(|p| p.name == "Jb").unwrap();
         assert!(
-            (bias.value / 0.02 - 1.0).abs() < 0.01,
-            "seed {seed}: bias {}",
-            bias.value
+            (bias.value / 0.02 - 1.0).abs() < 0.001 && (jb.value / 0.0103 - 1.0).abs() < 0.01,
+            "seed {seed}: bias {}, Jb {}",
+            bias.value,
+            jb.value
         );
     }
 }
