@@ -1225,7 +1225,9 @@ impl Workbench {
 
 /// Runs `f` without the GIL; an exception a user's callable raised during the run (a model's
 /// `f`/`h`, an effect's) is re-raised unchanged, whether or not the run failed (kept in
-/// `error`).
+/// `error`). A panic in the run becomes a `stabilis.Error` naming it as a bug, not a
+/// `PanicException` that `except Exception` misses (a model with every parameter held once
+/// panicked under the time criterion).
 fn run_with<T: Send>(
     error: &Mutex<Option<PyErr>>,
     py: Python<'_>,
@@ -1234,15 +1236,25 @@ fn run_with<T: Send>(
     if let Ok(mut slot) = error.lock() {
         slot.take();
     }
-    let result = py.detach(f);
+    let result = py.detach(|| std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)));
     let stashed = error.lock().ok().and_then(|mut slot| slot.take());
     // A user's exception reaches the caller even when the run went on without it: a fit
     // takes a failed evaluation for a step too far and backs off, which turned an effect
     // that raised (or returned NaN) beyond some value into a plausible misfit verdict.
     match (result, stashed) {
         (_, Some(err)) => Err(err),
-        (Ok(v), None) => Ok(v),
-        (Err(e), None) => Err(to_py_err(e)),
+        (Ok(Ok(v)), None) => Ok(v),
+        (Ok(Err(e)), None) => Err(to_py_err(e)),
+        (Err(panic), None) => {
+            let what = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "no message".into());
+            Err(crate::errors::Error::new_err(format!(
+                "internal error (a bug in stabilis; please report it with the model and logs): {what}"
+            )))
+        }
     }
 }
 

@@ -379,6 +379,27 @@ def test_python_discover_with_the_nonlinear_file_concludes_as_the_cli(campaigns,
     assert wb.discover()["found"] == discover(MODEL, data, tmp_path)["found"]
 
 
+def test_a_model_with_every_parameter_held_is_discovered_from_python(campaigns, tmp_path):
+    # Every parameter held at the simulator's value: the time criterion's fit has no column,
+    # which once panicked (a PanicException `except Exception` misses). It concludes, with no
+    # fitted parameter, through Python as through the CLI (the held values read a misfit on
+    # these logs, where the fitted ones read explained: the model file is not the simulator's
+    # plant to the last term).
+    stabilis = python_model()
+    text = MODEL.read_text()
+    for name, truth in (("M", ic.Plant.M), ("l", ic.Plant.l), ("J", ic.Plant.J)):
+        line = next(l for l in text.splitlines() if l.startswith(f"{name} = {{"))
+        text = text.replace(line, f"{name} = {{ value = {truth!r}, fixed = true }}")
+    held = tmp_path / "held.toml"
+    held.write_text(text)
+    data = campaigns("nothing", SEEDS["nothing"][0])
+    doc = stabilis.Workbench(model=str(held), data=[str(data)]).discover()
+    assert doc["steps"][0]["params"] == {}, doc["steps"][0]["params"]
+    cli = discover(held, data, tmp_path)
+    for key in ("found", "tentative", "unexplained"):
+        assert doc[key] == cli[key], (key, why(doc), why(cli))
+
+
 def test_python_criterion_keyword_is_checked(campaigns):
     # criterion="frf" fits the nonlinear file's linearization (its base step then equals the
     # CLI's --criterion frf); an unknown name and the time criterion on a linear file are
@@ -520,8 +541,13 @@ def test_python_callables_discover_as_the_model_file(short_offset):
     doc = stabilis.Workbench(model=model, data=data).discover()
     ref = stabilis.Workbench(model=file, data=data).discover()
     assert doc["found"] == ref["found"] == ["sensor_bias"], why(doc)
+    # The cart position's offset is not determined (the cart's position enters nothing but
+    # the loop, and each record's start state absorbs it): compared where the standard error
+    # is below the value.
+    std = ref["steps"][-1]["std"]
     for name, want in ref["steps"][-1]["params"].items():
-        assert doc["steps"][-1]["params"][name] == pytest.approx(want, rel=1e-4), name
+        if std.get(name) is not None and std[name] < abs(want):
+            assert doc["steps"][-1]["params"][name] == pytest.approx(want, rel=1e-4), name
     bias = param(doc, "bias_theta")
     assert abs(bias / OFFSET_THETA - 1) < TOLERANCE, bias
 

@@ -273,12 +273,14 @@ def test_every_plot_of_the_power_report_draws_in_a_browser(logs, tmp_path):
 def test_the_study_names_noise_it_does_not_reproduce(tmp_path):
     # The independent simulator's pole torque disturbance enters where the noise the study
     # estimates (the Kalman predictor's, scaled) does not put it: with ten times its default,
-    # the study's calibrated noise on the pole angle is 2.3-3.1 times the logs' at 3-7 Hz
-    # (measured, seeds 1 and 2), and the study says where, by how much and that its rates
-    # may be too low there. With the default noise (the README's study, full-length logs) it
-    # reproduces the logs within the check's tolerances and says nothing. (On the short logs
-    # of the other tests the logged noise per band is too uncertain for this check: one
-    # nominal seed of two warned at 0.59.)
+    # the study's calibrated noise on the pole angle is 1.7-2.0 times the logs' at 1.6-7 Hz,
+    # and on the cart's position 1.9-2.7 times at 1.9-7 Hz (measured, seeds 1 and 2; before
+    # each record's predictor started from its fitted state, theta alone at 3-7 Hz, 2.3-3.1),
+    # and the study
+    # says where, by how much and that its rates may be too low there. With the default
+    # noise (the README's study, full-length logs) it reproduces the logs within the check's
+    # tolerances and says nothing. (On the short logs of the other tests the logged noise
+    # per band is too uncertain for this check: one nominal seed of two warned at 0.59.)
     for seed in (1, 2):
         plain, torque = tmp_path / f"plain{seed}", tmp_path / f"torque{seed}"
         ic.campaign(plain, plant=ic.Plant(), seed=seed)
@@ -292,6 +294,8 @@ def test_the_study_names_noise_it_does_not_reproduce(tmp_path):
                      for w in r["noise_warnings"]])
         assert r["noise_warnings"], r
         for w in r["noise_warnings"]:
-            assert w["output"] == "theta" and w["band_hz"] is not None, w
+            assert w["band_hz"] is not None and w["band_hz"][0] >= 1.5, w
             assert w["ratio"] > 1.5 and "likely too low" in w["message"], w
-            assert w["band_hz"][0] >= 3 and "theta at" in w["message"], w
+            assert f"{w['output']} at" in w["message"], w
+        on_theta = [w for w in r["noise_warnings"] if w["output"] == "theta"]
+        assert any(w["band_hz"][0] >= 3 for w in on_theta), r["noise_warnings"]

@@ -860,7 +860,13 @@ impl LeastSquares for PredictionError<'_> {
             })
             .collect();
         let cols = in_parallel(self.model.parallel(), jobs, "prediction-error Jacobian")?;
-        Ok(DMatrix::from_columns(&cols))
+        // A model with every parameter held has no column (nalgebra's `from_columns` panics
+        // on none).
+        Ok(if cols.is_empty() {
+            DMatrix::zeros(r0.len(), 0)
+        } else {
+            DMatrix::from_columns(&cols)
+        })
     }
 }
 

@@ -1458,6 +1458,37 @@ fn wheel(seed: u64, offset: f64) -> Dataset {
     }
 }
 
+/// A model with every parameter held (its true values) is compared and discovered under the
+/// time criterion like any other: it read a panic (a Jacobian of no column) where the FRF
+/// criterion worked. Its logs read explained with nothing added, and no parameter is shown.
+#[test]
+fn a_model_with_every_parameter_held_is_compared_and_discovered() {
+    let held = WHEEL
+        .replace(
+            "mgl = { value = 0.3, min = 0.01 }",
+            "mgl = { value = 0.3, fixed = true }",
+        )
+        .replace(
+            "Jb = { value = 0.01, min = 1e-4 }",
+            "Jb = { value = 0.0103, fixed = true }",
+        )
+        .replace(
+            "Jw = { value = 5e-4, min = 1e-6 }",
+            "Jw = { value = 5.12e-4, fixed = true }",
+        );
+    assert_eq!(held.matches("fixed = true").count(), 3);
+    let wb = workbench_with(&held, wheel(1, 0.0), None);
+    for d in [wb.compared().unwrap(), wb.discover().unwrap()] {
+        assert!(
+            !d.conclusion.unexplained,
+            "{}",
+            d.conclusion.verdict_sentence()
+        );
+        assert!(d.conclusion.found.is_empty() && d.conclusion.tentative.is_empty());
+        assert!(d.steps[0].params.is_empty(), "{:?}", d.steps[0].params);
+    }
+}
+
 /// The reaction-wheel pendulum's wheel speed moves with the torque noise, so its first
 /// differences read 18 times its sensor noise (the angle's 2.5 times): with the sensors'
 /// factors searched only together the predictor's gain was off, and its true model read a
