@@ -328,8 +328,8 @@ impl Offsets {
         }
     }
 
-    /// Bounds from the data: each offset within the channel's logged range (or one, for a
-    /// channel that never moves).
+    /// Bounds from the data: each offset within plus or minus the span of the channel's
+    /// logged values (or one, for a channel that never moves).
     pub fn for_data(side: Side, data: &Dataset) -> Self {
         let range = |samples: &mut dyn Iterator<Item = f64>| {
             let (lo, hi) = samples.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {

@@ -148,7 +148,17 @@ impl Workbench {
             }
         }
         frf::check_excited(&data, frf::uses_instrumental_variable(&data, estimator)?)?;
-        let (frf, noise) = if data.is_periodic() {
+        let welch = || -> Result<(FrfEstimate, NoiseReference)> {
+            let band = match options.band_hz {
+                Some(band) => band,
+                None => welch::excited_band(&data)?,
+            };
+            let segment = welch::segment_length(data.sample_rate_hz, band.0);
+            let w = welch::welch_frf(&data, estimator, band, segment)?;
+            let noise = w.noise_reference(NOISE_DRAWS, 0x5eed)?;
+            Ok((w.frf, noise))
+        };
+        let periodic = || -> Result<(FrfEstimate, NoiseReference)> {
             let mut frf = frf::periodic_frf(&data, estimator)?;
             if let Some((lo, hi)) = options.band_hz {
                 // The excited lines within the band: the user's band narrows the periodic
@@ -164,16 +174,26 @@ impl Workbench {
                 }
             }
             let noise = NoiseReference::periodic(&frf, NOISE_DRAWS, 0x5eed)?;
-            (frf, noise)
-        } else {
-            let band = match options.band_hz {
-                Some(band) => band,
-                None => welch::excited_band(&data)?,
-            };
-            let segment = welch::segment_length(data.sample_rate_hz, band.0);
-            let w = welch::welch_frf(&data, estimator, band, segment)?;
-            let noise = w.noise_reference(NOISE_DRAWS, 0x5eed)?;
-            (w.frf, noise)
+            Ok((frf, noise))
+        };
+        // The time criterion rests on the prediction error, not on the periodic FRF's noise
+        // reference: logs with too few periods for that (a single record of four periods
+        // with three outputs) go through Welch under it, as logs without a period do; they
+        // were refused, naming the periodic FRF's degrees of freedom.
+        let time = options
+            .criterion
+            .map_or(structure.is_nonlinear(), |c| c == Criterion::Time);
+        let (frf, noise) = match (data.is_periodic(), time) {
+            (false, _) => welch()?,
+            (true, false) => periodic()?,
+            (true, true) => match periodic() {
+                Err(SimError::InvalidParameter { name, .. })
+                    if name == "noise degrees of freedom" =>
+                {
+                    welch()?
+                }
+                other => other?,
+            },
         };
         let cost = WeightedCost::new(&frf)?;
         let mut model = Model::new(structure);
@@ -242,11 +262,18 @@ impl Workbench {
 
     /// Why the FRF is a Welch estimate although some experiments are periodic (an
     /// experiment without a period among periodic ones, or periods that differ), naming the
-    /// experiments ([`Dataset::why_not_periodic`]); `None` for a periodic estimate or logs
+    /// experiments ([`Dataset::why_not_periodic`]), or all are but too few periods for the
+    /// time criterion to take the periodic estimate; `None` for a periodic estimate or logs
     /// none of which is periodic.
     pub fn welch_reason(&self) -> Option<String> {
         self.frf.welch.as_ref()?;
-        self.data.why_not_periodic()
+        self.data.why_not_periodic().or_else(|| {
+            self.data.is_periodic().then(|| {
+                "the periodic FRF's noise reference needs more periods than the logs hold, and \
+                 the time criterion does not rest on it"
+                    .to_string()
+            })
+        })
     }
 
     /// The weighted cost.

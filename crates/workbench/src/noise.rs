@@ -54,7 +54,7 @@ impl ComplexWishart {
             return Err(SimError::invalid(
                 "noise degrees of freedom",
                 n,
-                format!("need at least {p} (the periods after each experiment's first, summed over the experiments) to estimate the {p}x{p} noise covariance of the periodic FRF: log more periods per experiment, or more experiments"),
+                format!("need at least {p} (each experiment's periods after its first, less one, summed over the experiments: a single record of four periods gives 2) to estimate the {p}x{p} noise covariance of the periodic FRF: log more periods per experiment, or more experiments"),
             ));
         }
         let diag = (0..p)
