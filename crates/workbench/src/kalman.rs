@@ -275,9 +275,9 @@ impl Predictor {
         // speed, driven by the torque noise, read 18 times its sensor noise while the angle
         // read 2.5 times; with the sensors moved only together and each by at most 1.6 after,
         // the wheel's stayed 18 times too large, the gain too low there, and the true model
-        // read a misfit with its inertia 4 standard errors off. With one coarse and one fine
-        // sweep the two sensors' ratio still ended 4.6 times off, the angle's innovations
-        // correlated at -0.04 at lag 1 and the wheel inertia 4 standard errors off.)
+        // read a misfit with its inertia 4 standard errors off. The sweeps repeat because
+        // the factors are coupled and one sweep of each grid can stop short; on that rig's
+        // logs, once each record started from its fitted state, the repeats changed nothing.)
         let directions = shapes.directions.len();
         let shares = (0..directions)
             .filter(|_| directions > 1)
