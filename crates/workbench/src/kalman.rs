@@ -81,15 +81,6 @@ pub(crate) const BURN_IN: usize = 50;
 /// ([`initial_state`]); the time-domain table's window.
 pub(crate) const START_WINDOW: usize = super::timedomain::DEFAULT_WINDOW;
 
-/// Coordinate-descent sweeps of the noise search on each refining grid at most; the search
-/// moves on to the finer grid, or stops, once a sweep lowers the log-determinant by less than
-/// [`SWEEP_TOLERANCE`].
-const MAX_SWEEPS: usize = 8;
-
-/// A sweep that lowers the log-determinant by less than this ends its grid's sweeps (a
-/// relative change of the innovations' generalized variance of 1e-4).
-const SWEEP_TOLERANCE: f64 = 1e-4;
-
 /// Multipliers of a factor tried in the refining sweeps: coarse, then fine.
 const REFINE: [[f64; 4]; 2] = [[0.1, 0.3, 3.0, 10.0], [0.6, 0.8, 1.25, 1.6]];
 
@@ -267,17 +258,17 @@ impl Predictor {
             qx[(i, i)] = (motion[i] / steps.max(1) as f64).max(1e-12 * trace);
         }
         shapes.state = &qx * output_scale(&qx);
-        // The state noise starts from its absolute grid; the coarse sweeps refine the input
+        // The state noise starts from its absolute grid; the coarse sweep refines the input
         // and state factors and all sensor factors together, then each input direction's
-        // share and each sensor's factor (with more than one), the fine sweeps each factor;
-        // each grid is swept until a sweep gains less than SWEEP_TOLERANCE. (A sensor's first
-        // differences also hold the motion of its output per sample: a reaction wheel's
-        // speed, driven by the torque noise, read 18 times its sensor noise while the angle
-        // read 2.5 times; with the sensors moved only together and each by at most 1.6 after,
-        // the wheel's stayed 18 times too large, the gain too low there, and the true model
-        // read a misfit with its inertia 4 standard errors off. The sweeps repeat because
-        // the factors are coupled and one sweep of each grid can stop short; on that rig's
-        // logs, once each record started from its fitted state, the repeats changed nothing.)
+        // share and each sensor's factor (with more than one), the fine sweep each factor. (A
+        // sensor's first differences also hold the motion of its output per sample: a
+        // reaction wheel's speed, driven by the torque noise, read 18 times its sensor noise
+        // while the angle read 2.5 times; with the sensors moved only together and each by
+        // at most 1.6 after, the wheel's stayed 18 times too large, the gain too low there,
+        // and the true model read a misfit with its inertia 4 standard errors off. Sweeping
+        // each grid until it stopped gaining changed nothing on that rig's logs once each
+        // record started from its fitted state, and made the flying platform's discovery 1.5
+        // times slower.)
         let directions = shapes.directions.len();
         let shares = (0..directions)
             .filter(|_| directions > 1)
@@ -294,7 +285,6 @@ impl Predictor {
             .chain((0..p).map(Coordinate::Sensor))
             .collect();
         let mut sweep = |coordinates: &[Coordinate], multipliers: Option<&[f64]>| {
-            let before = best.0;
             for &coordinate in coordinates {
                 let keep = f.clone();
                 let current = match coordinate {
@@ -326,16 +316,10 @@ impl Predictor {
                     }
                 }
             }
-            before - best.0
         };
         sweep(&[Coordinate::State], None);
-        for (coordinates, multipliers) in [(&coarse, &REFINE[0]), (&fine, &REFINE[1])] {
-            for _ in 0..MAX_SWEEPS {
-                if sweep(coordinates, Some(multipliers)) < SWEEP_TOLERANCE {
-                    break;
-                }
-            }
-        }
+        sweep(&coarse, Some(&REFINE[0]));
+        sweep(&fine, Some(&REFINE[1]));
         let (f, gain) = best.1.unwrap_or((f, first.gain));
         let gain = match gain_choice {
             Gain::NoiseModel => gain,
