@@ -1547,11 +1547,11 @@ fn a_model_with_every_parameter_held_is_compared_and_discovered() {
 /// the wheel speed's slow start-up moved the noise search's optimum: explained on 2 of 3, the
 /// inertia up to 3.9 standard errors off): explained on 3 of 3, the body inertia within 0.5 %
 /// and 3 standard errors on every seed (measured on seeds 1-10: 10 of 10, within 0.32 % and
-/// 2.4). With its encoder 0.02 rad off the starting fit drives the gravity torque to its
+/// 2.6). With its encoder 0.02 rad off the starting fit drives the gravity torque to its
 /// bound, and the offset's candidate stopped short there (nothing added, 3 of 3 on the outside
 /// simulator); fitted again from the documented values it is found, explained, within 0.1 %
 /// of the offset with the inertia within 1 %, on 3 of 3 (measured on seeds 11-17: 7 of 7,
-/// within 0.03 % and 0.32 %; tentative beside a misfit with the inertia 9-10 % low from the
+/// within 0.02 % and 0.82 %; tentative beside a misfit with the inertia 9-10 % low from the
 /// zero state).
 #[test]
 fn a_wheel_speed_moved_by_the_noise_and_an_encoder_offset_read_as_themselves() {
