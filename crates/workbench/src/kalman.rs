@@ -13,7 +13,7 @@
 //! predictor `x̂_{k+1} = Φ x̂_k + Γ0 u_{k-w} + Γ1 u_{k-w-1} + K (y_k - C x̂_k - D u_{k-d})` is
 //! stable whenever `(Φ, C)` is detectable; otherwise the design is refused by name. A
 //! [`Gain::Refined`] predictor then frees every entry of the gain on the same criterion.
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVector};
 use rigid_body::lti::spectral_radius;
 use serde::Serialize;
 
@@ -160,29 +160,23 @@ impl Predictor {
         };
         let disc = &observable;
         let (n, p) = (disc.phi.nrows(), disc.c.nrows());
-        let mut r = vec![0.0; p];
-        let mut count = 0usize;
-        for (_, y) in records {
-            for k in 1..y.nrows() {
-                for i in 0..p {
-                    let d = y[(k, i)] - y[(k - 1, i)];
-                    r[i] += d * d;
-                }
-                count += 1;
-            }
-        }
-        for v in &mut r {
-            *v = (*v / (2.0 * count.max(1) as f64)).max(1e-300);
-        }
+        let r: Vec<f64> = difference_variance(records.iter().map(|(_, y)| *y), p)
+            .into_iter()
+            .map(|v| v.max(1e-300))
+            .collect();
         // The search runs on the first samples of each record, SEARCH_SAMPLES in all.
         let total: usize = records.iter().map(|(_, y)| y.nrows()).sum();
         let share = (SEARCH_SAMPLES as f64 / total.max(1) as f64).min(1.0);
-        let search: Vec<(DMatrix<f64>, DMatrix<f64>)> = records
+        let search: Vec<Segment> = records
             .iter()
             .map(|(u, y)| {
                 let rows =
                     ((y.nrows() as f64 * share) as usize).clamp(y.nrows().min(64), y.nrows());
-                (u.rows(0, rows).into_owned(), y.rows(0, rows).into_owned())
+                Segment::new(
+                    disc,
+                    u.rows(0, rows).into_owned(),
+                    y.rows(0, rows).into_owned(),
+                )
             })
             .collect();
         let gu = &disc.gamma0 * disc.gamma0.transpose() + &disc.gamma1 * disc.gamma1.transpose();
@@ -226,7 +220,7 @@ impl Predictor {
         }
         let Some((mut f, k0)) = best.1.clone() else {
             let q = f.process(&shapes);
-            let rm = DMatrix::from_diagonal(&nalgebra::DVector::from_vec(r.clone()));
+            let rm = DMatrix::from_diagonal(&DVector::from_vec(r.clone()));
             return Err(gain(disc, &q, &rm).err().unwrap_or_else(|| {
                 SimError::invalid(
                     "Kalman predictor",
@@ -244,8 +238,8 @@ impl Predictor {
         };
         let mut motion = vec![0.0; n];
         let mut steps = 0usize;
-        for (u, y) in &search {
-            let (_, xs) = first.run(u, y);
+        for segment in &search {
+            let (_, xs) = first.run_from(&segment.u, &segment.y, segment.start.clone());
             for k in 1..xs.nrows() {
                 for i in 0..n {
                     motion[i] += (xs[(k, i)] - xs[(k - 1, i)]).powi(2);
@@ -376,7 +370,7 @@ impl Predictor {
         shapes: &Shapes,
         r: &[f64],
         f: &Factors,
-        records: &[(DMatrix<f64>, DMatrix<f64>)],
+        records: &[Segment],
     ) -> Result<(f64, DMatrix<f64>)> {
         let p = r.len();
         let q = f.process(shapes);
@@ -411,11 +405,11 @@ impl Predictor {
 
     /// The innovations on `records`, each record's first [`BURN_IN`] samples left out (the
     /// predictor's start-up), stacked (samples x outputs).
-    fn innovations(&self, records: &[(DMatrix<f64>, DMatrix<f64>)]) -> DMatrix<f64> {
+    fn innovations(&self, records: &[Segment]) -> DMatrix<f64> {
         let parts: Vec<DMatrix<f64>> = records
             .iter()
-            .map(|(u, y)| {
-                let (e, _) = self.run(u, y);
+            .map(|s| {
+                let (e, _) = self.run_from(&s.u, &s.y, s.start.clone());
                 let from = BURN_IN.min(e.nrows() / 2);
                 e.rows(from, e.nrows() - from).into_owned()
             })
@@ -437,11 +431,7 @@ impl Predictor {
     /// A disturbance that enters neither where the inputs do nor one state alone (a torque on
     /// a balancing body moves its angle and the wheels' position together) gets its
     /// correlated direction this way, which the family's diagonal cannot give.
-    fn refine(
-        disc: &Discrete,
-        k0: DMatrix<f64>,
-        records: &[(DMatrix<f64>, DMatrix<f64>)],
-    ) -> DMatrix<f64> {
+    fn refine(disc: &Discrete, k0: DMatrix<f64>, records: &[Segment]) -> DMatrix<f64> {
         let innovations = |k: &DMatrix<f64>| Self::with_gain(disc, k).innovations(records);
         let stable =
             |k: &DMatrix<f64>| spectral_radius(&(&disc.phi - k * &disc.c)).is_ok_and(|r| r < 1.0);
@@ -459,7 +449,7 @@ impl Predictor {
             };
             let residual = |e: &DMatrix<f64>| {
                 let w = e * &whiten;
-                nalgebra::DVector::from_column_slice(w.as_slice())
+                DVector::from_column_slice(w.as_slice())
             };
             let r0 = residual(&e);
             let entries = k.len();
@@ -517,13 +507,22 @@ impl Predictor {
     /// state fitted to the record's first outputs ([`initial_state`]). The recursion
     /// `x_{k+1} = (Φ - K C) x_k + drive_k` runs on whole-record products.
     pub fn run(&self, u: &DMatrix<f64>, y: &DMatrix<f64>) -> (DMatrix<f64>, DMatrix<f64>) {
+        self.run_from(u, y, initial_state(&self.disc, u, y, None))
+    }
+
+    /// [`Predictor::run`] from the starting state `x`.
+    fn run_from(
+        &self,
+        u: &DMatrix<f64>,
+        y: &DMatrix<f64>,
+        mut x: DVector<f64>,
+    ) -> (DMatrix<f64>, DMatrix<f64>) {
         let d = &self.disc;
         let (n, samples) = (d.phi.nrows(), y.nrows());
         let feed = shifted(u, d.d_shift) * d.d.transpose();
         let drive = (self.input_drive(u) + (y - &feed) * self.gain.transpose()).transpose();
         let f = &d.phi - &self.gain * &d.c;
         let mut xs = DMatrix::zeros(n, samples);
-        let mut x = initial_state(d, u, y, None);
         for k in 0..samples {
             xs.set_column(k, &x);
             let mut next = drive.column(k).into_owned();
@@ -553,6 +552,43 @@ impl Predictor {
     }
 }
 
+/// A record the noise search runs on, with its starting state ([`initial_state`]): that
+/// depends on the model and the data alone, so it is fitted once for every gain tried.
+struct Segment {
+    u: DMatrix<f64>,
+    y: DMatrix<f64>,
+    start: DVector<f64>,
+}
+
+impl Segment {
+    fn new(disc: &Discrete, u: DMatrix<f64>, y: DMatrix<f64>) -> Self {
+        let start = initial_state(disc, &u, &y, None);
+        Self { u, y, start }
+    }
+}
+
+/// Half the mean squared first difference of each of the `p` outputs, pooled over `records`
+/// (samples x outputs): white sensor noise of variance σ² gives σ², a signal that moves
+/// little per sample adds little.
+fn difference_variance<'a>(
+    records: impl IntoIterator<Item = &'a DMatrix<f64>>,
+    p: usize,
+) -> Vec<f64> {
+    let mut sum = vec![0.0; p];
+    let mut count = 0usize;
+    for y in records {
+        for k in 1..y.nrows() {
+            for (i, s) in sum.iter_mut().enumerate() {
+                *s += (y[(k, i)] - y[(k - 1, i)]).powi(2);
+            }
+            count += 1;
+        }
+    }
+    sum.iter()
+        .map(|s| s / (2.0 * count.max(1) as f64))
+        .collect()
+}
+
 /// The state of `disc` at a record's first sample fitted by least squares to its first
 /// [`START_WINDOW`] + 1 outputs, each weighted by the inverse of its first differences' scale
 /// over the record (minimum norm on directions the window does not see); `offsets` are the
@@ -568,19 +604,16 @@ pub(crate) fn initial_state(
     u: &DMatrix<f64>,
     y: &DMatrix<f64>,
     offsets: Option<(&[f64], &[f64])>,
-) -> nalgebra::DVector<f64> {
+) -> DVector<f64> {
     let (n, p) = (disc.phi.nrows(), disc.c.nrows());
     let rows = y.nrows().min(u.nrows()).min(START_WINDOW + 1);
-    let zero = nalgebra::DVector::zeros(n);
+    let zero = DVector::zeros(n);
     if rows < 2 || n == 0 {
         return zero;
     }
-    let scale: Vec<f64> = (0..p)
-        .map(|i| {
-            let c = y.column(i);
-            let sq: f64 = (1..y.nrows()).map(|k| (c[k] - c[k - 1]).powi(2)).sum();
-            (sq / (2.0 * (y.nrows() - 1) as f64)).sqrt()
-        })
+    let scale: Vec<f64> = difference_variance([y], p)
+        .into_iter()
+        .map(f64::sqrt)
         .collect();
     let largest = scale.iter().copied().fold(0.0, f64::max);
     let weight: Vec<f64> = scale
@@ -603,9 +636,9 @@ pub(crate) fn initial_state(
         + shifted(&du, disc.whole + 1) * disc.gamma1.transpose();
     // `y_k - D u_k - C x_forced,k = C Φ^k x_0`, stacked and weighted.
     let mut o = DMatrix::zeros(rows * p, n);
-    let mut z = nalgebra::DVector::zeros(rows * p);
+    let mut z = DVector::zeros(rows * p);
     let mut power = DMatrix::identity(n, n);
-    let mut forced = nalgebra::DVector::zeros(n);
+    let mut forced = DVector::zeros(n);
     for k in 0..rows {
         let cp = &disc.c * &power;
         let out = &disc.c * &forced;
@@ -816,10 +849,9 @@ mod tests {
         let plant = unstable_plant();
         for seed in 0..3u64 {
             let (u, y) = closed_loop(&plant, seed);
-            let records = [(u.clone(), y.clone())];
             for choice in [Gain::NoiseModel, Gain::Refined] {
                 let own = Predictor::design(&plant, &[(&u, &y)], choice).unwrap();
-                let e = own.innovations(&records);
+                let e = own.run(&u, &y).0;
                 for s in [1e-6, 1e6] {
                     let scaled = Discrete {
                         gamma0: &plant.gamma0 * s,
@@ -828,7 +860,7 @@ mod tests {
                         ..plant.clone()
                     };
                     let other = Predictor::design(&scaled, &[(&u, &y)], choice).unwrap();
-                    let es = other.innovations(&records);
+                    let es = other.run(&u, &y).0;
                     assert!((&es - &e).norm() < 1e-6 * e.norm(), "seed {seed}, s {s}");
                     let (k, ks) = (own.state_gain().unwrap(), other.state_gain().unwrap());
                     assert!(
@@ -858,7 +890,7 @@ mod tests {
         let mut rng = StdRng::seed_from_u64(seed);
         let n = 6000;
         let (mut u, mut y) = (DMatrix::zeros(n, 1), DMatrix::zeros(n, 1));
-        let mut x = nalgebra::DVector::zeros(disc.phi.nrows());
+        let mut x = DVector::zeros(disc.phi.nrows());
         for k in 0..n {
             y[(k, 0)] = x[0] + 1e-3 * rng.sample::<f64, _>(StandardNormal);
             let r = (0.3 * k as f64).sin();
@@ -964,17 +996,14 @@ mod tests {
         )
         .unwrap();
         let q = &torque * torque.transpose() * (sw * sw);
-        let r = DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(
-            2,
-            sv.iter().map(|s| s * s),
-        ));
+        let r = DMatrix::from_diagonal(&DVector::from_iterator(2, sv.iter().map(|s| s * s)));
         let p = rigid_body::lti::dare(&disc.phi.transpose(), &disc.c.transpose(), &q, &r).unwrap();
         let truth = (&disc.c * p * disc.c.transpose() + &r).determinant().ln();
         for seed in 0..5u64 {
             let mut rng = StdRng::seed_from_u64(seed);
             let n = 6000;
             let (mut u, mut y) = (DMatrix::zeros(n, 1), DMatrix::zeros(n, 2));
-            let mut x = nalgebra::DVector::zeros(4);
+            let mut x = DVector::zeros(4);
             for k in 0..n {
                 for i in 0..2 {
                     y[(k, i)] = x[i] + sv[i] * rng.sample::<f64, _>(StandardNormal);
@@ -1034,7 +1063,7 @@ mod tests {
     #[test]
     fn the_starting_state_is_the_one_the_first_outputs_fix() {
         let disc = unstable_plant();
-        let x0 = nalgebra::DVector::from_vec(vec![0.02, -0.15]);
+        let x0 = DVector::from_vec(vec![0.02, -0.15]);
         let n = 300;
         let (mut u, mut y) = (DMatrix::zeros(n, 1), DMatrix::zeros(n, 1));
         let mut x = x0.clone();
