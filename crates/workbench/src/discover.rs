@@ -6,7 +6,7 @@ use serde::Serialize;
 
 use super::cost::WeightedCost;
 use super::diagnose::{diagnose, matched_sf, Diagnosis, LEVEL};
-use super::fit::{fit, FitResult, ParamEstimate};
+use super::fit::{fit, fit_noise_weighted, FitResult, ParamEstimate};
 use super::frf::{CMatrix, Estimator};
 use super::model::{Drift, Model};
 use super::residual::{residual_tests, ResidualTests, DEFAULT_LAGS};
@@ -1044,9 +1044,6 @@ impl Discovery {
     }
 }
 
-/// Re-estimations of the noise after the first re-weighted fit (see `fit_reweighted`).
-const REWEIGHTINGS: usize = 1;
-
 /// Values tried for a new parameter: 17 points over its bounds (logarithmic for a positive
 /// range spanning decades, or one from zero without an upper bound), plus zero and the
 /// documented value when inside. An open bound is taken 100 typical magnitudes away.
@@ -1086,6 +1083,9 @@ pub(crate) fn scan_grid(p: &super::model::Parameter) -> Vec<f64> {
     }
     v
 }
+
+/// Re-estimations of the noise after the first re-weighted fit (see `fit_reweighted`).
+const REWEIGHTINGS: usize = 1;
 
 impl Workbench {
     /// Fits `model` from `start` and builds its step record.
@@ -1146,10 +1146,13 @@ impl Workbench {
         fitted.weighting.as_ref().unwrap_or(&self.cost)
     }
 
-    /// Fits `model` from `start`; when the workbench re-weights, by iterated re-weighting:
-    /// the noise of the weighting from the residual of the start, fit, and when the start was
-    /// not itself a fit (documented values, `start = None`) [`REWEIGHTINGS`] more times the
-    /// noise from the fitted model's residual and a refit.
+    /// Fits `model` from `start`; when the workbench re-weights, by iterated re-weighting
+    /// (the noise of the weighting from the residual of the start, fit, and when the start
+    /// was not itself a fit, documented values, [`REWEIGHTINGS`] more times the noise from
+    /// the fitted model's residual and a refit), then refined to the maximum likelihood, each
+    /// model's cost weighted by the noise of its own residual ([`fit_noise_weighted`]). The
+    /// re-weighted fit alone is biased toward the noise's own ratio where the noise rivals the
+    /// excitation; it is the maximum likelihood's start.
     fn fit_reweighted(
         &self,
         model: &Model,
@@ -1170,7 +1173,25 @@ impl Workbench {
             cost = self.noise_weighting(&r.model_frf)?;
             r = fit(model, &cost, Some(&r.theta), &opts)?;
         }
-        Ok((r, Some(cost)))
+        if r.gave_up {
+            return Ok((r, Some(cost)));
+        }
+        // The maximum likelihood from there. Far from the data (a model that misses much) its
+        // cost also falls toward a gain without bound, whose residual's noise grows as fast
+        // as the residual: a refinement that fails or runs onto a new bound keeps the fit.
+        match fit_noise_weighted(model, &self.frf, Some(&r.theta), &opts) {
+            Ok((ml, weighting))
+                if !ml.gave_up
+                    && ml
+                        .params
+                        .iter()
+                        .zip(&r.params)
+                        .all(|(m, h)| !m.at_bound || h.at_bound) =>
+            {
+                Ok((ml, Some(weighting)))
+            }
+            _ => Ok((r, Some(cost))),
+        }
     }
 
     /// The cost weighted with the noise estimated from the residual of the model FRF `g`.

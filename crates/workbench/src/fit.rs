@@ -7,7 +7,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use super::cost::WeightedCost;
-use super::frf::CMatrix;
+use super::frf::{model_noise, CMatrix, FrfEstimate};
 use super::model::{Model, Parameter};
 use crate::error::{Result, SimError};
 
@@ -122,6 +122,72 @@ impl LeastSquares for FrfCriterion<'_> {
             .frf_with_jacobian(theta, &self.cost.freqs_hz, self.hold)?;
         Ok(self.cost.jacobian(&d))
     }
+}
+
+/// The FRF criterion weighted at every parameter vector by the noise of that model's own
+/// residual, `S(θ)` of `y - G(θ) u` at the bins beside each line ([`model_noise`]): the
+/// errors-in-variables maximum likelihood. In closed loop the input carries the fed-back
+/// noise, so the residual's noise `S(θ)` is least where `G(θ)` follows the noise's own
+/// output-to-input ratio (minus the controller's inverse); a weighting held at the last fit
+/// leaves that pull in the numerator, and at lines where the noise rivals the excitation
+/// it biases the fit toward it. (A balancing robot under a low-pass torque disturbance fitted
+/// its pendulum length 72-88 % long, 5 standard errors, under the held weighting.)
+struct NoiseWeightedCriterion<'a> {
+    model: &'a Model,
+    frf: &'a FrfEstimate,
+    freqs_hz: Vec<f64>,
+    hold: Option<f64>,
+}
+
+impl NoiseWeightedCriterion<'_> {
+    /// The cost weighted by the noise of the residual of the model FRF `g`.
+    fn weighting(&self, g: &[CMatrix]) -> Result<WeightedCost> {
+        WeightedCost::with_noise(self.frf, &model_noise(self.frf, g)?)
+    }
+}
+
+impl LeastSquares for NoiseWeightedCriterion<'_> {
+    fn residuals(&self, theta: &[f64]) -> Result<DVector<f64>> {
+        let g = self.model.frf(theta, &self.freqs_hz, self.hold)?;
+        Ok(self.weighting(&g)?.residuals(&g))
+    }
+
+    fn jacobian(&self, theta: &[f64], r0: &DVector<f64>) -> Result<DMatrix<f64>> {
+        // Forward differences (backward at an upper bound): the weighting moves with the
+        // parameters, and its share of the gradient is what removes the pull.
+        let params = self.model.parameters()?;
+        let mut j = DMatrix::zeros(r0.len(), params.len());
+        for (i, p) in params.iter().enumerate() {
+            let h0 = 1e-6 * p.scale().max(theta[i].abs());
+            let h = if theta[i] + h0 <= p.upper { h0 } else { -h0 };
+            let mut t = theta.to_vec();
+            t[i] += h;
+            j.set_column(i, &((self.residuals(&t)? - r0) / h));
+        }
+        Ok(j)
+    }
+}
+
+/// Fits all parameters of `model` to the FRF `frf` from `start` (documented values when
+/// `None`) under the weighting of each model's own residual ([`NoiseWeightedCriterion`]);
+/// with the fit, the weighting at the fitted model, under which its cost is the fit's.
+pub fn fit_noise_weighted(
+    model: &Model,
+    frf: &FrfEstimate,
+    start: Option<&[f64]>,
+    opts: &FitOptions,
+) -> Result<(FitResult, WeightedCost)> {
+    let criterion = NoiseWeightedCriterion {
+        model,
+        frf,
+        freqs_hz: frf.freqs_hz(),
+        hold: opts.hold,
+    };
+    let params = model.parameters()?;
+    let mut r = solve(&criterion, &params, start, opts)?;
+    r.model_frf = model.frf(&r.theta, &criterion.freqs_hz, opts.hold)?;
+    let weighting = criterion.weighting(&r.model_frf)?;
+    Ok((r, weighting))
 }
 
 /// Fits all parameters of `model` to the FRF from `start` (documented values when `None`).
