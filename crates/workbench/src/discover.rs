@@ -520,6 +520,10 @@ pub struct Conclusion {
     /// less than noise alone varies it, one sentence each ([`Conclusion::with_near_misses`]):
     /// with a misfit left, they are what to try first.
     pub near_misses: Vec<String>,
+    /// Candidates that, each fitted alone on the final model, leave the misfit's tests
+    /// passing though the selection left them out, each with its new parameters (the time
+    /// criterion's; see [`super::prediction`]).
+    pub explain_alone: Vec<String>,
     /// What qualifies the verdict itself, whatever was added: the estimate it rests on is
     /// biased under feedback, indistinguishable from zero, or distorted
     /// ([`Conclusion::with_warnings`]). The verdict's sentence ends with those the tentative
@@ -915,6 +919,7 @@ impl Conclusion {
             level,
             candidates: Candidates::Tried,
             near_misses: Vec::new(),
+            explain_alone: Vec::new(),
             warnings: Vec::new(),
             test: COST_TEST,
         }
@@ -971,6 +976,24 @@ impl Conclusion {
                 format!(
                     "{sentence} beyond the noise: {}",
                     self.near_misses.join("; ")
+                )
+            }
+            _ => sentence,
+        };
+        let sentence = match &self.verdict {
+            Verdict::UnexplainedStructuredMisfit { .. } if !self.explain_alone.is_empty() => {
+                let (each, apart) = if self.explain_alone.len() > 1 {
+                    ("each of ", "; these logs cannot tell them apart")
+                } else {
+                    ("", "")
+                };
+                format!(
+                    "{sentence}; yet fitted alone, {each}{} leaves the innovations uncorrelated \
+                     with the excitation (`fit --with` the effect reads explained{apart}), \
+                     though the prediction error falls by less than the selection needs: an \
+                     effect the outputs hardly see at the operating point, such as an offset \
+                     the loop regulates away, shows in that correlation and not in the cost",
+                    self.explain_alone.join("; ")
                 )
             }
             _ => sentence,
@@ -1096,7 +1119,7 @@ impl Workbench {
         start: Option<&[f64]>,
         base_cost: Option<f64>,
     ) -> Result<Step> {
-        let fitted = self.fitted(model, added, start)?;
+        let fitted = self.refined(self.fitted(model, added, start)?)?;
         self.step_from(fitted, base_cost)
     }
 
@@ -1146,13 +1169,10 @@ impl Workbench {
         fitted.weighting.as_ref().unwrap_or(&self.cost)
     }
 
-    /// Fits `model` from `start`; when the workbench re-weights, by iterated re-weighting
-    /// (the noise of the weighting from the residual of the start, fit, and when the start
-    /// was not itself a fit, documented values, [`REWEIGHTINGS`] more times the noise from
-    /// the fitted model's residual and a refit), then refined to the maximum likelihood, each
-    /// model's cost weighted by the noise of its own residual ([`fit_noise_weighted`]). The
-    /// re-weighted fit alone is biased toward the noise's own ratio where the noise rivals the
-    /// excitation; it is the maximum likelihood's start.
+    /// Fits `model` from `start`; when the workbench re-weights, by iterated re-weighting:
+    /// the noise of the weighting from the residual of the start, fit, and when the start was
+    /// not itself a fit (documented values, `start = None`) [`REWEIGHTINGS`] more times the
+    /// noise from the fitted model's residual and a refit.
     fn fit_reweighted(
         &self,
         model: &Model,
@@ -1173,25 +1193,42 @@ impl Workbench {
             cost = self.noise_weighting(&r.model_frf)?;
             r = fit(model, &cost, Some(&r.theta), &opts)?;
         }
-        if r.gave_up {
-            return Ok((r, Some(cost)));
+        Ok((r, Some(cost)))
+    }
+
+    /// `f` refined to the maximum likelihood when the workbench re-weights: each model's
+    /// cost weighted by the noise of its own residual ([`fit_noise_weighted`]), from `f`'s
+    /// fit, with the weighting at the refined fit. The re-weighted fit is biased toward the
+    /// noise's own ratio where the noise rivals the excitation, so the parameters a fit or a
+    /// discovery reports are refined; the selection's tests stay on the re-weighted fits,
+    /// whose costs the noise reference and the decisions were calibrated on (refining every
+    /// candidate made a clean platform flight read a drag it does not have). Far from the
+    /// data the likelihood also falls toward a gain without bound, whose residual's noise
+    /// grows as fast as the residual: a refinement that fails or runs onto a new bound keeps
+    /// `f`.
+    fn refined(&self, f: Fitted) -> Result<Fitted> {
+        if !self.reweights() || f.r.gave_up {
+            return Ok(f);
         }
-        // The maximum likelihood from there. Far from the data (a model that misses much) its
-        // cost also falls toward a gain without bound, whose residual's noise grows as fast
-        // as the residual: a refinement that fails or runs onto a new bound keeps the fit.
-        match fit_noise_weighted(model, &self.frf, Some(&r.theta), &opts) {
-            Ok((ml, weighting))
-                if !ml.gave_up
-                    && ml
-                        .params
-                        .iter()
-                        .zip(&r.params)
-                        .all(|(m, h)| !m.at_bound || h.at_bound) =>
-            {
-                Ok((ml, Some(weighting)))
-            }
-            _ => Ok((r, Some(cost))),
-        }
+        let opts = self.fit_options();
+        Ok(
+            match fit_noise_weighted(&f.model, &self.frf, Some(&f.r.theta), &opts) {
+                Ok((r, weighting))
+                    if !r.gave_up
+                        && r.params
+                            .iter()
+                            .zip(&f.r.params)
+                            .all(|(m, h)| !m.at_bound || h.at_bound) =>
+                {
+                    Fitted {
+                        r,
+                        weighting: Some(weighting),
+                        ..f
+                    }
+                }
+                _ => f,
+            },
+        )
     }
 
     /// The cost weighted with the noise estimated from the residual of the model FRF `g`.
@@ -1680,6 +1717,10 @@ impl Workbench {
         // effect confined to a few lines and entries (gyroscopic coupling) can stand far above
         // the noise there and still hide in the total over all residuals.
         let (mut done, found) = forward_selection(&FrfSearch(self), start, progress)?;
+        if let Some(last) = done.pop() {
+            progress("refining the final model to the maximum likelihood");
+            done.push(self.refined(last)?);
+        }
         self.common_weighting(&mut done)?;
         let smoothing = self.smoothing_caveat(done.last())?;
         let last_fit = done.last().map(|f| (f.model.clone(), f.r.params.clone()));

@@ -672,7 +672,7 @@ fn candidates_json(candidates: &[CandidateScore]) -> Value {
 
 /// The JSON document's fields every criterion writes: the system, the steps and the
 /// conclusion (`found`, `tentative`, `tentative_why`, `unexplained`, `verdict`,
-/// `verdict_text`, `near_misses`, `warnings`, `level`).
+/// `verdict_text`, `near_misses`, `explain_alone`, `warnings`, `level`).
 pub fn conclusion_fields(
     system: &str,
     steps: Vec<Value>,
@@ -689,6 +689,7 @@ pub fn conclusion_fields(
         ("verdict", json!(c.verdict)),
         ("verdict_text", json!(c.verdict_sentence())),
         ("near_misses", json!(c.near_misses)),
+        ("explain_alone", json!(c.explain_alone)),
         ("warnings", json!(c.warnings)),
         ("level", json!(c.level)),
     ] {

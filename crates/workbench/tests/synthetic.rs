@@ -338,12 +338,13 @@ fn a_slow_closed_loop_mode_leaves_the_noise_reference_right() {
 
 /// A plant in closed loop under strong feedback (6 against poles of 1.5 and 4 1/s) and a
 /// low-pass disturbance on its states (pole 0.98 per sample, 3 times the sensor noise per
-/// sample) that rivals the excitation at the lowest lines. Discovery's fit, each model's cost
-/// weighted by the noise of its own residual, is unbiased: over 6 seeds each parameter's mean
-/// error is within 0.8 of its standard error (a mean of 6 spreads by 0.41; measured 0.00 …
-/// 0.14). The fit under a weighting held at the last fit's residual, as discovery fitted
-/// before, is pulled toward the noise's own output-to-input ratio (the controller's inverse):
-/// its first pole's mean error is -1.38 standard errors (asserted below -1).
+/// sample) that rivals the excitation at the lowest lines. The fit `compare` reports, refined
+/// to the maximum likelihood (each model's cost weighted by the noise of its own residual), is
+/// unbiased: over 6 seeds each parameter's mean error is within 0.8 of its standard error (a
+/// mean of 6 spreads by 0.41; measured 0.00 … 0.14). The fit under a weighting held at the
+/// last fit's residual, as `compare` fitted before, is pulled toward the noise's own
+/// output-to-input ratio (the controller's inverse): its first pole's mean error is -1.38
+/// standard errors (asserted below -1).
 #[test]
 fn a_low_pass_disturbance_in_closed_loop_leaves_the_fit_unbiased() {
     let truth = base_truth();
