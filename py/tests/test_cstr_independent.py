@@ -64,6 +64,7 @@ def test_logs_in_other_units_or_as_deviations_are_refused_under_the_time_criteri
     assert done.returncode == 2, done.stdout
     assert "the logged input Tc averages" in done.stderr, done.stderr
     assert "operating point holds at 300.0017" in done.stderr, done.stderr
+    assert ("degrees Celsius against kelvin" in done.stderr) == (units == "C"), done.stderr
     # The FRF criterion compares deviations: the same logs read explained, nothing added.
     frf = discover(data, tmp_path, "--criterion", "frf")
     assert frf["found"] == [] and frf["unexplained"] is False, frf["verdict_text"]

@@ -350,6 +350,9 @@ pub const MAX_GROWTH_PER_SAMPLE: f64 = 3.0;
 /// logs 100 %.
 pub const OFF_OPERATING_POINT: f64 = 0.5;
 
+/// Kelvin at 0 degrees Celsius.
+const CELSIUS: f64 = 273.15;
+
 /// How far from the operating point's value, relative to it, a channel's logged mean may lie
 /// under the FRF criterion before its verdict says the logs rest elsewhere
 /// ([`Level::resting_elsewhere`]): a maglev rig's gap sensor 0.3 mm off at 8 mm, or its magnet
@@ -490,11 +493,17 @@ fn check_operating_point(model: &Model, data: &Dataset) -> Result<()> {
                         l.name
                     )
                 });
+            // Kelvin against degrees Celsius is the one offset between units worth naming.
+            let celsius = if (apart - CELSIUS).abs() < 2.0 {
+                "; 273.15 apart is degrees Celsius against kelvin"
+            } else {
+                ""
+            };
             return Err(SimError::invalid(
                 "operating point",
                 model.structure().system(),
                 format!(
-                    "{} ({apart:.4} apart, {:.0} % of it and {:.0} times the logged spread){swap}: the time criterion compares absolute values; are the logs in the model's units, and absolute rather than deviations from the operating point? If the loop ran there, give that operating point; the FRF criterion (--criterion frf) compares deviations",
+                    "{} ({apart:.4} apart, {:.0} % of it and {:.0} times the logged spread){swap}{celsius}: the time criterion compares absolute values; are the logs in the model's units, and absolute rather than deviations from the operating point? If the loop ran there, give that operating point; the FRF criterion (--criterion frf) compares deviations",
                     l.describe(),
                     100.0 * apart / l.op.abs(),
                     apart / l.spread.max(f64::MIN_POSITIVE)
@@ -567,8 +576,8 @@ mod tests {
     }
 
     /// Kelvin logs around the operating point pass, and so do logs 20 K away (a loop held
-    /// elsewhere, 6 % of the value); Celsius logs and deviations are named by channel; an
-    /// operating value of zero judges nothing.
+    /// elsewhere, 6 % of the value); Celsius logs and deviations are named by channel, the
+    /// Celsius ones as such; an operating value of zero judges nothing.
     #[test]
     fn logs_far_from_the_operating_point_are_named() {
         let model = tank();
@@ -578,14 +587,18 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(
-            err.contains("the logged input Tc averages") && err.contains("holds at 300.000000"),
+            err.contains("the logged input Tc averages")
+                && err.contains("holds at 300.000000")
+                && err.contains("273.15 apart is degrees Celsius against kelvin"),
             "{err}"
         );
         let err = check_operating_point(&model, &logs(300.0, 0.0))
             .unwrap_err()
             .to_string();
         assert!(
-            err.contains("the logged output T averages") && err.contains("gives 350.000000"),
+            err.contains("the logged output T averages")
+                && err.contains("gives 350.000000")
+                && !err.contains("Celsius"),
             "{err}"
         );
         let zero = "name = \"z\"\nstates = [\"x\"]\ninputs = [\"u\"]\noutputs = [\"x\"]\n\

@@ -68,10 +68,10 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
     let outputs = &wb.frf().outputs;
     let _ = writeln!(
         s,
-        "FRF: {} lines {:.2}-{:.2} Hz, {}, estimator: {}",
+        "FRF: {} lines {}-{} Hz, {}, estimator: {}",
         wb.frf().lines.len(),
-        wb.frf().lines.first().map_or(0.0, |l| l.freq_hz),
-        wb.frf().lines.last().map_or(0.0, |l| l.freq_hz),
+        fmt_num(wb.frf().lines.first().map_or(0.0, |l| l.freq_hz)),
+        fmt_num(wb.frf().lines.last().map_or(0.0, |l| l.freq_hz)),
         count(wb.data().experiments.len(), "experiment"),
         wb.frf().describe()
     );
