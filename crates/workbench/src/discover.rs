@@ -1067,6 +1067,9 @@ impl Discovery {
     }
 }
 
+/// Re-estimations of the noise after the first re-weighted fit (see `fit_reweighted`).
+const REWEIGHTINGS: usize = 1;
+
 /// Values tried for a new parameter: 17 points over its bounds (logarithmic for a positive
 /// range spanning decades, or one from zero without an upper bound), plus zero and the
 /// documented value when inside. An open bound is taken 100 typical magnitudes away.
@@ -1106,9 +1109,6 @@ pub(crate) fn scan_grid(p: &super::model::Parameter) -> Vec<f64> {
     }
     v
 }
-
-/// Re-estimations of the noise after the first re-weighted fit (see `fit_reweighted`).
-const REWEIGHTINGS: usize = 1;
 
 impl Workbench {
     /// Fits `model` from `start` and builds its step record.

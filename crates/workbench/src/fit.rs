@@ -153,19 +153,49 @@ impl LeastSquares for NoiseWeightedCriterion<'_> {
     }
 
     fn jacobian(&self, theta: &[f64], r0: &DVector<f64>) -> Result<DMatrix<f64>> {
-        // Forward differences (backward at an upper bound): the weighting moves with the
-        // parameters, and its share of the gradient is what removes the pull.
-        let params = self.model.parameters()?;
-        let mut j = DMatrix::zeros(r0.len(), params.len());
-        for (i, p) in params.iter().enumerate() {
-            let h0 = 1e-6 * p.scale().max(theta[i].abs());
-            let h = if theta[i] + h0 <= p.upper { h0 } else { -h0 };
-            let mut t = theta.to_vec();
-            t[i] += h;
-            j.set_column(i, &((self.residuals(&t)? - r0) / h));
-        }
-        Ok(j)
+        // By differences: the weighting moves with the parameters, and its share of the
+        // gradient is what removes the pull.
+        difference_jacobian(
+            &|t: &[f64]| self.residuals(t),
+            &self.model.parameters()?,
+            theta,
+            r0,
+            self.model.parallel(),
+        )
     }
+}
+
+/// The Jacobian of `residuals` at `theta`, where they are `r0`, by forward differences
+/// (backward at an upper bound), one column per parameter of `params`, computed in parallel
+/// when `parallel`.
+pub(crate) fn difference_jacobian(
+    residuals: &(dyn Fn(&[f64]) -> Result<DVector<f64>> + Sync),
+    params: &[Parameter],
+    theta: &[f64],
+    r0: &DVector<f64>,
+    parallel: bool,
+) -> Result<DMatrix<f64>> {
+    let jobs: Vec<_> = params
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            move || {
+                let h0 = 1e-6 * p.scale().max(theta[i].abs());
+                let h = if theta[i] + h0 <= p.upper { h0 } else { -h0 };
+                let mut t = theta.to_vec();
+                t[i] += h;
+                Ok((residuals(&t)? - r0) / h)
+            }
+        })
+        .collect();
+    let cols = super::discover::in_parallel(parallel, jobs, "Jacobian by differences")?;
+    // A model with every parameter held has no column (nalgebra's `from_columns` panics on
+    // none).
+    Ok(if cols.is_empty() {
+        DMatrix::zeros(r0.len(), 0)
+    } else {
+        DMatrix::from_columns(&cols)
+    })
 }
 
 /// Fits all parameters of `model` to the FRF `frf` from `start` (documented values when

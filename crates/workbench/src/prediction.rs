@@ -31,7 +31,7 @@ use super::discover::{
     FAR_FROM_DOCUMENTED,
 };
 use super::dynamics::Dynamics;
-use super::fit::{solve, FitResult, LeastSquares};
+use super::fit::{difference_jacobian, solve, FitResult, LeastSquares};
 use super::kalman::{initial_state, Gain, Predictor, BURN_IN, START_WINDOW};
 use super::model::{Drift, Model, Parameter, StateSpace};
 use super::model_file::Controller;
@@ -843,30 +843,13 @@ impl LeastSquares for PredictionError<'_> {
     }
 
     fn jacobian(&self, theta: &[f64], r0: &DVector<f64>) -> Result<DMatrix<f64>> {
-        let params = self.model.parameters()?;
-        // Forward differences, one column per parameter, in parallel; backwards at an
-        // upper bound.
-        let jobs: Vec<_> = params
-            .iter()
-            .enumerate()
-            .map(|(i, p)| {
-                move || {
-                    let h0 = 1e-6 * p.scale().max(theta[i].abs());
-                    let h = if theta[i] + h0 <= p.upper { h0 } else { -h0 };
-                    let mut t = theta.to_vec();
-                    t[i] += h;
-                    Ok((self.residuals(&t)? - r0) / h)
-                }
-            })
-            .collect();
-        let cols = in_parallel(self.model.parallel(), jobs, "prediction-error Jacobian")?;
-        // A model with every parameter held has no column (nalgebra's `from_columns` panics
-        // on none).
-        Ok(if cols.is_empty() {
-            DMatrix::zeros(r0.len(), 0)
-        } else {
-            DMatrix::from_columns(&cols)
-        })
+        difference_jacobian(
+            &|t: &[f64]| self.residuals(t),
+            &self.model.parameters()?,
+            theta,
+            r0,
+            self.model.parallel(),
+        )
     }
 }
 
