@@ -1672,7 +1672,10 @@ impl Workbench {
 
     /// [`Workbench::discover`] reporting progress (one message per fitted candidate).
     pub fn discover_with(&self, progress: &mut dyn FnMut(&str)) -> Result<Discovery> {
-        let mut d = self.discover_alone(progress)?;
+        let mut d = match self.criterion {
+            super::Criterion::Time => self.discover_time(progress, true)?,
+            super::Criterion::Frf => self.discover_alone(progress)?,
+        };
         if d.conclusion.unexplained {
             match self.criterion {
                 super::Criterion::Time => {
@@ -1709,7 +1712,7 @@ impl Workbench {
     /// (what a power study counts, and what a cross-check runs).
     pub fn discover_alone(&self, progress: &mut dyn FnMut(&str)) -> Result<Discovery> {
         if self.criterion == super::Criterion::Time {
-            return self.discover_time(progress);
+            return self.discover_time(progress, false);
         }
         progress("fitting the starting model");
         let start = self.fitted(&self.model, None, None)?;

@@ -155,26 +155,20 @@ impl LeastSquares for NoiseWeightedCriterion<'_> {
     fn jacobian(&self, theta: &[f64], r0: &DVector<f64>) -> Result<DMatrix<f64>> {
         // By differences: the weighting moves with the parameters, and its share of the
         // gradient is what removes the pull.
-        difference_jacobian(
-            &|t: &[f64]| self.residuals(t),
-            &self.model.parameters()?,
-            theta,
-            r0,
-            self.model.parallel(),
-        )
+        difference_jacobian(self, self.model, theta, r0)
     }
 }
 
-/// The Jacobian of `residuals` at `theta`, where they are `r0`, by forward differences
-/// (backward at an upper bound), one column per parameter of `params`, computed in parallel
-/// when `parallel`.
+/// The Jacobian of `criterion`'s residuals in the parameters of `model` at `theta`, where
+/// they are `r0`, by forward differences (backward at an upper bound), one column per
+/// parameter, computed in parallel when the model allows.
 pub(crate) fn difference_jacobian(
-    residuals: &(dyn Fn(&[f64]) -> Result<DVector<f64>> + Sync),
-    params: &[Parameter],
+    criterion: &dyn LeastSquares,
+    model: &Model,
     theta: &[f64],
     r0: &DVector<f64>,
-    parallel: bool,
 ) -> Result<DMatrix<f64>> {
+    let params = model.parameters()?;
     let jobs: Vec<_> = params
         .iter()
         .enumerate()
@@ -184,11 +178,11 @@ pub(crate) fn difference_jacobian(
                 let h = if theta[i] + h0 <= p.upper { h0 } else { -h0 };
                 let mut t = theta.to_vec();
                 t[i] += h;
-                Ok((residuals(&t)? - r0) / h)
+                Ok((criterion.residuals(&t)? - r0) / h)
             }
         })
         .collect();
-    let cols = super::discover::in_parallel(parallel, jobs, "Jacobian by differences")?;
+    let cols = super::discover::in_parallel(model.parallel(), jobs, "Jacobian by differences")?;
     // A model with every parameter held has no column (nalgebra's `from_columns` panics on
     // none).
     Ok(if cols.is_empty() {

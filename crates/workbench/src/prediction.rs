@@ -843,13 +843,7 @@ impl LeastSquares for PredictionError<'_> {
     }
 
     fn jacobian(&self, theta: &[f64], r0: &DVector<f64>) -> Result<DMatrix<f64>> {
-        difference_jacobian(
-            &|t: &[f64]| self.residuals(t),
-            &self.model.parameters()?,
-            theta,
-            r0,
-            self.model.parallel(),
-        )
+        difference_jacobian(self, self.model, theta, r0)
     }
 }
 
@@ -1065,8 +1059,14 @@ impl Workbench {
         self.conclude(vec![fitted], &design, Vec::new(), START_WEIGHTING)
     }
 
-    /// The discovery loop on the prediction error.
-    pub(crate) fn discover_time(&self, progress: &mut dyn FnMut(&str)) -> Result<Discovery> {
+    /// The discovery loop on the prediction error; with `explain`, a misfit left also names
+    /// the candidates that explain it when fitted alone (`misfit_removers`:
+    /// what a user reads, not what a power study counts or a cross-check runs).
+    pub(crate) fn discover_time(
+        &self,
+        progress: &mut dyn FnMut(&str),
+        explain: bool,
+    ) -> Result<Discovery> {
         progress("fitting the starting model (prediction error)");
         let (r, design) = self.fit_time(&self.model, None, None)?;
         let start = Fitted {
@@ -1118,7 +1118,7 @@ impl Workbench {
         let last = done.last().cloned();
         let mut d = self.conclude(done, &design, found, weighting)?;
         d.conclusion.warnings.extend(refit_note);
-        if let Some(last) = last.filter(|_| d.conclusion.unexplained) {
+        if let Some(last) = last.filter(|_| explain && d.conclusion.unexplained) {
             progress("fitting each candidate alone where the misfit remains");
             d.conclusion.explain_alone = self.misfit_removers(&last)?;
         }
