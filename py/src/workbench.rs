@@ -569,7 +569,7 @@ impl ModelStructure for PyStructure {
         self.outputs.clone()
     }
 
-    fn state_names(&self) -> Vec<String> {
+    fn state_names(&self, _enabled: &[String]) -> Vec<String> {
         self.states.clone()
     }
 

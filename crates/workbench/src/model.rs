@@ -218,8 +218,9 @@ pub trait ModelStructure: Send + Sync + std::fmt::Debug {
     fn inputs(&self) -> Vec<String>;
     /// Output names (must match the data).
     fn outputs(&self) -> Vec<String>;
-    /// State names of [`ModelStructure::dynamics`], for messages (numbered when empty).
-    fn state_names(&self) -> Vec<String> {
+    /// State names of the model with the `enabled` effects, for messages (numbered when
+    /// empty).
+    fn state_names(&self, _enabled: &[String]) -> Vec<String> {
         Vec::new()
     }
     /// Names of the effects this structure knows.
@@ -413,7 +414,7 @@ impl Model {
             })
             .collect();
         let largest = terms.iter().copied().fold(0.0, f64::max);
-        let names = self.structure.state_names();
+        let names = self.structure.state_names(&self.enabled);
         Ok(dx
             .iter()
             .zip(&terms)

@@ -26,10 +26,14 @@
 //! K = [[-2.0, -0.3]]               # u = -K x + r
 //! ```
 //!
+//! An effect may add states of its own (`states = ["q", "qd"]`, a structural mode, a motor's
+//! current): they follow the model's, and its terms name them like the model's.
+//!
 //! Every error names the file and the key (`linear.A[1][0]`), and for an expression the
 //! position of an unknown name or a stray character.
 mod nonlinear;
 
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -40,7 +44,7 @@ use super::dynamics::Dynamics;
 use super::expr::{check_name, Expr};
 use super::model::{ModelStructure, Parameter, StateSpace};
 use crate::error::{Result, SimError};
-use nonlinear::{Addition, Layout, Node, Section, Target};
+use nonlinear::{Addition, EffectPart, Layout, Node, Section, Target};
 
 /// A matrix entry: a number or an expression.
 #[derive(Debug, Clone)]
@@ -96,6 +100,11 @@ struct FileEffect {
     name: String,
     description: String,
     parameters: Vec<FileParameter>,
+    /// The states it adds, as indices into the model's and all effects' states.
+    states: Range<usize>,
+    /// Their operating point (a nonlinear model's).
+    operating_point: Vec<f64>,
+    /// Terms added to matrix entries (rows and columns of states index all states).
     terms: Vec<Term>,
     /// Terms added to definitions, and in a nonlinear model to `f` and `h`.
     additions: Vec<Addition>,
@@ -136,7 +145,10 @@ pub enum Controller {
 pub struct ModelFile {
     path: PathBuf,
     name: String,
+    /// The model's states.
     states: Vec<String>,
+    /// The model's states, then those its effects add.
+    all_states: Vec<String>,
     inputs: Vec<String>,
     outputs: Vec<String>,
     /// Every parameter (base, then each effect's), every definition, then the states and
@@ -177,9 +189,10 @@ impl Reader<'_> {
         }
     }
 
-    fn names(&self, table: &Table, key: &str) -> Result<Vec<String>> {
+    /// A list of names: `table[field]`, called `key` in errors.
+    fn names(&self, table: &Table, field: &str, key: &str) -> Result<Vec<String>> {
         let list = table
-            .get(key)
+            .get(field)
             .ok_or_else(|| self.err(key, "missing (a list of names)"))?
             .as_array()
             .ok_or_else(|| self.err(key, "must be a list of names"))?;
@@ -434,9 +447,9 @@ impl ModelFile {
             })?
             .to_string();
         check_name(&name).map_err(|e| r.err("name", e))?;
-        let states = r.names(&root, "states")?;
-        let inputs = r.names(&root, "inputs")?;
-        let outputs = r.names(&root, "outputs")?;
+        let states = r.names(&root, "states", "states")?;
+        let inputs = r.names(&root, "inputs", "inputs")?;
+        let outputs = r.names(&root, "outputs", "outputs")?;
         if let Some(s) = states.iter().find(|s| inputs.contains(s)) {
             return Err(r.err("inputs", format!("{s:?} is a state and an input")));
         }
@@ -445,6 +458,36 @@ impl ModelFile {
                 "outputs",
                 format!("{o:?} is an input and an output; a log's column can feed only one"),
             ));
+        }
+
+        let effect_tables: Vec<(String, Table)> = match section(&r, &root, "effects")? {
+            None => Vec::new(),
+            Some(t) => t
+                .iter()
+                .map(|(n, v)| {
+                    v.as_table()
+                        .map(|t| (n.clone(), t.clone()))
+                        .ok_or_else(|| r.err(format!("effects.{n}"), "must be a table"))
+                })
+                .collect::<Result<_>>()?,
+        };
+        // States an effect adds (a structural mode, a motor's current) follow the model's
+        // own, in the file's order of effects: `all_states` names them all.
+        let mut all_states = states.clone();
+        let mut effect_states: Vec<Range<usize>> = Vec::with_capacity(effect_tables.len());
+        for (ename, t) in &effect_tables {
+            check_name(ename).map_err(|e| r.err(format!("effects.{ename}"), e))?;
+            let start = all_states.len();
+            if t.contains_key("states") {
+                let key = format!("effects.{ename}.states");
+                for s in r.names(t, "states", &key)? {
+                    if all_states.contains(&s) || inputs.contains(&s) {
+                        return Err(r.err(&key, format!("{s:?} is already a state or input name")));
+                    }
+                    all_states.push(s);
+                }
+            }
+            effect_states.push(start..all_states.len());
         }
 
         // The symbol table: base parameters, effect parameters, definitions.
@@ -459,7 +502,7 @@ impl ModelFile {
             if symbols.iter().any(|s| s == name) {
                 return Err(r.err(key, format!("{name:?} is named twice")));
             }
-            if states.iter().chain(&inputs).any(|s| s == name) {
+            if all_states.iter().chain(&inputs).any(|s| s == name) {
                 return Err(r.err(key, format!("{name:?} is also a state or input name")));
             }
             symbols.push(name.to_string());
@@ -479,20 +522,8 @@ impl ModelFile {
                 });
             }
         }
-        let effect_tables: Vec<(String, Table)> = match section(&r, &root, "effects")? {
-            None => Vec::new(),
-            Some(t) => t
-                .iter()
-                .map(|(n, v)| {
-                    v.as_table()
-                        .map(|t| (n.clone(), t.clone()))
-                        .ok_or_else(|| r.err(format!("effects.{n}"), "must be a table"))
-                })
-                .collect::<Result<_>>()?,
-        };
         let mut effect_params: Vec<Vec<FileParameter>> = Vec::new();
         for (ename, t) in &effect_tables {
-            check_name(ename).map_err(|e| r.err(format!("effects.{ename}"), e))?;
             let mut list = Vec::new();
             if let Some(p) = t.get("parameters") {
                 let p = p.as_table().ok_or_else(|| {
@@ -522,7 +553,8 @@ impl ModelFile {
             def_slots.push(declare(&r, &key, dname, f64::NAN, &mut symbols)?);
         }
 
-        // States and inputs, read by a nonlinear model's expressions.
+        // States (the model's, then the effects') and inputs, read by a nonlinear model's
+        // expressions.
         let is_nonlinear = root.contains_key("nonlinear");
         if is_nonlinear && root.contains_key("linear") {
             return Err(r.err(
@@ -531,12 +563,12 @@ impl ModelFile {
             ));
         }
         let state0 = symbols.len();
-        for s in states.iter().chain(&inputs) {
+        for s in all_states.iter().chain(&inputs) {
             symbols.push(s.clone());
             documented.push(0.0);
         }
-        // Base visibility: base parameters and definitions (and states and inputs in a
-        // nonlinear model).
+        // Base visibility: base parameters and definitions (and the model's states and the
+        // inputs in a nonlinear model; an effect's states only in its own terms).
         let mut base_visible = vec![false; symbols.len()];
         for p in &parameters {
             base_visible[p.slot] = true;
@@ -545,8 +577,8 @@ impl ModelFile {
             base_visible[s] = true;
         }
         if is_nonlinear {
-            for v in &mut base_visible[state0..] {
-                *v = true;
+            for (i, v) in base_visible[state0..].iter_mut().enumerate() {
+                *v = i < states.len() || i >= all_states.len();
             }
         }
         let mut pending: Vec<(usize, Entry, String)> = Vec::new();
@@ -638,23 +670,48 @@ impl ModelFile {
         };
 
         let mut effects = Vec::new();
-        for ((ename, t), params) in effect_tables.iter().zip(effect_params) {
+        for (((ename, t), params), own) in
+            effect_tables.iter().zip(effect_params).zip(&effect_states)
+        {
             let mut visible = base_visible.clone();
             for q in &params {
                 visible[q.slot] = true;
             }
+            if is_nonlinear {
+                for i in own.clone() {
+                    visible[state0 + i] = true;
+                }
+            }
+            // The states its terms may name: the model's and its own, by index in `all_states`.
+            let state_index: Vec<usize> = (0..n).chain(own.clone()).collect();
+            let state_names: Vec<String> =
+                state_index.iter().map(|&i| all_states[i].clone()).collect();
             let mut terms = Vec::new();
             let mut additions = Vec::new();
             let mut description = String::new();
+            let mut point = vec![0.0; own.len()];
             for (k, v) in t {
                 let key = format!("effects.{ename}.{k}");
                 match k.as_str() {
-                    "parameters" => {}
+                    "parameters" | "states" => {}
                     "description" => {
                         description = v
                             .as_str()
                             .ok_or_else(|| r.err(&key, "must be a string"))?
                             .to_string()
+                    }
+                    "operating_point" if is_nonlinear && !own.is_empty() => {
+                        let op = v.as_table().ok_or_else(|| {
+                            r.err(&key, "must be a table of the effect's states, e.g. { eta = 0 }")
+                        })?;
+                        for (name, x) in op {
+                            let i = all_states[own.clone()].iter().position(|s| s == name).ok_or_else(|| {
+                                r.err(format!("{key}.{name}"), format!("{name:?} is not one of the effect's states: {}", all_states[own.clone()].join(", ")))
+                            })?;
+                            point[i] = number(x).filter(|x| x.is_finite()).ok_or_else(|| {
+                                r.err(format!("{key}.{name}"), "must be a finite number")
+                            })?;
+                        }
                     }
                     "add" => {
                         additions.extend(Self::read_additions(
@@ -663,7 +720,7 @@ impl ModelFile {
                             v,
                             (&symbols, &visible),
                             &definition_keys,
-                            (&states, &outputs),
+                            (&state_names, &state_index, &outputs),
                             is_nonlinear,
                         )?);
                     }
@@ -676,9 +733,9 @@ impl ModelFile {
                     "A" | "B" | "C" | "D" => {
                         let which = Which::ALL[["A", "B", "C", "D"].iter().position(|w| w == k).unwrap_or(0)];
                         let (rows, cols): (&[String], &[String]) = match which {
-                            Which::A => (&states, &states),
-                            Which::B => (&states, &inputs),
-                            Which::C => (&outputs, &states),
+                            Which::A => (&state_names, &state_names),
+                            Which::B => (&state_names, &inputs),
+                            Which::C => (&outputs, &state_names),
                             Which::D => (&outputs, &inputs),
                         };
                         let entries = v.as_table().ok_or_else(|| {
@@ -694,16 +751,29 @@ impl ModelFile {
                                     r.err(&tkey, format!("{:?} is not one of the {what}s: {}", name.trim(), list.join(", ")))
                                 })
                             };
-                            let row_what = if matches!(which, Which::A | Which::B) { "state" } else { "output" };
-                            let col_what = if matches!(which, Which::A | Which::C) { "state" } else { "input" };
-                            let row = find(rows, rn, row_what)?;
-                            let col = find(cols, cn, col_what)?;
+                            let row_is_state = matches!(which, Which::A | Which::B);
+                            let col_is_state = matches!(which, Which::A | Which::C);
+                            let row = find(rows, rn, if row_is_state { "state" } else { "output" })?;
+                            let col = find(cols, cn, if col_is_state { "state" } else { "input" })?;
                             let entry = r.entry(&tkey, x, &symbols, &visible)?;
-                            terms.push(Term { which, row, col, entry, key: tkey });
+                            terms.push(Term {
+                                which,
+                                row: if row_is_state { state_index[row] } else { row },
+                                col: if col_is_state { state_index[col] } else { col },
+                                entry,
+                                key: tkey,
+                            });
                         }
                     }
+                    "operating_point" => {
+                        return Err(r.err(&key, if is_nonlinear {
+                            "only an effect with states of its own has an operating point (give states first)"
+                        } else {
+                            "only a [nonlinear] model has an operating point"
+                        }))
+                    }
                     other => {
-                        return Err(r.err(&key, format!("unknown field {other:?} (expected description, parameters, add, A, B, C, D)")))
+                        return Err(r.err(&key, format!("unknown field {other:?} (expected description, parameters, states, operating_point, add, A, B, C, D)")))
                     }
                 }
             }
@@ -717,10 +787,55 @@ impl ModelFile {
                     },
                 ));
             }
+            // Each state of its own must move, and the model or the outputs must read one: a
+            // state with no derivative never leaves its start, states only the effect reads
+            // change nothing the outputs see.
+            let key = format!("effects.{ename}.states");
+            let mine = |i: usize| own.contains(&i);
+            for i in own.clone() {
+                let name = &all_states[i];
+                let moves = if is_nonlinear {
+                    additions.iter().any(|a| a.target == Target::F(i))
+                } else {
+                    terms
+                        .iter()
+                        .any(|t| matches!(t.which, Which::A | Which::B) && t.row == i)
+                };
+                if !moves {
+                    return Err(r.err(&key, format!(
+                        "{name:?} has no derivative: give {}",
+                        if is_nonlinear { format!("add.f.{name}") } else { format!("terms in its row of A or B, A = {{ \"{name},<state>\" = ... }}") }
+                    )));
+                }
+            }
+            let seen = if is_nonlinear {
+                additions.iter().any(|a| {
+                    !matches!(a.target, Target::F(i) if mine(i))
+                        && a.node
+                            .reads()
+                            .iter()
+                            .any(|&s| s >= state0 && mine(s - state0))
+                })
+            } else {
+                terms.iter().any(|t| {
+                    (t.which == Which::A && mine(t.col) && !mine(t.row))
+                        || (t.which == Which::C && mine(t.col))
+                })
+            };
+            if !own.is_empty() && !seen {
+                return Err(r.err(&key, format!(
+                    "{} read by nothing outside the effect, so no output can see {}: {}",
+                    all_states[own.clone()].join(", "),
+                    if own.len() == 1 { "it" } else { "them" },
+                    if is_nonlinear { "read one in add.f of a state of the model, in add.h or in a definition" } else { "give a term in the column of one of them in a row of the model's A or in C" }
+                )));
+            }
             effects.push(FileEffect {
                 name: ename.clone(),
                 description,
                 parameters: params,
+                states: own.clone(),
+                operating_point: point,
                 terms,
                 additions,
             });
@@ -734,10 +849,15 @@ impl ModelFile {
                     states: &states,
                     inputs: &inputs,
                     outputs: &outputs,
-                    state0,
                 };
-                let (f, h, point) = nonlinear::read(&r, t, &layout)?;
-                for (d, v) in documented[state0..].iter_mut().zip(&point) {
+                let (f, h, mut x_op, u_op) = nonlinear::read(&r, t, &layout)?;
+                for e in &effects {
+                    x_op.extend(&e.operating_point);
+                }
+                for (d, v) in documented[state0..]
+                    .iter_mut()
+                    .zip(x_op.iter().chain(&u_op))
+                {
                     *d = *v;
                 }
                 let defs = definitions
@@ -749,18 +869,22 @@ impl ModelFile {
                         )
                     })
                     .collect();
-                let additions = effects
+                let parts = effects
                     .iter()
-                    .map(|e| (e.name.clone(), e.additions.clone()))
+                    .map(|e| EffectPart {
+                        name: e.name.clone(),
+                        states: e.states.clone(),
+                        additions: e.additions.clone(),
+                    })
                     .collect();
                 Some(Arc::new(Section::new(
                     &r,
                     &symbols,
                     state0,
-                    (n, m, p),
+                    (&all_states, m, p),
                     defs,
-                    (f, h, point),
-                    additions,
+                    (f, h, x_op, u_op),
+                    parts,
                 )?))
             }
         };
@@ -774,6 +898,7 @@ impl ModelFile {
             path: path.to_path_buf(),
             name,
             states,
+            all_states,
             inputs,
             outputs,
             symbols,
@@ -813,7 +938,7 @@ impl ModelFile {
         v: &Value,
         (symbols, visible): (&[String], &[bool]),
         definitions: &[(usize, String)],
-        (states, outputs): (&[String], &[String]),
+        (states, state_index, outputs): (&[String], &[usize], &[String]),
         is_nonlinear: bool,
     ) -> Result<Vec<Addition>> {
         let t = v.as_table().ok_or_else(|| {
@@ -846,7 +971,7 @@ impl ModelFile {
                         let entry = r.entry(&tkey, term, symbols, visible)?;
                         out.push(Addition {
                             target: if fh == "f" {
-                                Target::F(i)
+                                Target::F(state_index[i])
                             } else {
                                 Target::H(i)
                             },
@@ -966,6 +1091,22 @@ impl ModelFile {
         &self.states
     }
 
+    /// The states a declared effect adds (empty for an unknown name or an effect without).
+    pub fn effect_states(&self, effect: &str) -> &[String] {
+        self.effects
+            .iter()
+            .find(|e| e.name == effect)
+            .map_or(&[], |e| &self.all_states[e.states.clone()])
+    }
+
+    /// The states of the model with the `enabled` effects, as indices into all states: the
+    /// model's, then each enabled effect's in the file's order.
+    fn active_states(&self, enabled: &[String]) -> Vec<usize> {
+        (0..self.states.len())
+            .chain(self.enabled_effects(enabled).flat_map(|e| e.states.clone()))
+            .collect()
+    }
+
     fn enabled_effects<'a>(
         &'a self,
         enabled: &'a [String],
@@ -1043,28 +1184,41 @@ impl ModelFile {
         if let Some(nl) = &self.nonlinear {
             return nl.linearize(enabled, &table);
         }
-        let mut out: Vec<DMatrix<f64>> = Vec::with_capacity(4);
-        for (which, rows) in Which::ALL.iter().zip(&self.linear) {
-            let ncols = rows.first().map_or(
-                if *which == Which::A || *which == Which::C {
-                    self.states.len()
-                } else {
-                    self.inputs.len()
-                },
-                |r| r.len(),
-            );
-            let mut mat = DMatrix::zeros(rows.len(), ncols);
+        // The enabled effects' states follow the model's: `at[i]` is the row and column of
+        // state `i` of all states.
+        let active = self.active_states(enabled);
+        let mut at = vec![usize::MAX; self.all_states.len()];
+        for (k, &i) in active.iter().enumerate() {
+            at[i] = k;
+        }
+        let (n, m, p) = (active.len(), self.inputs.len(), self.outputs.len());
+        let mut out: Vec<DMatrix<f64>> = vec![
+            DMatrix::zeros(n, n),
+            DMatrix::zeros(n, m),
+            DMatrix::zeros(p, n),
+            DMatrix::zeros(p, m),
+        ];
+        for ((which, rows), mat) in Which::ALL.iter().zip(&self.linear).zip(&mut out) {
             for (i, row) in rows.iter().enumerate() {
                 for (j, e) in row.iter().enumerate() {
                     mat[(i, j)] =
                         self.value(e, &table, &format!("linear.{}[{i}][{j}]", which.key()))?;
                 }
             }
-            out.push(mat);
         }
         for e in self.enabled_effects(enabled) {
             for t in &e.terms {
-                out[t.which as usize][(t.row, t.col)] += self.value(&t.entry, &table, &t.key)?;
+                let row = if matches!(t.which, Which::A | Which::B) {
+                    at[t.row]
+                } else {
+                    t.row
+                };
+                let col = if matches!(t.which, Which::A | Which::C) {
+                    at[t.col]
+                } else {
+                    t.col
+                };
+                out[t.which as usize][(row, col)] += self.value(&t.entry, &table, &t.key)?;
             }
         }
         let [a, b, c, d]: [DMatrix<f64>; 4] = out
@@ -1097,8 +1251,11 @@ impl ModelStructure for ModelFile {
         &self.name
     }
 
-    fn state_names(&self) -> Vec<String> {
-        self.states.clone()
+    fn state_names(&self, enabled: &[String]) -> Vec<String> {
+        self.active_states(enabled)
+            .into_iter()
+            .map(|i| self.all_states[i].clone())
+            .collect()
     }
 
     fn inputs(&self) -> Vec<String> {
@@ -1185,6 +1342,7 @@ impl ModelStructure for ModelFile {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::spectra::C64;
 
     /// The issue's example, verbatim.
     pub(crate) const PENDULUM: &str = r#"
@@ -1243,6 +1401,108 @@ A = { "omega,omega" = "-b/Jp" }        # added terms, keyed "row,column" by stat
 
     fn error_of(text: &str) -> String {
         parse(text).unwrap_err().to_string()
+    }
+
+    /// A flexible sensor mount as an effect with states of its own: `q`, flexed by the
+    /// pendulum's angular acceleration, is read with the angle.
+    const MOUNT: &str = r#"
+[effects.mount]
+description = "sensor mount mode q'' + 2 z w q' + w^2 q = a theta'', read with theta"
+parameters = { w = { value = 60.0, min = 1.0 }, z = { value = 0.05, min = 0.0 }, a = 0.2 }
+states = ["q", "qd"]
+A = { "q,qd" = 1, "qd,q" = "-w^2", "qd,qd" = "-2*z*w", "qd,theta" = "a*m*g*l/Jp" }
+B = { "qd,T" = "a/Jp" }
+C = { "theta,q" = 1 }
+"#;
+
+    /// The mount's states follow the pendulum's, and the response is the closed form
+    /// `P(s) (1 + a s^2 / (s^2 + 2 z w s + w^2))`, `P = 1 / (Jp s^2 - m g l)` (1e-12).
+    #[test]
+    fn an_effect_with_states_of_its_own_grows_the_model() {
+        let m = parse(&format!("{PENDULUM}{MOUNT}")).unwrap();
+        let (w, z, a) = (60.0, 0.05, 0.2);
+        let jp: f64 = 0.02 + 0.5 * 0.4 * 0.4;
+        let mount = vec!["mount".to_string()];
+        assert_eq!(m.state_names(&[]), ["theta", "omega"]);
+        assert_eq!(m.state_names(&mount), ["theta", "omega", "q", "qd"]);
+        assert_eq!(m.documented_state_space(&[]).unwrap().a.nrows(), 2);
+        let ss = m.documented_state_space(&mount).unwrap();
+        assert_eq!((ss.a.nrows(), ss.b.nrows(), ss.c.ncols()), (4, 4, 4));
+        for omega in [0.3, 2.0, 45.0, 60.0, 300.0] {
+            let s = C64::new(0.0, omega);
+            let p = 1.0 / (jp * s * s - 0.5 * 9.81 * 0.4);
+            let want = p * (1.0 + a * s * s / (s * s + 2.0 * z * w * s + w * w));
+            let got = ss.frequency_response_at(omega).unwrap()[(0, 0)];
+            assert!(
+                (got - want).norm() <= 1e-12 * want.norm(),
+                "{omega}: {got} vs {want}"
+            );
+        }
+        // Its parameters are the effect's, the matrices of the model without it unchanged.
+        let names: Vec<String> = m
+            .parameters(&mount)
+            .unwrap()
+            .into_iter()
+            .map(|p| p.name)
+            .collect();
+        assert_eq!(names, ["m", "l", "J", "w", "z", "a"]);
+        assert_eq!(
+            m.documented_state_space(&[]).unwrap().a,
+            parse(PENDULUM)
+                .unwrap()
+                .documented_state_space(&[])
+                .unwrap()
+                .a
+        );
+    }
+
+    #[test]
+    fn an_effects_states_are_checked_by_name() {
+        let cases = [
+            (
+                MOUNT.replace("[\"q\", \"qd\"]", "[\"q\", \"theta\"]"),
+                vec!["effects.mount.states", "\"theta\" is already a state"],
+            ),
+            (
+                MOUNT.replace("\"q,qd\" = 1, ", ""),
+                vec!["effects.mount.states", "\"q\" has no derivative"],
+            ),
+            (
+                MOUNT.replace("C = { \"theta,q\" = 1 }\n", ""),
+                vec![
+                    "effects.mount.states",
+                    "q, qd read by nothing outside the effect",
+                ],
+            ),
+            (
+                MOUNT.replace("\"q,qd\"", "\"q,qq\""),
+                vec![
+                    "effects.mount.A.\"q,qq\"",
+                    "\"qq\" is not one of the states: theta, omega, q, qd",
+                ],
+            ),
+            (
+                format!("{MOUNT}operating_point = {{ q = 0 }}\n"),
+                vec!["effects.mount.operating_point", "only a [nonlinear] model"],
+            ),
+            (
+                MOUNT.replace("\"a*m*g*l/Jp\"", "\"a*q\""),
+                vec![
+                    "effects.mount.A.\"qd,theta\"",
+                    "\"q\" in \"a*q\" is not visible here",
+                ],
+            ),
+        ];
+        for (mount, wants) in cases {
+            let text = format!("{PENDULUM}{mount}");
+            let msg = parse(&text)
+                .err()
+                .map(|e| e.to_string())
+                .unwrap_or_else(|| panic!("accepted: {mount}"));
+            for w in wants {
+                assert!(msg.contains(w), "{msg:?} lacks {w:?}");
+            }
+        }
     }
 
     #[test]

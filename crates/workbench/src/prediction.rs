@@ -67,6 +67,12 @@ impl Criterion {
 /// is barely resolved by the samples anyway).
 const STEP_RATE: f64 = 1.0;
 
+/// Largest RK4 step relative to an oscillating mode (`|Im λ| > |Re λ|`): its phase error
+/// accumulates over the cycles the mode rings, biasing a fitted frequency by about
+/// `(|λ| h)^4 / 120`: 0.24 % (5.8 standard errors) for a 12 Hz mode sampled at 100 Hz with
+/// [`STEP_RATE`], 2e-4 here.
+const OSCILLATION_STEP_RATE: f64 = 0.4;
+
 /// Most sub-steps per sample for the plant's modes (a mode faster than `2.78 * MAX_SUBSTEPS /
 /// T` makes the integration diverge, which the fit takes as a failed step).
 const MAX_SUBSTEPS: usize = 8;
@@ -121,8 +127,18 @@ impl ExtendedPredictor {
         // The plant's modes set the step; the lags' are integrated exactly.
         let lagged = dynamics.output_lags().len() + dynamics.input_lags().len();
         let plant = ss.a.view((0, 0), (n - lagged, n - lagged)).clone_owned();
-        let fastest = rigid_body::lti::spectral_radius(&plant)?;
-        let substeps = ((fastest * t / STEP_RATE).ceil() as usize).clamp(1, MAX_SUBSTEPS);
+        let substeps = rigid_body::lti::eigenvalues(&plant)?
+            .iter()
+            .map(|l| {
+                let rate = if l.im.abs() > l.re.abs() {
+                    OSCILLATION_STEP_RATE
+                } else {
+                    STEP_RATE
+                };
+                (l.norm() * t / rate).ceil() as usize
+            })
+            .fold(1, usize::max)
+            .min(MAX_SUBSTEPS);
         if gain.nrows() > n || gain.ncols() != dynamics.outputs() {
             return Err(SimError::LengthMismatch {
                 what: "predictor gain rows against the model's states".into(),

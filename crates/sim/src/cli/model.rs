@@ -149,7 +149,15 @@ impl CheckArgs {
             model
                 .candidates()
                 .iter()
-                .map(|e| format!("{e} ({})", model.describe(e)))
+                .map(|e| {
+                    let states = file.effect_states(e);
+                    let adds = if states.is_empty() {
+                        String::new()
+                    } else {
+                        format!("; adds states {}", states.join(", "))
+                    };
+                    format!("{e} ({}{adds})", model.describe(e))
+                })
                 .collect::<Vec<_>>()
                 .join("; ")
         ));
@@ -249,6 +257,11 @@ impl CheckArgs {
             "marginal": pairs(&marginal),
             "eigenvalue_tolerance": tolerance,
             "candidates": model.candidates(),
+            "effect_states": file
+                .effects()
+                .iter()
+                .map(|e| (e.clone(), json!(file.effect_states(e))))
+                .collect::<serde_json::Map<_, _>>(),
             "identifiability": id,
             "aliases": aliases,
             "rival_pairs": rivals,

@@ -2,6 +2,7 @@
 //! states, inputs, parameters and definitions, the operating point, the terms effects add to
 //! definitions and to `f` and `h`; the model as [`Dynamics`] and its linearization (symbolic
 //! partial derivatives, chained through the definitions).
+use std::ops::Range;
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -56,7 +57,7 @@ impl Node {
         Ok(())
     }
 
-    fn reads(&self) -> &[usize] {
+    pub fn reads(&self) -> &[usize] {
         match &self.entry {
             Entry::Number(_) => &[],
             Entry::Expr(e) => e.reads(),
@@ -71,24 +72,38 @@ pub(super) struct Addition {
     pub node: Node,
 }
 
+/// What an effect brings to the nonlinear model: its states (indices into all states) and
+/// its terms.
+#[derive(Debug, Clone)]
+pub(super) struct EffectPart {
+    pub name: String,
+    pub states: Range<usize>,
+    pub additions: Vec<Addition>,
+}
+
 /// Everything the nonlinear model evaluates, shared by every [`FileDynamics`] built from it.
 #[derive(Debug)]
 pub(super) struct Section {
     path: PathBuf,
     symbols: Vec<String>,
-    /// First state slot; the inputs follow the states.
+    /// First state slot; the effects' states follow the model's, the inputs follow them.
     state0: usize,
+    /// The model's states, without the effects'.
     n: usize,
+    /// State names, the model's and every effect's.
+    states: Vec<String>,
     m: usize,
     p: usize,
     /// Definitions in evaluation order, `(slot, node)`.
     definitions: Vec<(usize, Node)>,
+    /// `f` of every state: an effect's own are zero, its additions give them.
     f: Vec<Node>,
     h: Vec<Node>,
-    /// Additions per effect, in the file's effect order.
-    additions: Vec<(String, Vec<Addition>)>,
-    pub x_op: Vec<f64>,
-    pub u_op: Vec<f64>,
+    /// Per effect, in the file's effect order.
+    effects: Vec<EffectPart>,
+    /// Operating point of every state, and of the inputs.
+    x_op: Vec<f64>,
+    u_op: Vec<f64>,
 }
 
 /// The symbol layout of a model file, for reading its `[nonlinear]` section.
@@ -98,11 +113,14 @@ pub(super) struct Layout<'a> {
     pub states: &'a [String],
     pub inputs: &'a [String],
     pub outputs: &'a [String],
-    pub state0: usize,
 }
 
+/// The `f` and `h` expressions of `[nonlinear]` (of the model's states and outputs) and its
+/// `operating_point` (of the model's states, and of the inputs).
+type Read = (Vec<Node>, Vec<Node>, Vec<f64>, Vec<f64>);
+
 /// Reads `[nonlinear]`: `f`, `h` and `operating_point`.
-pub(super) fn read(r: &Reader, t: &Table, l: &Layout) -> Result<(Vec<Node>, Vec<Node>, Vec<f64>)> {
+pub(super) fn read(r: &Reader, t: &Table, l: &Layout) -> Result<Read> {
     for key in t.keys() {
         if !["f", "h", "operating_point"].contains(&key.as_str()) {
             return Err(r.err(
@@ -195,8 +213,8 @@ pub(super) fn read(r: &Reader, t: &Table, l: &Layout) -> Result<(Vec<Node>, Vec<
             format!("{k:?} is not a state or input"),
         ));
     }
-    debug_assert_eq!(l.state0 + point.len(), l.symbols.len());
-    Ok((f, h, point))
+    let u_op = point.split_off(l.states.len());
+    Ok((f, h, point, u_op))
 }
 
 impl Section {
@@ -205,24 +223,32 @@ impl Section {
         r: &Reader,
         symbols: &[String],
         state0: usize,
-        (n, m, p): (usize, usize, usize),
+        (states, m, p): (&[String], usize, usize),
         definitions: Vec<(usize, Node)>,
-        (f, h, point): (Vec<Node>, Vec<Node>, Vec<f64>),
-        additions: Vec<(String, Vec<Addition>)>,
+        (mut f, h, x_op, u_op): Read,
+        effects: Vec<EffectPart>,
     ) -> Result<Self> {
+        let n = f.len();
+        for e in &effects {
+            for i in e.states.clone() {
+                let key = format!("effects.{}.add.f.{}", e.name, states[i]);
+                f.push(Node::new(Entry::Number(0.0), key));
+            }
+        }
         let mut s = Self {
             path: r.path.to_path_buf(),
             symbols: symbols.to_vec(),
             state0,
             n,
+            states: states.to_vec(),
             m,
             p,
             definitions,
             f,
             h,
-            additions,
-            x_op: point[..n].to_vec(),
-            u_op: point[n..].to_vec(),
+            effects,
+            x_op,
+            u_op,
         };
         for (_, d) in &mut s.definitions {
             d.differentiate(r)?;
@@ -230,8 +256,8 @@ impl Section {
         for node in s.f.iter_mut().chain(s.h.iter_mut()) {
             node.differentiate(r)?;
         }
-        for (_, adds) in &mut s.additions {
-            for a in adds {
+        for e in &mut s.effects {
+            for a in &mut e.additions {
                 a.node.differentiate(r)?;
             }
         }
@@ -255,10 +281,28 @@ impl Section {
 
     /// The additions of the `enabled` effects.
     fn active<'a>(&'a self, enabled: &'a [String]) -> impl Iterator<Item = &'a Addition> + 'a {
-        self.additions
+        self.effects
             .iter()
-            .filter(move |(name, _)| enabled.contains(name))
-            .flat_map(|(_, adds)| adds)
+            .filter(move |e| enabled.contains(&e.name))
+            .flat_map(|e| &e.additions)
+    }
+
+    /// The states of the model with the `enabled` effects, as indices into all states: the
+    /// model's, then each enabled effect's in the file's order.
+    pub fn active_states(&self, enabled: &[String]) -> Vec<usize> {
+        (0..self.n)
+            .chain(
+                self.effects
+                    .iter()
+                    .filter(|e| enabled.contains(&e.name))
+                    .flat_map(|e| e.states.clone()),
+            )
+            .collect()
+    }
+
+    /// Slot of the first input: all states come first.
+    fn input0(&self) -> usize {
+        self.state0 + self.states.len()
     }
 
     /// The model at the symbol values `table` (parameters set, definitions evaluated at the
@@ -330,8 +374,10 @@ impl Section {
                 (*slot, with_adds(node, Target::Definition(*slot)))
             })
             .collect();
-        let f = (0..self.n)
-            .map(|i| with_adds(&self.f[i], Target::F(i)))
+        let active = self.active_states(enabled);
+        let f = active
+            .iter()
+            .map(|&i| with_adds(&self.f[i], Target::F(i)))
             .collect();
         let h = (0..self.p)
             .map(|i| with_adds(&self.h[i], Target::H(i)))
@@ -339,6 +385,7 @@ impl Section {
         FileDynamics {
             section: self.clone(),
             table,
+            active,
             dynamic,
             dynamic_h,
             f,
@@ -350,7 +397,7 @@ impl Section {
     /// the states and inputs, chained through the definitions (`d def / d z` accumulated in
     /// evaluation order).
     pub fn linearize(&self, enabled: &[String], table: &[f64]) -> Result<[DMatrix<f64>; 4]> {
-        let nz = self.n + self.m;
+        let nz = self.states.len() + self.m;
         let mut grad = vec![vec![0.0; nz]; self.symbols.len()];
         for (j, g) in grad[self.state0..].iter_mut().enumerate() {
             g[j] = 1.0;
@@ -417,12 +464,14 @@ impl Section {
         };
         let fx = rows(&self.f, Target::F)?;
         let hx = rows(&self.h, Target::H)?;
-        let (n, m) = (self.n, self.m);
+        // Rows and columns of the states the enabled effects leave in.
+        let active = self.active_states(enabled);
+        let inputs: Vec<usize> = (self.states.len()..nz).collect();
         Ok([
-            fx.columns(0, n).into_owned(),
-            fx.columns(n, m).into_owned(),
-            hx.columns(0, n).into_owned(),
-            hx.columns(n, m).into_owned(),
+            fx.select_rows(&active).select_columns(&active),
+            fx.select_rows(&active).select_columns(&inputs),
+            hx.select_columns(&active),
+            hx.select_columns(&inputs),
         ])
     }
 
@@ -442,6 +491,8 @@ pub struct FileDynamics {
     section: Arc<Section>,
     /// Symbol values: parameters, definitions at the operating point.
     table: Vec<f64>,
+    /// Its states, as indices into the section's: the model's and the enabled effects'.
+    active: Vec<usize>,
     /// Per definition evaluated per call of `f` (it moves with the states or inputs): its
     /// slot and its expression with the enabled effects' terms.
     dynamic: Vec<(usize, Hot)>,
@@ -504,8 +555,10 @@ impl FileDynamics {
         let s = &self.section;
         scratch.clear();
         scratch.extend_from_slice(&self.table);
-        scratch[s.state0..s.state0 + s.n].copy_from_slice(x);
-        scratch[s.state0 + s.n..].copy_from_slice(u);
+        for (&i, v) in self.active.iter().zip(x) {
+            scratch[s.state0 + i] = *v;
+        }
+        scratch[s.input0()..].copy_from_slice(u);
         let set = |(slot, hot): &(usize, Hot), scratch: &mut Vec<f64>| -> Result<()> {
             scratch[*slot] = hot.eval(s, scratch)?;
             Ok(())
@@ -516,18 +569,19 @@ impl FileDynamics {
         }
     }
 
-    fn outputs_of(
+    /// Evaluates `hot` into `out`; an error names `node(k)`'s key for the `k`-th.
+    fn outputs_of<'n>(
         &self,
         hot: &[Hot],
-        nodes: &[Node],
+        node: impl Fn(usize) -> &'n Node,
         scratch: &[f64],
         out: &mut [f64],
     ) -> Result<()> {
         let s = &self.section;
-        for ((hot, node), o) in hot.iter().zip(nodes).zip(out.iter_mut()) {
+        for (k, (hot, o)) in hot.iter().zip(out.iter_mut()).enumerate() {
             let v = hot.eval(s, scratch)?;
             if !v.is_finite() {
-                return Err(s.err(&node.key, format!("is {v} at {}", s.point_text(scratch))));
+                return Err(s.err(&node(k).key, format!("is {v} at {}", s.point_text(scratch))));
             }
             *o = v;
         }
@@ -537,7 +591,7 @@ impl FileDynamics {
 
 impl Dynamics for FileDynamics {
     fn states(&self) -> usize {
-        self.section.n
+        self.active.len()
     }
     fn inputs(&self) -> usize {
         self.section.m
@@ -547,13 +601,19 @@ impl Dynamics for FileDynamics {
     }
     fn f(&self, x: &[f64], u: &[f64], dx: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
         self.prepare(x, u, None, scratch)?;
-        self.outputs_of(&self.f, &self.section.f, scratch, dx)
+        let s = &self.section;
+        self.outputs_of(&self.f, |k| &s.f[self.active[k]], scratch, dx)
     }
     fn h(&self, x: &[f64], u: &[f64], y: &mut [f64], scratch: &mut Vec<f64>) -> Result<()> {
         self.prepare(x, u, Some(&self.dynamic_h), scratch)?;
-        self.outputs_of(&self.h, &self.section.h, scratch, y)
+        let s = &self.section;
+        self.outputs_of(&self.h, |k| &s.h[k], scratch, y)
     }
     fn operating_point(&self) -> (Vec<f64>, Vec<f64>) {
-        (self.section.x_op.clone(), self.section.u_op.clone())
+        let s = &self.section;
+        (
+            self.active.iter().map(|&i| s.x_op[i]).collect(),
+            s.u_op.clone(),
+        )
     }
 }
