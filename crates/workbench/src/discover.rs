@@ -315,12 +315,25 @@ pub fn rivals<'a>(
                         )
                     })
                     .collect();
-                format!(
-                    "{} fits these data as well as {added} (cost {}): the data do not tell \
-                     them apart",
-                    names.join(" and "),
-                    gaps.join(" and "),
-                )
+                match names.as_slice() {
+                    [one] => format!(
+                        "{one} fits these data as well as {added} (cost {}): the data do not \
+                         tell them apart",
+                        gaps[0],
+                    ),
+                    [rest @ .., last] => format!(
+                        "{} and {last} each fit these data as well as {added} (cost {}): the \
+                         data do not tell them apart",
+                        rest.join(", "),
+                        names
+                            .iter()
+                            .zip(&gaps)
+                            .map(|(n, g)| format!("{n} {g}"))
+                            .collect::<Vec<_>>()
+                            .join("; "),
+                    ),
+                    [] => String::new(),
+                }
             })
         })
         .collect()
@@ -431,7 +444,10 @@ impl Verdict {
     fn sentence_of(&self, candidates: Candidates, test: &str) -> String {
         match self {
             Self::ExplainedToNoiseLevel { p_value } => {
-                format!("explained to the noise level (p = {p_value:.3} {test})")
+                format!(
+                    "explained to the noise level ({} {test})",
+                    super::stats::p_equals(*p_value)
+                )
             }
             Self::UnexplainedStructuredMisfit {
                 p_value,
@@ -1992,6 +2008,17 @@ mod tests {
         );
         // Nothing added, nothing to rival.
         assert!(rivals([start]).is_empty());
+        // Two rivals are named each with its gap.
+        let mut two = tried.clone();
+        two.push(scored("bias", 32_331.0, 30_100.0, 1e-30));
+        let why = rivals([(None, two.as_slice()), then]);
+        assert!(
+            why[0].starts_with(
+                "delay and bias each fit these data as well as lag (cost delay +3.4, a gap noise \
+                 makes with p = 0.36; bias +1.2, a gap noise makes with p = "
+            ),
+            "{why:?}"
+        );
         // A rival the loop followed through a search of its own stays one while that search
         // added as many effects and ended within 2 ln 100 = 9.2 in BIC of the reported one,
         // and says what it found; one that needed more effects, or fell further behind, is

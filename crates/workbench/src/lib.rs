@@ -500,8 +500,8 @@ fn check_operating_point(model: &Model, data: &Dataset) -> Result<()> {
                 ""
             };
             return Err(SimError::invalid(
-                "operating point",
-                model.structure().system(),
+                format!("operating point of {}", model.structure().system()),
+                l.op,
                 format!(
                     "{} ({apart:.4} apart, {:.0} % of it and {:.0} times the logged spread){swap}{celsius}: the time criterion compares absolute values; are the logs in the model's units, and absolute rather than deviations from the operating point? If the loop ran there, give that operating point; the FRF criterion (--criterion frf) compares deviations",
                     l.describe(),

@@ -1187,8 +1187,9 @@ impl Workbench {
                             })
                             .collect();
                         Ok(Some(format!(
-                            "{effect} ({}, p = {p_value:.3})",
-                            new.join(", ")
+                            "{effect} ({}, {})",
+                            new.join(", "),
+                            super::stats::p_equals(p_value)
                         )))
                     };
                     // A candidate that cannot be fitted here explains nothing.

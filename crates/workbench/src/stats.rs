@@ -184,10 +184,28 @@ pub fn clopper_pearson(successes: usize, trials: usize, alpha: f64) -> (f64, f64
     (lower, upper)
 }
 
+/// "p = 0.494" to three decimals, "p > 0.999" where those would round to one (a test that
+/// finds nothing does not make its hypothesis certain).
+pub(crate) fn p_equals(p: f64) -> String {
+    if p > 0.9995 {
+        "p > 0.999".to_string()
+    } else {
+        format!("p = {p:.3}")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn a_p_value_that_rounds_to_one_is_not_printed_as_one() {
+        assert_eq!(p_equals(0.4944), "p = 0.494");
+        assert_eq!(p_equals(0.9994), "p = 0.999");
+        assert_eq!(p_equals(0.9996), "p > 0.999");
+        assert_eq!(p_equals(1.0), "p > 0.999");
+    }
 
     #[test]
     fn matches_scipy_reference_values() {
