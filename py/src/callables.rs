@@ -40,6 +40,8 @@ impl Callables {
 
     /// `f` (`output = false`) or `h` at `(x, u)` into `out`: the model's, plus the terms of
     /// the `extras` (declared effects) that give one, each call's length and values checked.
+    /// `x` holds the model's states, then each extra's own; an extra's callables see the
+    /// model's and its own, and its `f` gives the derivatives of both.
     #[allow(clippy::too_many_arguments)]
     pub fn eval(
         &self,
@@ -51,20 +53,59 @@ impl Callables {
         extras: &[Extra],
         out: &mut [f64],
     ) -> PyResult<()> {
+        let n = self.x_op.len();
         let func = if output { &self.h } else { &self.f };
-        call_checked(py, model, output, func, (x, u), params, out)?;
-        let mut term = vec![0.0; out.len()];
+        let (model_out, own_out) = out.split_at_mut(if output { out.len() } else { n });
+        call_checked(py, model, output, func, (&x[..n], u), params, model_out)?;
+        own_out.fill(0.0);
+        let (mut term, mut seen) = (Vec::new(), Vec::new());
+        let mut at = n;
         for e in extras {
+            let own = at..at + e.x_op.len();
+            at = own.end;
             let Some(func) = (if output { &e.h } else { &e.f }) else {
                 continue;
             };
+            seen.clear();
+            seen.extend_from_slice(&x[..n]);
+            seen.extend_from_slice(&x[own.clone()]);
+            term.clear();
+            term.resize(if output { out.len() } else { seen.len() }, 0.0);
             let who = format!("effect {}", e.name);
-            call_checked(py, &who, output, func, (x, u), e.params.bind(py), &mut term)?;
-            for (o, t) in out.iter_mut().zip(&term) {
+            call_checked(
+                py,
+                &who,
+                output,
+                func,
+                (&seen, u),
+                e.params.bind(py),
+                &mut term,
+            )?;
+            // `h` adds to the outputs; `f` to the model's derivatives, then to its own.
+            let (to_model, to_own) = if output {
+                (&term[..], &[][..])
+            } else {
+                term.split_at(n)
+            };
+            for (o, t) in out.iter_mut().zip(to_model) {
                 *o += t;
+            }
+            if !output {
+                for (o, t) in out[own].iter_mut().zip(to_own) {
+                    *o += t;
+                }
             }
         }
         Ok(())
+    }
+
+    /// The operating point of the model's states and of the `extras`' own.
+    pub fn x_op_with(&self, extras: &[Extra]) -> Vec<f64> {
+        self.x_op
+            .iter()
+            .chain(extras.iter().flat_map(|e| &e.x_op))
+            .copied()
+            .collect()
     }
 
     /// The Jacobians `(A, B, C, D)` at the operating point, by central differences with steps
@@ -76,8 +117,9 @@ impl Callables {
         params: &Bound<'_, PyDict>,
         extras: &[Extra],
     ) -> PyResult<StateSpace> {
-        let (n, m, p) = (self.x_op.len(), self.u_op.len(), self.outputs);
-        let mut z: Vec<f64> = self.x_op.iter().chain(&self.u_op).copied().collect();
+        let x_op = self.x_op_with(extras);
+        let (n, m, p) = (x_op.len(), self.u_op.len(), self.outputs);
+        let mut z: Vec<f64> = x_op.iter().chain(&self.u_op).copied().collect();
         let mut jac = DMatrix::zeros(n + p, n + m);
         let (mut plus, mut minus) = (vec![0.0; n + p], vec![0.0; n + p]);
         for j in 0..n + m {
@@ -174,6 +216,8 @@ pub struct Extra {
     pub f: Option<Py<PyAny>>,
     pub h: Option<Py<PyAny>>,
     pub params: Py<PyDict>,
+    /// The operating point of its own states (none for most).
+    pub x_op: Vec<f64>,
 }
 
 /// The callables at one parameter vector: what the time-domain criterion integrates.
@@ -214,7 +258,7 @@ impl PyDynamics {
 
 impl Dynamics for PyDynamics {
     fn states(&self) -> usize {
-        self.callables.x_op.len()
+        self.callables.x_op.len() + self.extras.iter().map(|e| e.x_op.len()).sum::<usize>()
     }
     fn inputs(&self) -> usize {
         self.callables.u_op.len()
@@ -229,6 +273,9 @@ impl Dynamics for PyDynamics {
         self.eval(true, x, u, y)
     }
     fn operating_point(&self) -> (Vec<f64>, Vec<f64>) {
-        (self.callables.x_op.clone(), self.callables.u_op.clone())
+        (
+            self.callables.x_op_with(&self.extras),
+            self.callables.u_op.clone(),
+        )
     }
 }

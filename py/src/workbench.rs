@@ -53,12 +53,16 @@ struct Effect {
     func: Option<Py<PyAny>>,
     f: Option<Py<PyAny>>,
     h: Option<Py<PyAny>>,
+    /// States of its own (nonlinear form), after the model's.
+    states: Vec<String>,
+    /// Their operating point.
+    x_op: Vec<f64>,
 }
 
 #[pymethods]
 impl Effect {
     #[new]
-    #[pyo3(signature = (name, params, func = None, bounds = None, units = None, description = "", f = None, h = None))]
+    #[pyo3(signature = (name, params, func = None, bounds = None, units = None, description = "", f = None, h = None, states = None, operating_point = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -70,6 +74,8 @@ impl Effect {
         description: &str,
         f: Option<Py<PyAny>>,
         h: Option<Py<PyAny>>,
+        states: Option<Vec<String>>,
+        operating_point: Option<HashMap<String, Real<f64>>>,
     ) -> PyResult<Self> {
         let wrong = |what: &str, expected: &str| {
             PyTypeError::new_err(format!("effect {name}: {what} must map {expected}"))
@@ -141,6 +147,37 @@ impl Effect {
                 )));
             }
         }
+        // States of its own: its f gives their derivatives after the model's (the matrix
+        // form adds states by returning a larger A instead).
+        let states = states.unwrap_or_default();
+        let mut point = operating_point.unwrap_or_default();
+        if !states.is_empty() && f.is_none() {
+            return Err(PyValueError::new_err(format!(
+                "effect {name}: states need f= giving their derivatives (after the model's); the matrix form adds states by returning a larger A"
+            )));
+        }
+        if states.is_empty() && !point.is_empty() {
+            return Err(PyValueError::new_err(format!(
+                "effect {name}: operating_point is for the effect's own states, and it has none (states=)"
+            )));
+        }
+        for (i, state) in states.iter().enumerate() {
+            if state.is_empty() || states[..i].contains(state) {
+                return Err(PyValueError::new_err(format!(
+                    "effect {name}: state {state:?} is empty or named twice"
+                )));
+            }
+        }
+        let x_op = states
+            .iter()
+            .map(|s| point.remove(s).map_or(0.0, |v| v.0))
+            .collect();
+        if let Some(other) = point.keys().next() {
+            return Err(PyValueError::new_err(format!(
+                "effect {name}: operating_point names {other:?}, not one of its states: {}",
+                states.join(", ")
+            )));
+        }
         Ok(Self {
             name,
             description: description.to_string(),
@@ -148,6 +185,8 @@ impl Effect {
             func,
             f,
             h,
+            states,
+            x_op,
         })
     }
 
@@ -473,6 +512,7 @@ impl PyStructure {
                 f: e.f.as_ref().map(|f| f.clone_ref(py)),
                 h: e.h.as_ref().map(|h| h.clone_ref(py)),
                 params: params.unbind(),
+                x_op: e.x_op.clone(),
             });
         }
         Ok((base, extras))
@@ -569,8 +609,13 @@ impl ModelStructure for PyStructure {
         self.outputs.clone()
     }
 
-    fn state_names(&self, _enabled: &[String]) -> Vec<String> {
-        self.states.clone()
+    fn state_names(&self, enabled: &[String]) -> Vec<String> {
+        let own = self.enabled_effects(enabled).unwrap_or_default();
+        self.states
+            .iter()
+            .chain(own.iter().flat_map(|e| &e.get().states))
+            .cloned()
+            .collect()
     }
 
     fn effects(&self) -> Vec<String> {
@@ -1667,6 +1712,8 @@ fn user_effect<'py>(
         bounds,
         units,
         "",
+        None,
+        None,
         None,
         None,
     )?;
