@@ -46,6 +46,18 @@ fn expm_rejects_bad_input_by_name() {
     assert_eq!(err.to_string(), "A is 3x4, must be square");
     let err = lti::expm(&m(1, 1, &[f64::NAN])).unwrap_err();
     assert_eq!(err, Error::NonFinite { name: "A" });
+    // Finite but beyond any accuracy: refused at once (nalgebra's exp did not return for
+    // such norms), while a stiff stable matrix inside the limit is exact.
+    for big in [1e16, 1e100, 1e300] {
+        let err = lti::expm(&m(2, 2, &[0.0, 1.0, big, 0.0])).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("1-norm of the matrix exponential's argument"),
+            "{err}"
+        );
+    }
+    let e = lti::expm(&m(1, 1, &[-1e15])).unwrap();
+    assert_eq!(e[(0, 0)], 0.0);
 }
 
 #[test]

@@ -7,16 +7,33 @@ use nalgebra::DMatrix;
 /// Matrix exponential `e^A` by Pade scaling and squaring (Higham 2005, with the
 /// Al-Mohy–Higham 2009 backward-error refinement), as implemented by nalgebra.
 ///
-/// Errors if `A` is not square, has non-finite entries, or the result overflows.
+/// Errors if `A` is not square, has non-finite entries or a 1-norm above [`EXPM_MAX_NORM`],
+/// or the result overflows.
 pub fn expm(a: &DMatrix<f64>) -> Result<DMatrix<f64>> {
     square("A", a)?;
     if a.nrows() == 0 {
         return Ok(a.clone());
     }
+    let norm = a
+        .column_iter()
+        .map(|c| c.iter().map(|x| x.abs()).sum::<f64>())
+        .fold(0.0, f64::max);
+    if norm > EXPM_MAX_NORM {
+        return Err(Error::InvalidParameter {
+            name: "1-norm of the matrix exponential's argument",
+            value: norm,
+            requirement: "must be at most 1/ε (4.5e15): beyond it no digit of e^A is right",
+        });
+    }
     let e = a.exp();
     finite("expm(A) (overflow)", &e)?;
     Ok(e)
 }
+
+/// Largest 1-norm [`expm`] accepts: scaling and squaring loses about `‖A‖ ε` of accuracy, so
+/// beyond `1/ε` the result has no correct digit; and nalgebra's `exp` did not return within
+/// seconds for norms of 1e100 to 1e300 (a fit whose parameters ran to 3e8 hung there).
+pub const EXPM_MAX_NORM: f64 = 1.0 / f64::EPSILON;
 
 /// `(e^{A s}, ∫_0^s e^{A σ} dσ B)` from the exponential of `[[A, B], [0, 0]] s`.
 fn phi_gamma(a: &DMatrix<f64>, b: &DMatrix<f64>, s: f64) -> Result<(DMatrix<f64>, DMatrix<f64>)> {

@@ -24,7 +24,7 @@ mod schur;
 mod state_space;
 
 pub use controllability::{ctrb_gramian, ctrb_matrix};
-pub use discretize::{c2d_zoh, c2d_zoh_delay, expm, DelayedZoh, MAX_DELAY_STEPS};
+pub use discretize::{c2d_zoh, c2d_zoh_delay, expm, DelayedZoh, EXPM_MAX_NORM, MAX_DELAY_STEPS};
 pub use lyapunov::{dlyap, lyap};
 pub use riccati::{care, dare, dlqr, lqr, Lqr};
 pub use schur::{eigenvalues, spectral_radius};
