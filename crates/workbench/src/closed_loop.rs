@@ -128,9 +128,56 @@ impl<'a> ControllerState<'a> {
         Self { controller, xc }
     }
 
+    /// The input of one sample, excitation `r` included, and the outputs measured with it,
+    /// from the plant's state `x` and `measure(u)`, the outputs under input `u`. The outputs
+    /// of a sample see its input (feed-through, the convention of the fits), and a dynamic
+    /// controller reads them: the two are solved together. `None`: `measure` failed, or the
+    /// loop through the feed-through has no solution (`I - Dc D` singular) or does not settle.
+    pub fn close(
+        &mut self,
+        x: &[f64],
+        r: &DVector<f64>,
+        measure: &mut dyn FnMut(&DVector<f64>) -> Option<DVector<f64>>,
+    ) -> Option<(DVector<f64>, DVector<f64>)> {
+        // The part of the input that does not read the outputs.
+        let base = self.step(x, None) + r;
+        let Controller::Discrete { d: dc, .. } = self.controller else {
+            let y = measure(&base)?;
+            return Some((base, y));
+        };
+        // u = base + Dc y(u): where the outputs do not see the input one pass settles it,
+        // otherwise Newton's method on the outputs' differences (one step for a linear h).
+        let y = measure(&base)?;
+        let mut u = &base + dc * &y;
+        let mut y_u = measure(&u)?;
+        if y_u == y {
+            self.step(x, Some(&y_u));
+            return Some((u, y_u));
+        }
+        for _ in 0..FEEDTHROUGH_ITERATIONS {
+            let residual = &u - &base - dc * &y_u;
+            if residual.amax() <= 1e-12 * (1.0 + u.amax()) {
+                self.step(x, Some(&y_u));
+                return Some((u, y_u));
+            }
+            let mut slope = DMatrix::zeros(y_u.len(), u.len());
+            for j in 0..u.len() {
+                let h = 1e-7 * (1.0 + u[j].abs());
+                let mut moved = u.clone();
+                moved[j] += h;
+                slope.set_column(j, &((measure(&moved)? - &y_u) / h));
+            }
+            let jacobian = DMatrix::identity(u.len(), u.len()) - dc * slope;
+            u -= jacobian.lu().solve(&residual)?;
+            y_u = measure(&u)?;
+        }
+        None
+    }
+
     /// The input of one sample (the excitation not included) from the plant's state `x` and
-    /// the measured outputs `y`, then the controller's next state.
-    pub fn step(&mut self, x: &[f64], y: &DVector<f64>) -> DVector<f64> {
+    /// the measured outputs `y` (`None`: the part that does not read them, and the
+    /// controller's state stays), then with `y` the controller's next state.
+    fn step(&mut self, x: &[f64], y: Option<&DVector<f64>>) -> DVector<f64> {
         match self.controller {
             Controller::StateFeedback { k: gain, .. } => {
                 // The gain acts on the file's states, which come first in the fitted model
@@ -138,14 +185,20 @@ impl<'a> ControllerState<'a> {
                 let nk = gain.ncols().min(x.len());
                 -(gain.columns(0, nk) * DVector::from_column_slice(&x[..nk]))
             }
-            Controller::Discrete { a, b, c, d, .. } => {
-                let out = c * &self.xc + d * y;
-                self.xc = a * &self.xc + b * y;
-                out
-            }
+            Controller::Discrete { a, b, c, d, .. } => match y {
+                None => c * &self.xc,
+                Some(y) => {
+                    let out = c * &self.xc + d * y;
+                    self.xc = a * &self.xc + b * y;
+                    out
+                }
+            },
         }
     }
 }
+
+/// Most Newton steps [`ControllerState::close`] takes through a feed-through.
+const FEEDTHROUGH_ITERATIONS: usize = 20;
 
 /// A simulated loop's inputs and measured outputs (samples in rows), or the sample after
 /// which the plant's state was no longer finite.
@@ -174,11 +227,18 @@ pub fn run_loop(
         w.fill(0.0);
         v.fill(0.0);
         noise(&mut w, &mut v);
-        let mut yk = &disc.c * &x + &v;
-        if k >= disc.d_shift {
-            yk += &disc.d * u.row(k - disc.d_shift).transpose();
+        // A delayed input is known before this sample's is chosen; without a delay the
+        // outputs see this sample's input.
+        let mut y0 = &disc.c * &x + &v;
+        if disc.d_shift > 0 && k >= disc.d_shift {
+            y0 += &disc.d * u.row(k - disc.d_shift).transpose();
         }
-        let uk = control.step(x.as_slice(), &yk) + r.row(k).transpose();
+        let now = disc.d_shift == 0;
+        let (uk, yk) = control
+            .close(x.as_slice(), &r.row(k).transpose(), &mut |u| {
+                Some(if now { &y0 + &disc.d * u } else { y0.clone() })
+            })
+            .ok_or(k)?;
         u.row_mut(k).copy_from(&uk.transpose());
         y.row_mut(k).copy_from(&yk.transpose());
         let mut next = &disc.phi * &x + &w;

@@ -441,8 +441,9 @@ impl ExtendedPredictor {
     /// sample the outputs `y = h(x, u) + v`, the input `u = u_op + (controller's input from
     /// x - x_op and y - h(x_op, u_op)) + r`, held over the sample (delayed and lagged as the
     /// model says), and `w` added to the next state. `noise(w, v)` is called once per sample,
-    /// both vectors zeroed. The outputs see the input of the sample before (a sensor sampled
-    /// at `kT` cannot see the input computed from it). Returns the inputs and the outputs in
+    /// both vectors zeroed. The outputs see the input of their own sample, as the fits take
+    /// them (`h(x_k, u_k)`; with a dynamic controller reading them both are solved together,
+    /// [`ControllerState::close`]). Returns the inputs and the outputs in
     /// absolute units, samples in rows; `Err(k)`: the model could not be evaluated or its
     /// state was no longer finite after sample `k`.
     fn closed_loop(
@@ -470,22 +471,24 @@ impl ExtendedPredictor {
             w.fill(0.0);
             v.fill(0.0);
             noise(&mut w, &mut v);
-            // Until the controller has spoken, sample k holds the input of sample k - 1.
-            for j in 0..m {
-                u[(k, j)] = if k > 0 { u[(k - 1, j)] } else { u_op[j] };
-            }
-            self.inputs_at(&u, k, &u_op, &mut early, &mut late);
-            d.h(&x, &early, &mut work.y, &mut work.scratch)
-                .map_err(|_| k)?;
-            let yk = DVector::from_column_slice(&work.y) + &v;
             for ((di, xi), oi) in dx.iter_mut().zip(&x).zip(&x_op) {
                 *di = xi - oi;
             }
-            let du = control.step(&dx, &(&yk - &y_op));
+            // The controller acts on deviations from the operating point.
+            let (du, dy) = control
+                .close(&dx, &r.row(k).transpose(), &mut |du| {
+                    for j in 0..m {
+                        u[(k, j)] = u_op[j] + du[j];
+                    }
+                    self.inputs_at(&u, k, &u_op, &mut early, &mut late);
+                    d.h(&x, &early, &mut work.y, &mut work.scratch).ok()?;
+                    Some(DVector::from_column_slice(&work.y) + &v - &y_op)
+                })
+                .ok_or(k)?;
             for j in 0..m {
-                u[(k, j)] = u_op[j] + du[j] + r[(k, j)];
+                u[(k, j)] = u_op[j] + du[j];
             }
-            y.row_mut(k).copy_from(&yk.transpose());
+            y.row_mut(k).copy_from(&(dy + &y_op).transpose());
             self.inputs_at(&u, k, &u_op, &mut early, &mut late);
             self.advance(&mut x, (&early, &late), &mut work)
                 .map_err(|_| k)?;
@@ -1745,6 +1748,7 @@ fn time_verdict(tests: &ResidualTests, linear: bool) -> Verdict {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::spectra::C64;
     use crate::ModelFile;
     use std::sync::Arc;
 
@@ -1857,6 +1861,107 @@ sample_rate_hz = 100
             assert!(
                 far.contains("moved to where the starting predictor's cost is"),
                 "seed {seed}: {far}"
+            );
+        }
+    }
+
+    /// With an output that sees the input (`h.v` reads `u`: a feed-through `D`) the loops
+    /// follow the fits' convention, `y_k = C x_k + D u_k`: noise-free, the sampled loop's
+    /// `Y / U` at the excited lines is the model's sampled response `frf_lines` (1e-9), and the
+    /// nonlinear loop of the same plant is that loop (1e-7), under state feedback and under a
+    /// dynamic controller that reads the output it feeds (the two solved together). Before,
+    /// the sampled loop dropped `D u_k` and the nonlinear one fed `u_{k-1}` through, and a
+    /// power study of an aircraft's pitch axis (normal acceleration measured) read false
+    /// discoveries in 80-100 % of its nominal campaigns.
+    #[test]
+    fn loops_with_a_feed_through_follow_the_fits_convention() {
+        let feedback = "K = [[6.0, 2.0]]";
+        let dynamic =
+            "type = \"discrete\"\nA = [[0.5]]\nB = [[0.1, 0.0]]\nC = [[-2.0]]\nD = [[-6.0, -2.0]]";
+        let (period, lines) = (200usize, [3usize, 7, 19, 41]);
+        for controller in [feedback, dynamic] {
+            let file = ModelFile::parse(
+                &format!(
+                    r#"
+name = "fed"
+states = ["p", "v"]
+inputs = ["u"]
+outputs = ["p", "v"]
+[parameters]
+a = {{ value = 4.0, min = 0.0, max = 10.0 }}
+b = {{ value = 2.0, min = 0.1, max = 10.0 }}
+[nonlinear]
+f.p = "v"
+f.v = "a*(p - 1) + b*(u - 0.5) - 0.3*v"
+h.p = "p"
+h.v = "v + 0.4*(u - 0.5)"
+operating_point = {{ p = 1, v = 0, u = 0.5 }}
+[controller]
+sample_rate_hz = 100
+{controller}
+"#
+                ),
+                std::path::Path::new("fed.toml"),
+            )
+            .unwrap();
+            let model = Model::new(Arc::new(file));
+            let theta = vec![4.0, 2.0];
+            let ctrl = model.structure().controller().unwrap();
+            let ss = model.state_space(&theta).unwrap();
+            assert!((ss.d[(1, 0)] - 0.4).abs() < 1e-12);
+            let disc = ss.discretize(0.01).unwrap();
+            let r = DMatrix::from_fn(12 * period, 1, |k, _| {
+                lines
+                    .iter()
+                    .map(|&l| {
+                        (std::f64::consts::TAU * (l * k) as f64 / period as f64 + l as f64).cos()
+                    })
+                    .sum::<f64>()
+            });
+            let (u_lin, y_lin) =
+                crate::closed_loop::run_loop(&disc, &ctrl, &r, &mut |_, _| {}).unwrap();
+            // The last period, after the transient: Y / U at each line.
+            let bin = |x: &[f64], l: usize| -> C64 {
+                x.iter()
+                    .enumerate()
+                    .map(|(k, v)| {
+                        C64::from_polar(*v, -std::f64::consts::TAU * (l * k) as f64 / period as f64)
+                    })
+                    .sum()
+            };
+            let last = |m: &DMatrix<f64>, j: usize| -> Vec<f64> {
+                m.column(j)
+                    .rows(11 * period, period)
+                    .iter()
+                    .copied()
+                    .collect()
+            };
+            let freqs: Vec<f64> = lines
+                .iter()
+                .map(|&l| l as f64 * 100.0 / period as f64)
+                .collect();
+            let want = ss.frf_lines(&freqs, Some(0.01)).unwrap();
+            for (i, &l) in lines.iter().enumerate() {
+                let ui = bin(&last(&u_lin, 0), l);
+                for o in 0..2 {
+                    let g = bin(&last(&y_lin, o), l) / ui;
+                    let w = want[i][(o, 0)];
+                    assert!(
+                        (g - w).norm() <= 1e-9 * w.norm(),
+                        "{controller}: line {l}, output {o}: {g} vs {w}"
+                    );
+                }
+            }
+            let (u_nl, y_nl) =
+                simulate_closed_loop(&model, &theta, 0.01, &ctrl, &r, &mut |_, _| {})
+                    .unwrap()
+                    .unwrap();
+            let op_y = DMatrix::from_fn(r.nrows(), 2, |_, j| if j == 0 { 1.0 } else { 0.0 });
+            let dy = (&y_nl - &op_y - &y_lin).amax() / y_lin.amax();
+            let du = (u_nl.add_scalar(-0.5) - &u_lin).amax() / u_lin.amax();
+            assert!(
+                dy < 1e-7 && du < 1e-7,
+                "{controller}: outputs {dy:e}, inputs {du:e}"
             );
         }
     }
