@@ -208,8 +208,9 @@ pub type LoopRun = Result<(DMatrix<f64>, DMatrix<f64>), usize>;
 /// `r` (samples x inputs), from zero plant and controller states; returns the inputs and the
 /// measured outputs, samples in rows. `noise(w, v)` may add process noise `w` (states) to each
 /// next state and sensor noise `v` (outputs) to each measured output the controller sees; it
-/// is called once per sample, both vectors zeroed. `Err(k)`: the state is no longer finite
-/// after sample `k`.
+/// is called once per sample, both vectors zeroed. The outputs of a sample see its input
+/// ([`ControllerState::close`]). `Err(k)`: the state is no longer finite after sample `k`, or
+/// the loop through a feed-through has no input there.
 pub fn run_loop(
     disc: &Discrete,
     controller: &Controller,

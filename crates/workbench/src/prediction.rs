@@ -1761,6 +1761,12 @@ mod tests {
 
     /// The model file of [`shifted_plant`].
     fn shifted_file(controller: &str) -> Arc<ModelFile> {
+        plant_file("v", controller)
+    }
+
+    /// [`shifted_file`] with the output `v` read as `h_v` (`"v + 0.4*(u - 0.5)"`: a
+    /// feed-through).
+    fn plant_file(h_v: &str, controller: &str) -> Arc<ModelFile> {
         let text = format!(
             r#"
 name = "shifted"
@@ -1774,7 +1780,7 @@ b = {{ value = 2.0, min = 0.1, max = 10.0 }}
 f.p = "v"
 f.v = "a*(p - 1) + b*(u - 0.5) - 0.3*v"
 h.p = "p"
-h.v = "v"
+h.v = "{h_v}"
 operating_point = {{ p = 1, v = 0, u = 0.5 }}
 [controller]
 sample_rate_hz = 100
@@ -1880,31 +1886,7 @@ sample_rate_hz = 100
             "type = \"discrete\"\nA = [[0.5]]\nB = [[0.1, 0.0]]\nC = [[-2.0]]\nD = [[-6.0, -2.0]]";
         let (period, lines) = (200usize, [3usize, 7, 19, 41]);
         for controller in [feedback, dynamic] {
-            let file = ModelFile::parse(
-                &format!(
-                    r#"
-name = "fed"
-states = ["p", "v"]
-inputs = ["u"]
-outputs = ["p", "v"]
-[parameters]
-a = {{ value = 4.0, min = 0.0, max = 10.0 }}
-b = {{ value = 2.0, min = 0.1, max = 10.0 }}
-[nonlinear]
-f.p = "v"
-f.v = "a*(p - 1) + b*(u - 0.5) - 0.3*v"
-h.p = "p"
-h.v = "v + 0.4*(u - 0.5)"
-operating_point = {{ p = 1, v = 0, u = 0.5 }}
-[controller]
-sample_rate_hz = 100
-{controller}
-"#
-                ),
-                std::path::Path::new("fed.toml"),
-            )
-            .unwrap();
-            let model = Model::new(Arc::new(file));
+            let model = Model::new(plant_file("v + 0.4*(u - 0.5)", controller));
             let theta = vec![4.0, 2.0];
             let ctrl = model.structure().controller().unwrap();
             let ss = model.state_space(&theta).unwrap();

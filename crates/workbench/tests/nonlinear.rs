@@ -408,16 +408,19 @@ fn a_missing_mode_offered_as_an_effect_with_states_is_found() {
         let verdict = d.conclusion.verdict_sentence();
         assert_eq!(d.conclusion.found, ["mount"], "seed {seed}: {verdict}");
         assert!(!d.conclusion.unexplained, "seed {seed}: {verdict}");
-        let last = d.steps.last().unwrap();
-        for (name, truth) in [("wm", wm), ("gm", 0.2)] {
-            let p = last.params.iter().find(|p| p.name == name).unwrap();
-            let se = p.std.unwrap();
-            assert!(
-                (p.value - truth).abs() <= 3.0 * se,
-                "seed {seed}: {name} {} +- {se} for {truth}",
-                p.value
-            );
-        }
+        let near_truth = |d: &workbench::discover::Discovery, criterion: &str| {
+            let last = d.steps.last().unwrap();
+            for (name, truth) in [("wm", wm), ("gm", 0.2)] {
+                let p = last.params.iter().find(|p| p.name == name).unwrap();
+                let se = p.std.unwrap();
+                assert!(
+                    (p.value - truth).abs() <= 3.0 * se,
+                    "seed {seed}, {criterion}: {name} {} +- {se} for {truth}",
+                    p.value
+                );
+            }
+        };
+        near_truth(&d, "time");
         let clean = workbench_with(&text, campaign(0.0, 0.0, seed), None)
             .discover()
             .unwrap();
@@ -445,16 +448,7 @@ fn a_missing_mode_offered_as_an_effect_with_states_is_found() {
             "seed {seed}: {}",
             c.verdict_sentence()
         );
-        let last = frf.steps.last().unwrap();
-        for (name, truth) in [("wm", wm), ("gm", 0.2)] {
-            let p = last.params.iter().find(|p| p.name == name).unwrap();
-            let se = p.std.unwrap();
-            assert!(
-                (p.value - truth).abs() <= 3.0 * se,
-                "seed {seed}, FRF: {name} {} +- {se} for {truth}",
-                p.value
-            );
-        }
+        near_truth(&frf, "FRF");
     }
 }
 
