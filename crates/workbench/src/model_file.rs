@@ -44,7 +44,7 @@ use super::dynamics::Dynamics;
 use super::expr::{check_name, Expr};
 use super::model::{ModelStructure, Parameter, StateSpace};
 use crate::error::{Result, SimError};
-use nonlinear::{Addition, EffectPart, Layout, Node, Section, Target};
+use nonlinear::{Addition, Layout, Node, Section, Target};
 
 /// A matrix entry: a number or an expression.
 #[derive(Debug, Clone)]
@@ -850,8 +850,13 @@ impl ModelFile {
                     inputs: &inputs,
                     outputs: &outputs,
                 };
-                let (f, h, mut x_op, u_op) = nonlinear::read(&r, t, &layout)?;
+                let (mut f, h, mut x_op, u_op) = nonlinear::read(&r, t, &layout)?;
+                // An effect's states have no `f` of the model's: their additions give it.
                 for e in &effects {
+                    for i in e.states.clone() {
+                        let key = format!("effects.{}.add.f.{}", e.name, all_states[i]);
+                        f.push(Node::new(Entry::Number(0.0), key));
+                    }
                     x_op.extend(&e.operating_point);
                 }
                 for (d, v) in documented[state0..]
@@ -869,22 +874,18 @@ impl ModelFile {
                         )
                     })
                     .collect();
-                let parts = effects
+                let additions = effects
                     .iter()
-                    .map(|e| EffectPart {
-                        name: e.name.clone(),
-                        states: e.states.clone(),
-                        additions: e.additions.clone(),
-                    })
+                    .map(|e| (e.name.clone(), e.additions.clone()))
                     .collect();
                 Some(Arc::new(Section::new(
                     &r,
                     &symbols,
                     state0,
-                    (&all_states, m, p),
+                    (m, p),
                     defs,
                     (f, h, x_op, u_op),
-                    parts,
+                    additions,
                 )?))
             }
         };
@@ -1182,7 +1183,7 @@ impl ModelFile {
     fn matrices(&self, enabled: &[String], theta: &[f64]) -> Result<[DMatrix<f64>; 4]> {
         let table = self.table(enabled, theta)?;
         if let Some(nl) = &self.nonlinear {
-            return nl.linearize(enabled, &table);
+            return nl.linearize(enabled, &self.active_states(enabled), &table);
         }
         // The enabled effects' states follow the model's: `at[i]` is the row and column of
         // state `i` of all states.
@@ -1322,7 +1323,10 @@ impl ModelStructure for ModelFile {
         let nl = self.nonlinear.as_ref()?;
         Some(self.checked_theta(enabled, theta).and_then(|()| {
             let table = self.table(enabled, theta)?;
-            Ok(Box::new(nl.dynamics(enabled, table)) as Box<dyn Dynamics>)
+            Ok(
+                Box::new(nl.dynamics(enabled, self.active_states(enabled), table))
+                    as Box<dyn Dynamics>,
+            )
         }))
     }
 

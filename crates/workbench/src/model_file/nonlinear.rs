@@ -2,7 +2,6 @@
 //! states, inputs, parameters and definitions, the operating point, the terms effects add to
 //! definitions and to `f` and `h`; the model as [`Dynamics`] and its linearization (symbolic
 //! partial derivatives, chained through the definitions).
-use std::ops::Range;
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -72,15 +71,6 @@ pub(super) struct Addition {
     pub node: Node,
 }
 
-/// What an effect brings to the nonlinear model: its states (indices into all states) and
-/// its terms.
-#[derive(Debug, Clone)]
-pub(super) struct EffectPart {
-    pub name: String,
-    pub states: Range<usize>,
-    pub additions: Vec<Addition>,
-}
-
 /// Everything the nonlinear model evaluates, shared by every [`FileDynamics`] built from it.
 #[derive(Debug)]
 pub(super) struct Section {
@@ -88,19 +78,16 @@ pub(super) struct Section {
     symbols: Vec<String>,
     /// First state slot; the effects' states follow the model's, the inputs follow them.
     state0: usize,
-    /// The model's states, without the effects'.
-    n: usize,
-    /// State names, the model's and every effect's.
-    states: Vec<String>,
     m: usize,
     p: usize,
     /// Definitions in evaluation order, `(slot, node)`.
     definitions: Vec<(usize, Node)>,
-    /// `f` of every state: an effect's own are zero, its additions give them.
+    /// `f` of every state, the model's and the effects' (whose own are zero: their additions
+    /// give them).
     f: Vec<Node>,
     h: Vec<Node>,
-    /// Per effect, in the file's effect order.
-    effects: Vec<EffectPart>,
+    /// Additions per effect, in the file's effect order.
+    additions: Vec<(String, Vec<Addition>)>,
     /// Operating point of every state, and of the inputs.
     x_op: Vec<f64>,
     u_op: Vec<f64>,
@@ -223,30 +210,21 @@ impl Section {
         r: &Reader,
         symbols: &[String],
         state0: usize,
-        (states, m, p): (&[String], usize, usize),
+        (m, p): (usize, usize),
         definitions: Vec<(usize, Node)>,
-        (mut f, h, x_op, u_op): Read,
-        effects: Vec<EffectPart>,
+        (f, h, x_op, u_op): Read,
+        additions: Vec<(String, Vec<Addition>)>,
     ) -> Result<Self> {
-        let n = f.len();
-        for e in &effects {
-            for i in e.states.clone() {
-                let key = format!("effects.{}.add.f.{}", e.name, states[i]);
-                f.push(Node::new(Entry::Number(0.0), key));
-            }
-        }
         let mut s = Self {
             path: r.path.to_path_buf(),
             symbols: symbols.to_vec(),
             state0,
-            n,
-            states: states.to_vec(),
             m,
             p,
             definitions,
             f,
             h,
-            effects,
+            additions,
             x_op,
             u_op,
         };
@@ -256,8 +234,8 @@ impl Section {
         for node in s.f.iter_mut().chain(s.h.iter_mut()) {
             node.differentiate(r)?;
         }
-        for e in &mut s.effects {
-            for a in &mut e.additions {
+        for (_, adds) in &mut s.additions {
+            for a in adds {
                 a.node.differentiate(r)?;
             }
         }
@@ -281,33 +259,26 @@ impl Section {
 
     /// The additions of the `enabled` effects.
     fn active<'a>(&'a self, enabled: &'a [String]) -> impl Iterator<Item = &'a Addition> + 'a {
-        self.effects
+        self.additions
             .iter()
-            .filter(move |e| enabled.contains(&e.name))
-            .flat_map(|e| &e.additions)
-    }
-
-    /// The states of the model with the `enabled` effects, as indices into all states: the
-    /// model's, then each enabled effect's in the file's order.
-    pub fn active_states(&self, enabled: &[String]) -> Vec<usize> {
-        (0..self.n)
-            .chain(
-                self.effects
-                    .iter()
-                    .filter(|e| enabled.contains(&e.name))
-                    .flat_map(|e| e.states.clone()),
-            )
-            .collect()
+            .filter(move |(name, _)| enabled.contains(name))
+            .flat_map(|(_, adds)| adds)
     }
 
     /// Slot of the first input: all states come first.
     fn input0(&self) -> usize {
-        self.state0 + self.states.len()
+        self.state0 + self.x_op.len()
     }
 
     /// The model at the symbol values `table` (parameters set, definitions evaluated at the
-    /// operating point) with the `enabled` effects.
-    pub fn dynamics(self: &Arc<Self>, enabled: &[String], table: Vec<f64>) -> FileDynamics {
+    /// operating point) with the `enabled` effects, whose states are `active` (indices into
+    /// all states, the model's first).
+    pub fn dynamics(
+        self: &Arc<Self>,
+        enabled: &[String],
+        active: Vec<usize>,
+        table: Vec<f64>,
+    ) -> FileDynamics {
         let adds: Vec<Addition> = self.active(enabled).cloned().collect();
         // A definition is evaluated per call when it reads a state, an input, or such a
         // definition, itself or through a term an enabled effect adds to it.
@@ -374,7 +345,6 @@ impl Section {
                 (*slot, with_adds(node, Target::Definition(*slot)))
             })
             .collect();
-        let active = self.active_states(enabled);
         let f = active
             .iter()
             .map(|&i| with_adds(&self.f[i], Target::F(i)))
@@ -395,9 +365,14 @@ impl Section {
 
     /// `(A, B, C, D)` at the symbol values `table`: the partial derivatives of `f` and `h` by
     /// the states and inputs, chained through the definitions (`d def / d z` accumulated in
-    /// evaluation order).
-    pub fn linearize(&self, enabled: &[String], table: &[f64]) -> Result<[DMatrix<f64>; 4]> {
-        let nz = self.states.len() + self.m;
+    /// evaluation order), in the rows and columns of the `active` states.
+    pub fn linearize(
+        &self,
+        enabled: &[String],
+        active: &[usize],
+        table: &[f64],
+    ) -> Result<[DMatrix<f64>; 4]> {
+        let nz = self.x_op.len() + self.m;
         let mut grad = vec![vec![0.0; nz]; self.symbols.len()];
         for (j, g) in grad[self.state0..].iter_mut().enumerate() {
             g[j] = 1.0;
@@ -464,13 +439,11 @@ impl Section {
         };
         let fx = rows(&self.f, Target::F)?;
         let hx = rows(&self.h, Target::H)?;
-        // Rows and columns of the states the enabled effects leave in.
-        let active = self.active_states(enabled);
-        let inputs: Vec<usize> = (self.states.len()..nz).collect();
+        let inputs: Vec<usize> = (self.x_op.len()..nz).collect();
         Ok([
-            fx.select_rows(&active).select_columns(&active),
-            fx.select_rows(&active).select_columns(&inputs),
-            hx.select_columns(&active),
+            fx.select_rows(active).select_columns(active),
+            fx.select_rows(active).select_columns(&inputs),
+            hx.select_columns(active),
             hx.select_columns(&inputs),
         ])
     }
