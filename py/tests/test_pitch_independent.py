@@ -1,8 +1,9 @@
 """An aircraft's pitch axis from independent_pitch.py (its own simulator), described by a
 linear model file: a structural mode the gyro sees, offered as an effect with states of its
-own, is found with its frequency, damping and gain; and a power study of the nominal model,
+own, is found with its frequency, damping and gain; a power study of the nominal model,
 whose normal acceleration sees the elevator through the feed-through, finds no effect that is
-not there."""
+not there; and the time criterion on a nonlinear model file documented 17-20 % off reaches the
+logs' optimum (from those values alone it stopped at a lift slope 40-70 standard errors off)."""
 from __future__ import annotations
 
 import json
@@ -59,6 +60,19 @@ D = [[0, 0]]
 
 SHORT = dict(records=2, periods=6, sub=5)  # 2 x 6000 samples at 100 Hz
 
+# The same aircraft in nonlinear form, so that the time criterion is the default.
+NONLINEAR = BASE.split("[linear]")[0] + """
+[definitions]
+alphadot = "Za*alpha + q + Zd*de"
+
+[nonlinear]
+f.alpha = "alphadot"
+f.q = "Ma*alpha + Mq*q + Md*de"
+h.q = "q"
+h.nz = "V*(Za*alpha + Zd*de)"
+operating_point = { alpha = 0, q = 0, de = 0 }
+"""
+
 
 @pytest.mark.parametrize("seed", [1, 2])
 def test_a_structural_mode_offered_with_its_states_is_found(tmp_path, seed):
@@ -99,3 +113,33 @@ def test_a_power_study_with_a_feed_through_finds_nothing_that_is_not_there(tmp_p
     # A 10 ms lag is found with its size (measured: 10 of 10, mean 9.97 ms).
     assert lag["detection_rate"] >= 0.8, lag
     assert abs(lag["estimate_mean"] - 0.01) < 0.001, lag
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+@pytest.mark.parametrize("case", ["nominal", "lag"])
+def test_the_time_criterion_reaches_the_optimum_from_documented_values_far_off(
+        tmp_path, seed, case):
+    # From the documented values alone the prediction-error fit stopped at Za 40-50 standard
+    # errors off (nominal) and kept a found servo lag's lift slope 70 off (lag), a misfit on 6
+    # of 6 seeds each; from the FRF fit as a second start, and a refit kept when likelier, 6 of
+    # 6 each explained, every parameter within 2.3 standard errors (seeds 1-6). A calm sky: a
+    # low-pass gust biases the prediction error of a model without it (see the README).
+    data = ip.campaign(str(tmp_path / "data"), seed, case, gust_rms=0.0, **SHORT)
+    model = tmp_path / "pitch.toml"
+    model.write_text(NONLINEAR)
+    out = tmp_path / "discover.json"
+    done = subprocess.run([stabilis_bin(), "discover", "--model", str(model), "--data", data,
+                           "--json", str(out)], capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr
+    doc = json.loads(out.read_text())
+    assert doc["weighting"].startswith("time-domain prediction error"), doc["weighting"]
+    assert doc["found"] == ([] if case == "nominal" else ["actuator_lag"]), doc["verdict_text"]
+    assert doc["verdict_text"].startswith("explained"), doc["verdict_text"]
+    assert "started from its FRF criterion's fit" in doc["verdict_text"], doc["verdict_text"]
+    last = doc["steps"][-1]
+    truth = dict(ip.TRUTH, tau=ip.CFG["tau"])
+    for name, got in last["params"].items():
+        if name == "V":
+            continue
+        se = last["std"][name]
+        assert abs(got - truth[name]) <= 3 * se, (name, got, se, truth[name])

@@ -1189,7 +1189,7 @@ impl Workbench {
     /// the noise of the weighting from the residual of the start, fit, and when the start was
     /// not itself a fit (documented values, `start = None`) [`REWEIGHTINGS`] more times the
     /// noise from the fitted model's residual and a refit.
-    fn fit_reweighted(
+    pub(crate) fn fit_reweighted(
         &self,
         model: &Model,
         start: Option<&[f64]>,
