@@ -2,8 +2,8 @@
 linear model file: a structural mode the gyro sees, offered as an effect with states of its
 own, is found with its frequency, damping and gain; a power study of the nominal model,
 whose normal acceleration sees the elevator through the feed-through, finds no effect that is
-not there; and the time criterion on a nonlinear model file documented 17-20 % off reaches the
-logs' optimum (from those values alone it stopped at a lift slope 40-70 standard errors off)."""
+not there; and the time criterion on a nonlinear model file documented 17-20 % off reads the
+truth, in calm air and in a low-pass gust."""
 from __future__ import annotations
 
 import json
@@ -117,14 +117,18 @@ def test_a_power_study_with_a_feed_through_finds_nothing_that_is_not_there(tmp_p
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
 @pytest.mark.parametrize("case", ["nominal", "lag"])
-def test_the_time_criterion_reaches_the_optimum_from_documented_values_far_off(
-        tmp_path, seed, case):
-    # From the documented values alone the prediction-error fit stopped at Za 40-50 standard
-    # errors off (nominal) and kept a found servo lag's lift slope 70 off (lag), a misfit on 6
-    # of 6 seeds each; from the FRF fit as a second start, and a refit kept when likelier, 6 of
-    # 6 each explained, every parameter within 2.3 standard errors (seeds 1-6). A calm sky: a
-    # low-pass gust biases the prediction error of a model without it (see the README).
-    data = ip.campaign(str(tmp_path / "data"), seed, case, gust_rms=0.0, **SHORT)
+@pytest.mark.parametrize("gust", [0.0, ip.CFG["gust_rms"]])
+def test_the_time_criterion_reaches_the_truth_from_documented_values_far_off(
+        tmp_path, seed, case, gust):
+    # Before, from the documented values alone, the prediction-error fit stopped at Za 40-50
+    # standard errors off in calm air and kept a found servo lag's lift slope 70 off, a misfit
+    # on 6 of 6 seeds each; in the low-pass gust the right model read a misfit too, and the
+    # lag stayed tentative with Ma 17-21 standard errors off. With the FRF fit as a second
+    # start, a refit kept when likelier, and the innovations whitened by their autoregression:
+    # calm, seeds 1-6, explained and the lag found on 6 of 6 each, every parameter within 2.1
+    # standard errors; gust, seeds 1-4, 4 of 4 each, within 4.0 (tau within 2.8): those
+    # standard errors assume innovations the autoregression whitens only approximately.
+    data = ip.campaign(str(tmp_path / "data"), seed, case, gust_rms=gust, **SHORT)
     model = tmp_path / "pitch.toml"
     model.write_text(NONLINEAR)
     out = tmp_path / "discover.json"
@@ -135,11 +139,11 @@ def test_the_time_criterion_reaches_the_optimum_from_documented_values_far_off(
     assert doc["weighting"].startswith("time-domain prediction error"), doc["weighting"]
     assert doc["found"] == ([] if case == "nominal" else ["actuator_lag"]), doc["verdict_text"]
     assert doc["verdict_text"].startswith("explained"), doc["verdict_text"]
-    assert "started from its FRF criterion's fit" in doc["verdict_text"], doc["verdict_text"]
     last = doc["steps"][-1]
     truth = dict(ip.TRUTH, tau=ip.CFG["tau"])
+    within = 3.0 if gust == 0.0 else 4.5
     for name, got in last["params"].items():
         if name == "V":
             continue
         se = last["std"][name]
-        assert abs(got - truth[name]) <= 3 * se, (name, got, se, truth[name])
+        assert abs(got - truth[name]) <= within * se, (name, got, se, truth[name])

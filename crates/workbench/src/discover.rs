@@ -59,6 +59,9 @@ pub struct CandidateScore {
     /// reported (see [`crate::search::forward_selection`]) and did not keep it: what that
     /// search found.
     pub followed: Option<Followed>,
+    /// Why its fit failed (a model that cannot be evaluated where the fit went): it has no
+    /// cost (`cost` infinite) and is not chosen; the others are tried as if it were not there.
+    pub failed: Option<String>,
     /// Why the search did not choose it although it may have been best: an earlier search
     /// added it and later effects made it insignificant ([`crate::search::forward_selection`]'s
     /// backward check).
@@ -216,6 +219,31 @@ impl CandidateScore {
             noise_spread: c.noise_sd,
             scale: c.scale,
             followed: None,
+            failed: None,
+            set_aside: None,
+        }
+    }
+
+    /// A candidate whose fit failed with `why`.
+    pub fn failed(effect: &str, why: String) -> Self {
+        Self {
+            effect: effect.to_string(),
+            cost: f64::INFINITY,
+            reduction_percent: f64::NAN,
+            added_parameters: 0,
+            f_statistic: f64::NAN,
+            p_value: 1.0,
+            robust_p_value: 1.0,
+            delta_aic: f64::INFINITY,
+            delta_bic: f64::INFINITY,
+            exceeds_noise: false,
+            passes_tests: false,
+            significant: false,
+            abandoned: false,
+            noise_spread: f64::NAN,
+            scale: f64::NAN,
+            followed: None,
+            failed: Some(why),
             set_aside: None,
         }
     }
@@ -1934,6 +1962,7 @@ mod tests {
             noise_spread: spread,
             scale: 1.0,
             followed: None,
+            failed: None,
             set_aside: None,
         }
     }

@@ -1947,7 +1947,9 @@ D = [[-4.0, -3.0]]
         #[test]
         fn calibration_matches_every_output(
             ab in proptest::collection::vec((0.0f64..10.0, 1e-3f64..10.0), 1..5),
-            cross in proptest::collection::vec(0.0f64..1.0, 16),
+            // Cross terms below a third keep the sensors' matrix diagonally dominant: near
+            // 1 it is near singular, and the common factor is then one of many fits.
+            cross in proptest::collection::vec(0.0f64..0.3, 16),
             shared in 0.01f64..100.0,
         ) {
             let m = ab.len();

@@ -555,8 +555,95 @@ impl Work {
 #[derive(Debug, Clone)]
 struct Design {
     gain: DMatrix<f64>,
+    /// The innovations' autoregression `Θ` (`r p x p`, `r` lags of `p` outputs): the
+    /// criterion scores `e_k - [e_{k-1}ᵀ … e_{k-r}ᵀ] Θ`, the innovations whitened by the noise
+    /// model `1 / (I - Σ Θ_j q^-j)` estimated at the design's point (`r = 0`: white).
+    prefilter: DMatrix<f64>,
     /// `Lᵀ` with `W = L Lᵀ`.
     whiten: DMatrix<f64>,
+}
+
+impl Design {
+    /// `e` (one record's innovations, samples in rows) through the prefilter, the samples
+    /// before the record taken as zero.
+    fn prefiltered(&self, e: &DMatrix<f64>) -> DMatrix<f64> {
+        let p = e.ncols();
+        let order = self.prefilter.nrows() / p.max(1);
+        let mut out = e.clone();
+        for k in 0..e.nrows() {
+            for j in 1..=order.min(k) {
+                for i in 0..p {
+                    let past = e[(k - j, i)];
+                    for c in 0..p {
+                        out[(k, c)] -= past * self.prefilter[((j - 1) * p + i, c)];
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Most lags of the innovations' autoregression a design estimates (see
+/// [`Design::prefilter`]), the order chosen by BIC.
+const PREFILTER_ORDER: usize = 30;
+
+/// The least-squares autoregression of the scored innovations `runs` about each record's mean
+/// (order by BIC up to [`PREFILTER_ORDER`]): `Θ` of [`Design::prefilter`].
+fn autoregression(runs: &[(DMatrix<f64>, DMatrix<f64>)], p: usize) -> DMatrix<f64> {
+    let big = PREFILTER_ORDER;
+    let (mut gram, mut cross, mut yy) = (
+        DMatrix::<f64>::zeros(big * p, big * p),
+        DMatrix::<f64>::zeros(big * p, p),
+        DMatrix::<f64>::zeros(p, p),
+    );
+    let mut n = 0usize;
+    // The regressors in blocks of rows, each block's products added at once.
+    const BLOCK: usize = 2048;
+    for (e, _) in runs {
+        // About each record's mean: a constant in the innovations is a model's offset, which
+        // the criterion must see, not a colour of the noise (a fit to it whitens it away).
+        let e = centred(&scored(e));
+        let mut from = big;
+        while from < e.nrows() {
+            let rows = BLOCK.min(e.nrows() - from);
+            let phi = DMatrix::from_fn(rows, big * p, |k, c| e[(from + k - 1 - c / p, c % p)]);
+            let y = e.rows(from, rows);
+            gram += phi.transpose() * &phi;
+            cross += phi.transpose() * y;
+            yy += y.transpose() * y;
+            n += rows;
+            from += rows;
+        }
+    }
+    if n <= big * p * 10 {
+        return DMatrix::zeros(0, p);
+    }
+    let nf = n as f64;
+    let log_det = |s: &DMatrix<f64>| {
+        let d = (s / nf).determinant();
+        (d > 0.0).then(|| d.ln())
+    };
+    let mut best = (
+        log_det(&yy).map_or(f64::INFINITY, |l| nf * l),
+        DMatrix::zeros(0, p),
+    );
+    for r in 1..=big {
+        let g = gram.view((0, 0), (r * p, r * p)).into_owned();
+        let c = cross.rows(0, r * p).into_owned();
+        let Some(theta) = g.cholesky().map(|ch| ch.solve(&c)) else {
+            break;
+        };
+        let residual = &yy - c.transpose() * &theta;
+        let Some(l) = log_det(&residual) else {
+            break;
+        };
+        let bic = nf * l + (r * p * p) as f64 * nf.ln();
+        if bic < best.0 {
+            best = (bic, theta);
+        }
+    }
+    best.1
 }
 
 /// The prediction-error criterion of one model under a fixed design.
@@ -611,6 +698,7 @@ impl<'a> PredictionError<'a> {
             model,
             &Design {
                 gain: Self::stationary_gain(wb, model, theta, &at_op)?,
+                prefilter: DMatrix::zeros(0, p),
                 whiten: DMatrix::identity(p, p),
             },
         );
@@ -627,7 +715,9 @@ impl<'a> PredictionError<'a> {
         {
             pe.design.gain = gain;
         }
-        let (s, _) = pe.innovations(theta)?.covariance(p);
+        let inn = pe.innovations(theta)?;
+        pe.design.prefilter = autoregression(&inn.runs, p);
+        let (s, _) = pe.covariance(&inn);
         let w = s.try_inverse().ok_or_else(|| {
             SimError::invalid("prediction", "innovation covariance", "is singular")
         })?;
@@ -790,9 +880,7 @@ impl<'a> PredictionError<'a> {
     /// a fit under a design made at its own point compares with another such fit by, as each
     /// design's weighting puts its own cost per residual at 1.
     fn neg2_log_likelihood(&self, theta: &[f64]) -> Result<f64> {
-        let (s, n) = self
-            .innovations(theta)?
-            .covariance(self.design.whiten.nrows());
+        let (s, n) = self.covariance(&self.innovations(theta)?);
         let det = s.determinant();
         if det > 0.0 && det.is_finite() {
             Ok(n as f64 * det.ln())
@@ -822,7 +910,21 @@ impl<'a> PredictionError<'a> {
         Ok(Innovations { runs })
     }
 
-    /// Whitened scored residuals, stacked record by record.
+    /// The sample covariance of the prefiltered scored innovations, and how many samples it
+    /// averages.
+    fn covariance(&self, inn: &Innovations) -> (DMatrix<f64>, usize) {
+        let p = self.design.whiten.nrows();
+        let mut s = DMatrix::zeros(p, p);
+        let mut count = 0usize;
+        for (e, _) in &inn.runs {
+            let e = scored(&self.design.prefiltered(e));
+            s += e.transpose() * &e;
+            count += e.nrows();
+        }
+        (s / count.max(1) as f64, count)
+    }
+
+    /// Prefiltered, whitened scored residuals, stacked record by record.
     fn stack(&self, inn: &Innovations) -> DVector<f64> {
         let whiten = &self.design.whiten;
         let p = whiten.nrows();
@@ -830,7 +932,7 @@ impl<'a> PredictionError<'a> {
         let mut out = DVector::zeros(total * p);
         let mut at = 0;
         for (e, _) in &inn.runs {
-            let w = scored(e) * whiten.transpose();
+            let w = scored(&self.design.prefiltered(e)) * whiten.transpose();
             for k in 0..w.nrows() {
                 for i in 0..p {
                     out[at] = w[(k, i)];
@@ -850,21 +952,6 @@ impl<'a> PredictionError<'a> {
             out[k / per] += chunk.iter().map(|v| v * v).sum::<f64>();
         }
         out
-    }
-}
-
-impl Innovations {
-    /// The sample covariance of the scored innovations of `p` outputs, and how many samples
-    /// it averages.
-    fn covariance(&self, p: usize) -> (DMatrix<f64>, usize) {
-        let mut s = DMatrix::zeros(p, p);
-        let mut count = 0usize;
-        for (e, _) in &self.runs {
-            let e = scored(e);
-            s += e.transpose() * &e;
-            count += e.nrows();
-        }
-        (s / count.max(1) as f64, count)
     }
 }
 
@@ -2177,6 +2264,7 @@ sample_rate_hz = 100
             t: 0.01,
             design: Design {
                 gain: DMatrix::zeros(2, 1),
+                prefilter: DMatrix::zeros(0, 1),
                 whiten: DMatrix::identity(1, 1),
             },
         };

@@ -194,6 +194,10 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
     let last = d.steps.last();
     if let Some(st) = last {
         for c in &st.candidates {
+            if let Some(why) = &c.failed {
+                let _ = writeln!(s, "  not added: {:<15} its fit failed: {why}", c.effect);
+                continue;
+            }
             if c.abandoned {
                 // Its cost is where the fit stopped, not a fitted one: no reduction to show.
                 let seen = if c.added_parameters == 0 {

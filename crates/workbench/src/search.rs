@@ -171,10 +171,20 @@ fn select<S: Search>(
         .iter()
         .map(|name| {
             let (at, context) = (&current, &context);
-            move || search.try_effect(at, context, name, n)
+            move || Ok(search.try_effect(at, context, name, n))
         })
         .collect();
-    let mut tried = in_parallel(search.parallel(), jobs, "candidate fit")?;
+    // A candidate whose fit fails (its model cannot be evaluated where the fit went) is
+    // reported and left out; the others go on.
+    let (tried, failed): (Vec<_>, Vec<_>) = in_parallel(search.parallel(), jobs, "candidate fit")?
+        .into_iter()
+        .zip(&names)
+        .partition(|(r, _)| r.is_ok());
+    let failed: Vec<CandidateScore> = failed
+        .into_iter()
+        .filter_map(|(r, name)| r.err().map(|e| CandidateScore::failed(name, e.to_string())))
+        .collect();
+    let mut tried: Vec<_> = tried.into_iter().filter_map(|(r, _)| r.ok()).collect();
     for (_, score) in &mut tried {
         progress(&format!("tried {}", score.effect));
         if let Some((_, why)) = aside.iter().find(|(e, _)| *e == score.effect) {
@@ -189,6 +199,10 @@ fn select<S: Search>(
     let chosen = search.choose(&mut current, &tried);
     tried.extend(aside_now);
     let (fits, mut scores): (Vec<_>, Vec<_>) = tried.into_iter().unzip();
+    for score in &failed {
+        progress(&format!("{} failed", score.effect));
+    }
+    scores.extend(failed);
     let Some(i) = chosen else {
         search.record_scores(&mut current, scores);
         return Ok(Path {
@@ -357,6 +371,9 @@ mod tests {
             let mut effects = at.0.clone();
             effects.push(effect.to_string());
             let cost = (self.cost)(&effects);
+            if cost.is_infinite() {
+                return Err(SimError::invalid("model", effect, "cannot be evaluated"));
+            }
             let gain = at.1 - cost;
             let significant = (self.significant)(effect, gain);
             let score = CandidateScore {
@@ -376,6 +393,7 @@ mod tests {
                 noise_spread: 1.0,
                 scale: 1.0,
                 followed: None,
+                failed: None,
                 set_aside: None,
             };
             Ok(((effects, cost, Vec::new()), score))
@@ -428,6 +446,27 @@ mod tests {
         let (_, added) =
             forward_selection(&table, (Vec::new(), 100.0, Vec::new()), &mut |_: &str| {}).unwrap();
         assert!(added.is_empty());
+    }
+
+    /// A candidate whose fit fails is reported with its error and the search goes on without
+    /// it (a bicycle's discovery stopped at a followed candidate's model that the matrix
+    /// exponential refused).
+    #[test]
+    fn a_candidate_whose_fit_fails_is_reported_and_the_others_go_on() {
+        let table = Scripted::gains(vec![
+            ("a", 10.0, true),
+            ("broken", f64::INFINITY, true),
+            ("b", 30.0, true),
+        ]);
+        let (steps, added) =
+            forward_selection(&table, (Vec::new(), 100.0, Vec::new()), &mut |_: &str| {}).unwrap();
+        assert_eq!(added, ["b", "a"]);
+        for step in &steps {
+            let broken = step.2.iter().find(|c| c.effect == "broken").unwrap();
+            let why = broken.failed.as_deref().unwrap_or_default();
+            assert!(why.contains("cannot be evaluated"), "{why}");
+            assert!(!broken.significant && broken.cost.is_infinite());
+        }
     }
 
     /// The greedy pick (delay, by 1) and its rival (lag) part once friction is in: the lag's
