@@ -56,7 +56,7 @@ def test_the_time_criterion_reads_the_drifting_reactor_through_its_noise_model(t
     # The feed drift is a slow coloured disturbance the loop answers. With white innovations
     # assumed, the right model read a misfit on 3 of 3 seeds with UA 774-800 for 833.3, and
     # the lag stayed tentative; with the innovations whitened by their autoregression, seeds
-    # 1-3: explained with UA 832.6-833.3, and the lag found at tau 2.87-2.92 s, UA 828-832.
+    # 1-3: explained with UA 832.4-833.5, and the lag found at tau 2.87-2.91 s, UA 828-832.
     ic.campaign(tmp_path / "data", seed, hidden=hidden)
     doc = discover(tmp_path / "data", tmp_path)
     assert doc["weighting"].startswith("time-domain prediction error"), doc["weighting"]

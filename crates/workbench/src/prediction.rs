@@ -17,8 +17,11 @@
 //! the gain, rather than re-linearizing at every sample or for every model, costs little near
 //! the operating point, where a stabilized plant stays.
 //!
-//! The criterion is `V = Σ e_kᵀ W e_k`, fitted by the workbench's Levenberg-Marquardt
-//! ([`super::fit::solve`]) with forward-difference Jacobians.
+//! The criterion is `V = Σ ε_kᵀ W ε_k`, `ε` the innovations `e` through the inverse of their
+//! noise model (`ε_k = e_k - Σ Θ_jᵀ e_{k-j}`, an autoregression fitted at the design's point and
+//! held with the gain: a gust, a drift or a quantizer's memory colours `e`, which a white noise
+//! model would read as a model error in closed loop), fitted by the workbench's
+//! Levenberg-Marquardt ([`super::fit::solve`]) with forward-difference Jacobians.
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
@@ -1135,9 +1138,20 @@ impl Workbench {
 
     /// The FRF criterion's fit of the starting model when some parameter of it lies more than
     /// [`START_SPREAD`] combined standard errors from the prediction-error fit `time`; `None`
-    /// when they agree or the FRF fit fails.
+    /// when they agree, the FRF fit fails, or it ran far from the documented values (beyond
+    /// [`FAR_FROM_DOCUMENTED`] times or across zero): that fit is bent by an effect the model
+    /// lacks, and a start there is worse than the documented one (a bicycle whose steering
+    /// motor lags 30 ms, its FRF fit without the lag at 3000 times a stiffness: the
+    /// prediction-error fit from there ran to 1e5 standard errors, and every candidate with
+    /// it, in 545 s).
     fn frf_start(&self, time: &FitResult) -> Option<FitResult> {
         let (frf, _) = self.fit_reweighted(&self.model, None).ok()?;
+        if !matches!(
+            super::discover::far_from_documented(&self.model, &frf.params),
+            Ok(None)
+        ) {
+            return None;
+        }
         time.params
             .iter()
             .zip(&frf.params)
