@@ -627,7 +627,10 @@ pub fn far_from_documented(model: &Model, params: &[ParamEstimate]) -> Result<Op
             (doc != 0.0
                 && p.value != 0.0
                 && !(1.0 / FAR_FROM_DOCUMENTED..=FAR_FROM_DOCUMENTED).contains(&ratio))
-            .then(|| format!("{} {} times it", p.name, fmt_ratio(ratio)))
+            .then(|| {
+                let sign = if ratio < 0.0 { ", the other sign" } else { "" };
+                format!("{} {} times it{sign}", p.name, fmt_ratio(ratio))
+            })
         })
         .collect();
     Ok((!far.is_empty()).then(|| {

@@ -226,7 +226,10 @@ impl CheckArgs {
         let aliases = identifiability::aliases(&model)?;
         let rivals = identifiability::rival_pairs(&model)?;
         for a in &aliases {
-            let against = if a.with.is_empty() {
+            let against = if a.with.is_empty() && file.is_nonlinear() {
+                // A constant offset or a term of second order changes no linearization.
+                "leaves the linearization at the operating point unchanged (a constant offset, or a term of second order)".to_string()
+            } else if a.with.is_empty() {
                 "acts on no output".to_string()
             } else {
                 format!("trades against {}", a.with.join(", "))
