@@ -1484,11 +1484,22 @@ impl PowerResult {
             }
         }
         let m = &self.min_detectable;
+        // Reached at the smallest value studied: the smallest detectable may lie below it.
+        let smallest = self
+            .values
+            .iter()
+            .map(|v| v.value)
+            .fold(f64::INFINITY, f64::min);
         s.push_str(&match m.value {
             Some(v) => format!(
-                "smallest {} detected with {:.0}% power: {} (interval {} to {})\n",
+                "smallest {} detected with {:.0}% power: {}{} (interval {} to {})\n",
                 self.parameter,
                 100.0 * TARGET_POWER,
+                if v <= smallest {
+                    "at most "
+                } else {
+                    ""
+                },
                 fmt_num(v),
                 opt(m.ci[0]),
                 m.ci[1].map_or_else(
@@ -2195,6 +2206,17 @@ D = [[-4.0, -3.0]]
                 ci(r.min_detectable.ci[0]),
             )),
             "{line}"
+        );
+        // Reached at the smallest value studied, the smallest detectable may lie below it (a
+        // bicycle's steer friction studied at 0.5 and 1.0 read "0.5000").
+        let spec = spec_of(vec![0.5, 1.0], 4);
+        let out: Vec<_> = (0..2)
+            .flat_map(|v| (0..4).map(move |c| outcome(v, c, true, Some(0.5))))
+            .collect();
+        let table = aggregate(&spec, &out).unwrap().table();
+        assert!(
+            table.contains("smallest b detected with 95% power: at most 0.5000 (interval"),
+            "{table}"
         );
     }
 
