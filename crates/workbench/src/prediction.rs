@@ -1083,16 +1083,12 @@ impl Workbench {
         let Some(frf) = self.frf_start(&documented) else {
             return Ok((documented, design, None));
         };
-        let likelihood = |r: &FitResult, d: &Design| {
-            PredictionError::new(self, model, d).neg2_log_likelihood(&r.theta)
-        };
-        let from_documented = likelihood(&documented, &design)?;
         // A start that fails to fit or to predict leaves the documented one.
         let Some((other, other_design, gain)) = self
             .fit_time(model, Some(&frf.theta), None)
             .ok()
             .and_then(|(r, d)| {
-                let gain = from_documented - likelihood(&r, &d).ok()?;
+                let gain = self.likelihood_gain(model, (&r, &d), (&documented, &design))?;
                 Some((r, d, gain))
             })
             .filter(|(_, _, gain)| *gain > START_MARGIN)
@@ -1114,26 +1110,21 @@ impl Workbench {
         Ok((other, other_design, Some(note)))
     }
 
-    /// Whether `fit` under its design is likelier than `other` under a design made at its own
-    /// point, by more than [`START_MARGIN`] on the `-2` log-likelihood (`false` where either
-    /// fails to predict).
-    fn likelier(
+    /// How much likelier `fit` is under `design` than `other` under its own (the fall of the
+    /// `-2` log-likelihood, [`PredictionError::neg2_log_likelihood`]); `None` where either
+    /// fails to predict.
+    fn likelihood_gain(
         &self,
         model: &Model,
         (fit, design): (&FitResult, &Design),
-        other: &FitResult,
-    ) -> bool {
-        let at = |theta: &[f64], d: &Design| {
-            PredictionError::new(self, model, d).neg2_log_likelihood(theta)
+        (other, other_design): (&FitResult, &Design),
+    ) -> Option<f64> {
+        let at = |r: &FitResult, d: &Design| {
+            PredictionError::new(self, model, d)
+                .neg2_log_likelihood(&r.theta)
+                .ok()
         };
-        let own = PredictionError::design(self, model, &other.theta);
-        match (
-            at(&fit.theta, design),
-            own.and_then(|d| at(&other.theta, &d)),
-        ) {
-            (Ok(a), Ok(b)) => b - a > START_MARGIN,
-            _ => false,
-        }
+        Some(at(other, other_design)? - at(fit, design)?)
     }
 
     /// The FRF criterion's fit of the starting model when some parameter of it lies more than
@@ -1327,8 +1318,17 @@ impl Workbench {
                         // a model without the effects, scores it: an aircraft's pitch axis
                         // with a 30 ms servo lag read the lag's refit as moved and kept a lift
                         // slope 40 standard errors off.
-                        let note = if self.likelier(&last.model, (&refit, &refit_design), &last.r)
-                        {
+                        let likelier = PredictionError::design(self, &last.model, &last.r.theta)
+                            .ok()
+                            .and_then(|at_selection| {
+                                self.likelihood_gain(
+                                    &last.model,
+                                    (&refit, &refit_design),
+                                    (&last.r, &at_selection),
+                                )
+                            })
+                            .is_some_and(|gain| gain > START_MARGIN);
+                        let note = if likelier {
                             None
                         } else {
                             self.refit_moved(last, &refit, &design)?

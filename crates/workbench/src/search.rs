@@ -176,15 +176,16 @@ fn select<S: Search>(
         .collect();
     // A candidate whose fit fails (its model cannot be evaluated where the fit went) is
     // reported and left out; the others go on.
-    let (tried, failed): (Vec<_>, Vec<_>) = in_parallel(search.parallel(), jobs, "candidate fit")?
+    let (mut tried, mut failed) = (Vec::new(), Vec::new());
+    for (fit, name) in in_parallel(search.parallel(), jobs, "candidate fit")?
         .into_iter()
         .zip(&names)
-        .partition(|(r, _)| r.is_ok());
-    let failed: Vec<CandidateScore> = failed
-        .into_iter()
-        .filter_map(|(r, name)| r.err().map(|e| CandidateScore::failed(name, e.to_string())))
-        .collect();
-    let mut tried: Vec<_> = tried.into_iter().filter_map(|(r, _)| r.ok()).collect();
+    {
+        match fit {
+            Ok(fit) => tried.push(fit),
+            Err(e) => failed.push(CandidateScore::failed(name, e.to_string())),
+        }
+    }
     for (_, score) in &mut tried {
         progress(&format!("tried {}", score.effect));
         if let Some((_, why)) = aside.iter().find(|(e, _)| *e == score.effect) {
