@@ -122,7 +122,7 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
             i,
             step_label(st),
             st.cost,
-            st.reduction_percent,
+            shown_percent(st.reduction_percent),
             st.normalized_cost
         );
         for (_, f) in step_fit(st) {
@@ -205,10 +205,20 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
                 } else {
                     ""
                 };
+                // The fit gives up on the effect size alone, so a stopped candidate may
+                // already pass the tests (a near miss the verdict names): say so.
+                let tests = if c.passes_tests {
+                    format!(
+                        ", although it passes the tests there (p = {:.2e})",
+                        c.p_value
+                    )
+                } else {
+                    String::new()
+                };
                 let _ = writeln!(
                     s,
-                    "  not added: {:<15} fit stopped: the linear model of its cost cannot reach \
-                     the significance threshold  {}{seen}",
+                    "  not added: {:<15} fit stopped: the linear model of its cost showed it \
+                     cannot lower the cost by more than noise alone varies it{tests}  {}{seen}",
                     c.effect,
                     added_parameters(wb, c),
                 );
@@ -223,7 +233,8 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
                     "  not added: {:<15} not testable at this fit: the data cannot tell its \
                      parameters from the model's, so they were held at their documented values \
                      (+0 params; cost {:+.2}% there)",
-                    c.effect, -c.reduction_percent,
+                    c.effect,
+                    shown_percent(-c.reduction_percent),
                 );
                 continue;
             }
@@ -238,7 +249,7 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
                 s,
                 "  not added: {:<15} reduction {:>6.2}%  {}  p = {:.2e}  robust p = {:.2e}  dBIC {:+.1}{noise}",
                 c.effect,
-                c.reduction_percent,
+                shown_percent(c.reduction_percent),
                 added_parameters(wb, c),
                 c.p_value,
                 c.robust_p_value,
@@ -654,6 +665,16 @@ pub fn step_fields(
         m.insert(k.to_string(), v);
     }
     m
+}
+
+/// A percentage as printed with two decimals: one that rounds to zero prints as 0.00, not
+/// -0.00 (a candidate whose fit ends a hair above the base's cost changed nothing).
+fn shown_percent(x: f64) -> f64 {
+    if x.abs() < 0.005 {
+        0.0
+    } else {
+        x
+    }
 }
 
 /// The candidates of a step; an abandoned one's `reduction_percent` is null: its fit stopped
@@ -1502,5 +1523,15 @@ mod tests {
             "+2 params (its 1 and 1 of the model's it lets the data separate)"
         );
         assert_eq!(params_phrase(4, 6), "+4 params (of its 6, 2 held)");
+    }
+
+    proptest::proptest! {
+        /// A printed percentage is never "-0.00", and otherwise reads as the value does.
+        #[test]
+        fn a_printed_percentage_is_never_negative_zero(x in -1.0f64..1.0) {
+            let shown = format!("{:.2}", shown_percent(x));
+            proptest::prop_assert_ne!(shown.as_str(), "-0.00");
+            proptest::prop_assert!((shown.parse::<f64>().unwrap() - x).abs() <= 0.005 + 1e-12);
+        }
     }
 }

@@ -538,6 +538,10 @@ fn nothing_hidden_finds_nothing() {
                 line.contains("fit stopped") && !line.contains("reduction"),
                 "{line}"
             );
+            // It stops on the effect size alone, and says whether it passes the tests there
+            // (the verdict's near miss names such a candidate "passes the tests").
+            assert!(line.contains("more than noise alone varies it"), "{line}");
+            assert_eq!(line.contains("passes the tests"), c.passes_tests, "{line}");
         }
         assert!(
             d.conclusion.found.is_empty() && d.conclusion.tentative.is_empty(),
