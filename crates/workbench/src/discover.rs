@@ -66,6 +66,9 @@ pub struct CandidateScore {
     /// added it and later effects made it insignificant ([`crate::search::forward_selection`]'s
     /// backward check).
     pub set_aside: Option<String>,
+    /// A built-in effect (a lag, a delay, a bias), not one the model file declares
+    /// ([`twins`]).
+    pub builtin: bool,
 }
 
 /// The search a runner-up led to, against the search kept.
@@ -221,6 +224,7 @@ impl CandidateScore {
             followed: None,
             failed: None,
             set_aside: None,
+            builtin: false,
         }
     }
 
@@ -245,6 +249,7 @@ impl CandidateScore {
             followed: None,
             failed: Some(why),
             set_aside: None,
+            builtin: false,
         }
     }
 
@@ -281,7 +286,27 @@ pub(crate) fn is_rival(chosen: &CandidateScore, other: &CandidateScore) -> bool 
     other.effect != chosen.effect
         && other.exceeds_noise
         && other.set_aside.is_none()
+        && !twins(chosen, other)
         && rival_p_value(other.cost - chosen.cost, chosen.scale) >= LEVEL
+}
+
+/// Cost difference, in noise variances of one residual, within which two candidates with as
+/// many parameters are one model under two names: ten times the FRF fit's own tolerance, and
+/// a 2600th of the gap a test at 1 % can resolve.
+pub const TWIN_GAP: f64 = 0.01;
+
+/// Whether `a` and `b` are one effect under the file's name and a built-in one: one of each,
+/// as many parameters, and costs within [`TWIN_GAP`]. A model file's own first-order lag on an
+/// input is the built-in `actuator_lag`; a hopper's gimbal lag fitted to 255.61360 against the
+/// built-in's 255.61393, and the discovery called it tentative, "the data do not tell them
+/// apart". A built-in effect is a form, not a cause, so the file's name is the reading. Two
+/// effects of the file that are one term (a motor's back-EMF and a viscous friction) stay
+/// rivals: the data cannot tell which cause it is. The time criterion stops its fits within
+/// half a noise variance, so its twins may stay rivals.
+pub(crate) fn twins(a: &CandidateScore, b: &CandidateScore) -> bool {
+    a.builtin != b.builtin
+        && a.added_parameters == b.added_parameters
+        && (a.cost - b.cost).abs() <= TWIN_GAP * a.scale
 }
 
 /// Whether the loop follows `other` through a search of its own besides the `chosen` one
@@ -292,6 +317,7 @@ pub(crate) fn is_rival(chosen: &CandidateScore, other: &CandidateScore) -> bool 
 pub(crate) fn worth_following(chosen: &CandidateScore, other: &CandidateScore) -> bool {
     other.effect != chosen.effect
         && other.significant
+        && !twins(chosen, other)
         && (is_rival(chosen, other) || other.cost - chosen.cost <= 0.1 * chosen.cost_reduction())
 }
 
@@ -608,6 +634,10 @@ pub(crate) fn unmeasured_effects(model: &Model, params: &[ParamEstimate]) -> Res
 /// verdict says so ([`far_from_documented`]): an order of magnitude.
 pub const FAR_FROM_DOCUMENTED: f64 = 10.0;
 
+/// Standard errors from its documented value within which a fitted parameter is not far
+/// from it, whatever the ratio ([`far_from_documented`]).
+pub const FAR_ERRORS: f64 = 3.0;
+
 /// A sentence naming the fitted parameters of `model` that lie more than
 /// [`FAR_FROM_DOCUMENTED`] times from their documented values (or changed sign), `None` when
 /// none does. A fit that explains the data with such values is bent by something the model
@@ -624,7 +654,11 @@ pub fn far_from_documented(model: &Model, params: &[ParamEstimate]) -> Result<Op
         .filter_map(|p| {
             let doc = documented.iter().find(|d| d.name == p.name)?.value;
             let ratio = p.value / doc;
+            // Nor is a value the documented one is within a few errors of (a small
+            // coefficient of the other sign, 1.5 errors from it, read as bent).
+            let apart = p.std.is_none_or(|s| (p.value - doc).abs() > FAR_ERRORS * s);
             (doc != 0.0
+                && apart
                 && p.value != 0.0
                 && !(1.0 / FAR_FROM_DOCUMENTED..=FAR_FROM_DOCUMENTED).contains(&ratio))
             .then(|| {
@@ -1493,6 +1527,9 @@ impl Workbench {
         let mut why = self.data_caveats();
         let (far, rescaled) = self.far_warning(model, params, unexplained)?;
         why.extend(far);
+        why.extend(super::closed_loop::unstable_loop(
+            model, params, &self.data,
+        )?);
         why.extend(unmeasured_effects(model, params)?);
         // A rescaling that explains the logs is the reason for the misfit: a path or a line
         // it leaves is its by-product (theta in degrees read "the model has no path
@@ -1826,7 +1863,8 @@ impl Search for FrfSearch<'_> {
         effect: &str,
         n: usize,
     ) -> Result<(Fitted, CandidateScore)> {
-        let (model, r, score) = self.0.score(&at.model, at, effect, n)?;
+        let (model, r, mut score) = self.0.score(&at.model, at, effect, n)?;
+        score.builtin = at.model.is_builtin(effect);
         let fit = Fitted {
             model,
             added: Some(effect.to_string()),
@@ -1967,6 +2005,7 @@ mod tests {
             followed: None,
             failed: None,
             set_aside: None,
+            builtin: false,
         }
     }
 
@@ -2040,6 +2079,30 @@ mod tests {
         );
         // Nothing added, nothing to rival.
         assert!(rivals([start]).is_empty());
+        // A twin (the file's effect and a built-in one, the same cost to a hundredth of a
+        // noise variance, as many parameters: a gimbal lag and `actuator_lag`) is no rival;
+        // further apart, with another parameter count, or both the file's (two causes of one
+        // term), it is.
+        let builtin = |cost: f64| CandidateScore {
+            builtin: true,
+            ..scored("actuator_lag", 32_331.0, cost, 1e-30)
+        };
+        for (cost, rival) in [(30_098.8 + 0.005, false), (30_098.8 + 0.02, true)] {
+            let twin = [tried[0].clone(), builtin(cost)];
+            assert_eq!(
+                !rivals([(None, &twin[..]), then]).is_empty(),
+                rival,
+                "{cost}"
+            );
+        }
+        let both_files = [
+            tried[0].clone(),
+            scored("gimbal", 32_331.0, 30_098.8, 1e-30),
+        ];
+        assert_eq!(rivals([(None, &both_files[..]), then]).len(), 1);
+        let mut more = builtin(30_098.8);
+        more.added_parameters += 1;
+        assert!(!super::twins(&tried[0], &more) && super::twins(&tried[0], &builtin(30_098.8)));
         // Two rivals are named each with its gap.
         let mut two = tried.clone();
         two.push(scored("bias", 32_331.0, 30_100.0, 1e-30));

@@ -316,6 +316,11 @@ impl Model {
         names
     }
 
+    /// Whether `effect` is a built-in one (offered to every model), not one the file declares.
+    pub fn is_builtin(&self, effect: &str) -> bool {
+        self.offered().any(|e| e.name() == effect)
+    }
+
     /// One-line description of a known effect.
     pub fn describe(&self, effect: &str) -> String {
         match self.offered().find(|e| e.name() == effect) {

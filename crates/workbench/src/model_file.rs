@@ -1344,7 +1344,7 @@ impl ModelStructure for ModelFile {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::spectra::C64;
 

@@ -38,6 +38,7 @@ use super::fit::{difference_jacobian, solve, FitResult, LeastSquares};
 use super::kalman::{initial_state, Gain, Predictor, BURN_IN, START_WINDOW};
 use super::model::{Drift, Model, Parameter, StateSpace};
 use super::model_file::Controller;
+use super::report::fmt_num;
 use super::residual::{residual_tests, ResidualTests, DEFAULT_LAGS};
 use super::search::{forward_selection, Search};
 use super::timedomain::{fit_percent, time_fit, Discrete, DEFAULT_HORIZON, DEFAULT_WINDOW};
@@ -1110,6 +1111,108 @@ impl Workbench {
         Ok((other, other_design, Some(note)))
     }
 
+    /// Widens the standard errors of the prediction-error fit `r` of `model` where the data
+    /// determine it less than its fixed predictor says, and says so; `None` where they hold.
+    ///
+    /// The fit's errors take the predictor's gain, noise prefilter and weighting as known,
+    /// while they are estimated from the same logs at the fitted point: along a combination
+    /// of parameters that the noise model can absorb, a design made at a moved point fits
+    /// the moved model's misfit as noise and the likelihood barely rises. A hopper's two
+    /// lateral coefficients stayed by their documented values, 5-11 times their standard
+    /// errors apart when the documented values moved, and the FRF criterion called both
+    /// poorly determined. Each free parameter is therefore moved [`PROBE`] standard errors
+    /// either side, the predictor designed again there and the other parameters refitted
+    /// under it (the profile likelihood): where the `-2` log-likelihood rises by less than a
+    /// quarter of the `PROBE^2` the error says, the error is the one its rise gives (at most
+    /// [`MAX_WIDENING`] times; a parameter that reaches it is poorly determined). It costs two
+    /// designs and refits per free parameter; a probe that fails leaves its parameter as it is.
+    fn widened_errors(&self, model: &Model, r: &mut FitResult) -> Result<Option<String>> {
+        let params = model.parameters()?;
+        let free: Vec<usize> = (0..r.params.len())
+            .filter(|&i| r.params[i].std.is_some_and(|s| s > 0.0 && s.is_finite()))
+            .collect();
+        // The -2 log-likelihood at `theta` with parameter `pin` held there and the others
+        // refitted under a design at `theta`.
+        let profile = |theta: &[f64], pin: Option<usize>| -> Option<f64> {
+            let mut bounded = params.clone();
+            if let Some(i) = pin {
+                bounded[i].lower = theta[i];
+                bounded[i].upper = theta[i];
+                bounded[i].value = theta[i];
+            }
+            let design = PredictionError::design(self, model, theta).ok()?;
+            let pe = PredictionError::new(self, model, &design);
+            let opts = super::FitOptions {
+                max_iterations: PROFILE_ITERATIONS,
+                ..self.time_fit_options()
+            };
+            let refit = match pin {
+                Some(_) => solve(&pe, &bounded, Some(theta), &opts).ok()?.theta,
+                None => theta.to_vec(),
+            };
+            pe.neg2_log_likelihood(&refit).ok()
+        };
+        let Some(at) = profile(&r.theta, None) else {
+            return Ok(None);
+        };
+        let mut changed = Vec::new();
+        for &i in &free {
+            let (q, x) = (&params[i], r.theta[i]);
+            let fixed = r.params[i].std.unwrap_or(0.0);
+            let cap = MAX_WIDENING * fixed;
+            // The error the likelihood's rise over `PROBE` times `sd` gives, where it rises
+            // by less than a quarter of what `sd` says (`None`: `sd` holds, or no probe).
+            let widen = |sd: f64| -> Option<f64> {
+                // The probe, shortened to stay within the bounds.
+                let step = (PROBE * sd).min(q.upper - x).min(x - q.lower);
+                if step.is_nan() || step <= 0.1 * PROBE * sd {
+                    return None;
+                }
+                let probe = |sign: f64| {
+                    let mut theta = r.theta.clone();
+                    theta[i] += sign * step;
+                    profile(&theta, Some(i))
+                };
+                let rise = (probe(1.0)? + probe(-1.0)?) / 2.0 - at;
+                (rise < (step / sd).powi(2) / 4.0).then(|| (step / rise.max(0.0).sqrt()).min(cap))
+            };
+            // Once more from the widened error, which probes further along the flat ridge.
+            let mut wide = None;
+            let mut sd = fixed;
+            for _ in 0..WIDENING_ROUNDS {
+                match widen(sd) {
+                    Some(w) if w > sd => {
+                        wide = Some(w);
+                        sd = w;
+                        if w >= cap {
+                            break;
+                        }
+                    }
+                    _ => break,
+                }
+            }
+            let Some(wide) = wide else {
+                continue;
+            };
+            let p = &mut r.params[i];
+            changed.push(format!(
+                "{} {} to {}{}",
+                p.name,
+                fmt_num(fixed),
+                if wide >= cap { "at least " } else { "" },
+                fmt_num(wide)
+            ));
+            p.std = Some(wide);
+            p.poorly_determined = wide >= cap || wide > p.value.abs();
+        }
+        Ok((!changed.is_empty()).then(|| {
+            format!(
+                "standard errors widened ({}): moved {PROBE} standard errors, with the predictor designed again there and the other parameters refitted, the likelihood rises by less than a quarter of what the fixed predictor's curvature says, as the noise model absorbs the change; the logs determine these parameters only this well",
+                changed.join(", ")
+            )
+        }))
+    }
+
     /// How much likelier `fit` is under `design` than `other` under its own (the fall of the
     /// `-2` log-likelihood, [`PredictionError::neg2_log_likelihood`]); `None` where either
     /// fails to predict.
@@ -1137,10 +1240,22 @@ impl Workbench {
     /// it, in 545 s).
     fn frf_start(&self, time: &FitResult) -> Option<FitResult> {
         let (frf, _) = self.fit_reweighted(&self.model, None).ok()?;
-        if !matches!(
-            super::discover::far_from_documented(&self.model, &frf.params),
-            Ok(None)
-        ) {
+        // A fit pressed against a bound, or gone to zero, is bent as well (a hopper's FRF fit
+        // with its lag missing put three coefficients at 0, and the start won from there).
+        let documented = self.model.parameters().ok()?;
+        let pressed = frf.params.iter().any(|p| {
+            let doc = documented
+                .iter()
+                .find(|d| d.name == p.name)
+                .map_or(0.0, |d| d.value);
+            !p.held && p.std.is_some() && (p.at_bound || (p.value == 0.0 && doc != 0.0))
+        });
+        if pressed
+            || !matches!(
+                super::discover::far_from_documented(&self.model, &frf.params),
+                Ok(None)
+            )
+        {
             return None;
         }
         time.params
@@ -1266,7 +1381,8 @@ impl Workbench {
     /// Fits the current model by prediction error and records it (`compare` and `fit` with
     /// the time-domain criterion).
     pub(crate) fn compare_time(&self) -> Result<Discovery> {
-        let (r, design, start_note) = self.fit_starting()?;
+        let (mut r, design, start_note) = self.fit_starting()?;
+        let widened = self.widened_errors(&self.model, &mut r)?;
         let fitted = Fitted {
             model: self.model.clone(),
             added: None,
@@ -1275,6 +1391,7 @@ impl Workbench {
         };
         let mut d = self.conclude(vec![fitted], &design, Vec::new(), START_WEIGHTING)?;
         d.conclusion.warnings.extend(start_note);
+        d.conclusion.warnings.extend(widened);
         Ok(d)
     }
 
@@ -1353,10 +1470,16 @@ impl Workbench {
         } else {
             START_WEIGHTING
         };
+        // What a user reads: the final model's errors as the logs determine them.
+        let widened = match done.last_mut().filter(|_| explain) {
+            Some(last) => self.widened_errors(&last.model.clone(), &mut last.r)?,
+            None => None,
+        };
         let last = done.last().cloned();
         let mut d = self.conclude(done, &design, found, weighting)?;
         d.conclusion.warnings.extend(start_note);
         d.conclusion.warnings.extend(refit_note);
+        d.conclusion.warnings.extend(widened);
         if let Some(last) = last.filter(|_| explain && d.conclusion.unexplained) {
             progress("fitting each candidate alone where the misfit remains");
             d.conclusion.explain_alone = self.misfit_removers(&last)?;
@@ -1627,6 +1750,11 @@ impl Workbench {
                             .into_iter()
                             .collect();
                         why.extend(super::discover::unmeasured_effects(m, &last.params)?);
+                        why.extend(super::closed_loop::unstable_loop(
+                            m,
+                            &last.params,
+                            &self.data,
+                        )?);
                         why
                     }
                     None => Vec::new(),
@@ -1822,7 +1950,8 @@ impl Search for TimeSearch<'_> {
         effect: &str,
         n: usize,
     ) -> Result<(Fitted, CandidateScore)> {
-        let (model, r, score) = self.wb.score_time(at, (self.design, r0), effect, n)?;
+        let (model, r, mut score) = self.wb.score_time(at, (self.design, r0), effect, n)?;
+        score.builtin = at.model.is_builtin(effect);
         let fit = Fitted {
             model,
             added: Some(effect.to_string()),
@@ -1892,6 +2021,19 @@ const START_SPREAD: f64 = 3.0;
 /// log-likelihood, about the price of one parameter (less is a tie, and the documented start
 /// stays).
 const START_MARGIN: f64 = 2.0;
+
+/// Standard errors of the fit by which [`Workbench::widened_errors`] moves each parameter.
+const PROBE: f64 = 3.0;
+
+/// The most a standard error is widened by.
+const MAX_WIDENING: f64 = 10.0;
+
+/// Rounds of [`Workbench::widened_errors`] per parameter: a widened error is probed again.
+const WIDENING_ROUNDS: usize = 2;
+
+/// Iterations of each refit of [`Workbench::widened_errors`]'s profile (a refit from the fit,
+/// one parameter moved a few standard errors, takes two or three).
+const PROFILE_ITERATIONS: usize = 5;
 
 /// Whether two estimates of a parameter lie more than [`START_SPREAD`] combined standard
 /// errors apart (a held estimate has none, and agrees).

@@ -2,7 +2,7 @@
 //! every remaining candidate effect, add the one the criterion admits, repeat until none is.
 //! The FRF cost, the prediction error and the Cubli's window regression differ in how they fit
 //! and score a candidate ([`Search`]), never in the loop.
-use crate::discover::{in_parallel, worth_following, CandidateScore, Followed};
+use crate::discover::{in_parallel, twins, worth_following, CandidateScore, Followed};
 use crate::error::{Result, SimError};
 
 /// What a criterion gives the forward selection.
@@ -29,8 +29,8 @@ pub trait Search: Sync {
     ) -> Result<(Self::Fit, CandidateScore)>;
 
     /// Which tried candidate to add, if any. By default the one of lowest cost (the first of
-    /// equals), when it is significant: a less good candidate that is significant while the
-    /// best is not would be chosen for its test, not for its fit.
+    /// equals, the file's of twins), when it is significant: a less good candidate that is
+    /// significant while the best is not would be chosen for its test, not for its fit.
     fn choose(&self, _at: &mut Self::Fit, tried: &[(Self::Fit, CandidateScore)]) -> Option<usize> {
         // Only a strictly lower cost displaces the earlier candidate (an equal or NaN one
         // does not).
@@ -39,6 +39,11 @@ pub trait Search: Sync {
             Some(b) => Some(b),
             None => Some(i),
         })?;
+        // A built-in effect's twin from the model file is the same effect under the file's
+        // name ([`twins`]): a hopper's gimbal lag, not `actuator_lag` a hair below it.
+        let best = (0..tried.len())
+            .find(|&j| !tried[j].1.builtin && twins(&tried[best].1, &tried[j].1))
+            .unwrap_or(best);
         tried[best].1.significant.then_some(best)
     }
 
@@ -396,6 +401,8 @@ mod tests {
                 followed: None,
                 failed: None,
                 set_aside: None,
+                // The scripted search's built-in effect: the lag every model is offered.
+                builtin: effect == "actuator_lag",
             };
             Ok(((effects, cost, Vec::new()), score))
         }
@@ -447,6 +454,23 @@ mod tests {
         let (_, added) =
             forward_selection(&table, (Vec::new(), 100.0, Vec::new()), &mut |_: &str| {}).unwrap();
         assert!(added.is_empty());
+    }
+
+    /// Of twins (the file's effect and a built-in one fitting to the same cost within a
+    /// hundredth of a noise variance) the file's is added even a hair behind; a built-in
+    /// effect clearly ahead is added as itself.
+    #[test]
+    fn the_files_effect_is_added_in_place_of_its_built_in_twin() {
+        for (gap, chosen) in [(0.001, "gimbal_lag"), (1.0, "actuator_lag")] {
+            let table = Scripted::gains(vec![
+                ("gimbal_lag", 30.0, true),
+                ("actuator_lag", 30.0 + gap, true),
+            ]);
+            let (_, added) =
+                forward_selection(&table, (Vec::new(), 100.0, Vec::new()), &mut |_: &str| {})
+                    .unwrap();
+            assert_eq!(added.first().map(String::as_str), Some(chosen), "gap {gap}");
+        }
     }
 
     /// A candidate whose fit fails is reported with its error and the search goes on without
