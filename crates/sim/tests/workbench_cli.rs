@@ -139,6 +139,18 @@ fn fit_with_effects_reports_parameters_with_standard_errors() {
         s > 0.0 && (c - 0.018).abs() < 4.0 * s + 0.002,
         "c_omega_t0 = {c} +- {s}"
     );
+    // The summary does not read as if the effects given had been rejected.
+    let summary = ok(&[
+        "fit",
+        "--with",
+        "momentum_drag,fan_gyroscopic",
+        "--data",
+        logs.to_str().unwrap(),
+    ]);
+    assert!(
+        summary.contains("found: nothing searched") && !summary.contains("found: []"),
+        "{summary}"
+    );
 }
 
 #[test]

@@ -1104,7 +1104,16 @@ impl Conclusion {
 
     /// The closing lines of a terminal summary: found, tentative and why, verdict.
     pub fn lines(&self) -> String {
-        let mut s = format!("found: [{}]\n", self.found.join(", "));
+        // `compare` and `fit` search nothing: an empty "found" beside their verdict read as
+        // if the effects given to `fit --with` had been rejected.
+        let mut s = match self.candidates {
+            Candidates::Untried => {
+                "found: nothing searched (compare and fit fit the model as given, with the \
+                 effects named by --with; discover searches the candidates)\n"
+                    .to_string()
+            }
+            _ => format!("found: [{}]\n", self.found.join(", ")),
+        };
         if let Some(t) = self.tentative_sentence() {
             let _ = writeln!(s, "tentative: {t}");
         }
