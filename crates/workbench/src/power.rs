@@ -2085,17 +2085,15 @@ D = [[-4.0, -3.0]]
     #[test]
     fn a_low_pass_process_noise_is_read_from_the_logs_spectrum() {
         for seed in [1, 2, 3] {
-            let coloured = coloured_logs(MODEL, (4, 8), 1e-3, 0.5, &[1e-5], seed);
-            let spec = prepare(
-                MODEL,
-                Path::new("cart.toml"),
-                coloured,
-                &StudyOptions {
+            let study = |correlation_s: f64, sensor_sd: f64| {
+                let logs = coloured_logs(MODEL, (4, 8), 1e-3, correlation_s, &[sensor_sd], seed);
+                let options = StudyOptions {
                     seed,
                     ..options(vec![0.0], 1)
-                },
-            )
-            .unwrap();
+                };
+                prepare(MODEL, Path::new("cart.toml"), logs, &options).unwrap()
+            };
+            let spec = study(0.5, 1e-5);
             let shape = spec.process_noise_shape.clone().expect("a shape");
             assert!(
                 (0.25..=1.0).contains(&shape.correlation_s),
@@ -2111,18 +2109,7 @@ D = [[-4.0, -3.0]]
                 "seed {seed}: {:?}",
                 spec.noise_warnings
             );
-            let white = coloured_logs(MODEL, (4, 8), 1e-3, 0.0, &[1e-4], seed);
-            let spec = prepare(
-                MODEL,
-                Path::new("cart.toml"),
-                white,
-                &StudyOptions {
-                    seed,
-                    ..options(vec![0.0], 1)
-                },
-            )
-            .unwrap();
-            assert_eq!(spec.process_noise_shape, None, "seed {seed}");
+            assert_eq!(study(0.0, 1e-4).process_noise_shape, None, "seed {seed}");
         }
     }
 
