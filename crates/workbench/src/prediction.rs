@@ -1240,22 +1240,10 @@ impl Workbench {
     /// it, in 545 s).
     fn frf_start(&self, time: &FitResult) -> Option<FitResult> {
         let (frf, _) = self.fit_reweighted(&self.model, None).ok()?;
-        // A fit pressed against a bound, or gone to zero, is bent as well (a hopper's FRF fit
-        // with its lag missing put three coefficients at 0, and the start won from there).
-        let documented = self.model.parameters().ok()?;
-        let pressed = frf.params.iter().any(|p| {
-            let doc = documented
-                .iter()
-                .find(|d| d.name == p.name)
-                .map_or(0.0, |d| d.value);
-            !p.held && p.std.is_some() && (p.at_bound || (p.value == 0.0 && doc != 0.0))
-        });
-        if pressed
-            || !matches!(
-                super::discover::far_from_documented(&self.model, &frf.params),
-                Ok(None)
-            )
-        {
+        if !matches!(
+            super::discover::far_from_documented(&self.model, &frf.params),
+            Ok(None)
+        ) {
             return None;
         }
         time.params
