@@ -1032,7 +1032,9 @@ impl Study {
                     }
                     _ => fresh,
                 };
-                last = Some(drawn.clone());
+                if pole > 0.0 {
+                    last = Some(drawn.clone());
+                }
                 let n = n_noise.min(w.len());
                 w.rows_mut(0, n).copy_from(&drawn.rows(0, n));
                 for (vi, sd) in v.iter_mut().zip(sd.iter()) {
