@@ -3,8 +3,9 @@ a discrete PID, a low-pass gust): under the time criterion the lateral coefficie
 the closed-loop logs determine poorly, get standard errors that cover the truth, where the
 fixed predictor's were 5-11 times too small; under the FRF criterion a fitted model that the
 file's controller cannot stabilise is named, exactly when its closed-loop eigenvalues say so;
-and the file's own gimbal lag, the same model as the built-in `actuator_lag`, is found, not
-left tentative beside its twin."""
+the file's own gimbal lag, the same model as the built-in `actuator_lag`, is found, not
+left tentative beside its twin; and under the time criterion the built-in lag, which the
+selection misses, is added as the one candidate that explains the logs alone."""
 from __future__ import annotations
 
 import json
@@ -148,3 +149,22 @@ def test_the_files_own_lag_is_found_beside_its_built_in_twin(tmp_path, seed):
     assert doc["found"] == ["gimbal_lag"], (doc["found"], doc["verdict_text"])
     value, std = final_params(doc)["tau"]
     assert abs(value - ih.TRUTH["tau"]) <= 3.0 * std, (value, std)
+
+
+def test_the_time_criterion_adds_the_gimbal_lag_the_selection_misses_on_most_seeds(tmp_path):
+    # The nonlinear file has no lag of its own: the built-in `actuator_lag` is the candidate.
+    # Under the starting model's predictor (the gust taken for white noise) the selection adds
+    # nothing; fitted alone under its own predictor it explains the logs. Measured on seeds
+    # 1-3: added on 2 and 3 (tau 24.5 ± 0.2 and 24.9 ± 2.3 ms for 25), seed 1 still a misfit
+    # (as `fit --with actuator_lag` reads there); before, none of the 3.
+    added = []
+    for seed in [1, 2, 3]:
+        data = ih.run(str(tmp_path / f"data{seed}"), seed, "lag")
+        doc = discover(tmp_path, NONLINEAR + CONTROLLER, data)
+        if doc["found"] == ["actuator_lag"]:
+            value, std = final_params(doc)["tau"]
+            assert abs(value - ih.TRUTH["tau"]) <= 3.0 * std, (seed, value, std)
+            added.append(seed)
+        else:
+            assert doc["found"] == [] and doc["unexplained"], (seed, doc["verdict_text"])
+    assert len(added) >= 2, added

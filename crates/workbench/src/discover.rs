@@ -547,7 +547,8 @@ impl Verdict {
                     format!("in outputs [{}]", outputs.join(", "))
                 };
                 format!(
-                    "unexplained structured misfit (p = {p_value:.2e}) {which}{place}; {closing}"
+                    "unexplained structured misfit ({}) {which}{place}; {closing}",
+                    super::stats::p_scientific(*p_value)
                 )
             }
         }
@@ -1071,9 +1072,11 @@ impl Conclusion {
                 format!(
                     "{sentence}; yet fitted alone, {each}{} leaves the innovations uncorrelated \
                      with the excitation (`fit --with` the effect reads explained{apart}), \
-                     though the prediction error falls by less than the selection needs: an \
-                     effect the outputs hardly see at the operating point, such as an offset \
-                     the loop regulates away, shows in that correlation and not in the cost",
+                     though the selection, which scores every candidate under the starting \
+                     model's predictor, did not add it: an effect the outputs hardly see at the \
+                     operating point (an offset the loop regulates away) barely lowers that \
+                     cost, and a fit that predictor bent (a low-pass disturbance it takes for \
+                     white noise) stays bent there",
                     self.explain_alone.join("; ")
                 )
             }

@@ -194,10 +194,26 @@ pub(crate) fn p_equals(p: f64) -> String {
     }
 }
 
+/// `p = 1.23e-5`, or `p < 1e-300` where it underflows: over thousands of residuals a gross
+/// misfit's tail probability rounds to zero, and "p = 0.00e0" reads as a certainty.
+pub(crate) fn p_scientific(p: f64) -> String {
+    if p < 1e-300 {
+        "p < 1e-300".to_string()
+    } else {
+        format!("p = {p:.2e}")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn a_p_value_that_underflows_is_a_bound() {
+        assert_eq!(p_scientific(0.0), "p < 1e-300");
+        assert_eq!(p_scientific(1.52e-3), "p = 1.52e-3");
+    }
 
     #[test]
     fn a_p_value_that_rounds_to_one_is_not_printed_as_one() {
