@@ -1319,12 +1319,7 @@ impl Workbench {
         // `sensor_bias` stopped short there, where `fit --with` from the documented values
         // found 0.01997): it is fitted again from the documented values, each new parameter
         // scanned over its bounds, and the better fit kept.
-        let far = 1.0 / FAR_FROM_DOCUMENTED..=FAR_FROM_DOCUMENTED;
-        let bent = old.iter().zip(&current.r.theta).any(|(q, &v)| {
-            (q.lower < q.upper && (v <= q.lower || v >= q.upper))
-                || (q.value != 0.0 && !far.contains(&(v / q.value)))
-        });
-        if bent {
+        if bent(&old, &current.r.theta) {
             let mut scanned: Vec<f64> = params.iter().map(|q| q.value).collect();
             choose(&mut scanned, &super::discover::scan_grid);
             if let Ok(b) = solve(&pe, &params, Some(&scanned), &opts) {
@@ -1530,7 +1525,7 @@ impl Workbench {
             ADDED_WEIGHTING,
         )?;
         d.conclusion.warnings.push(format!(
-            "{effect} was added after the selection: fitted alone on the starting model under its own predictor, it is the one candidate that leaves the innovations uncorrelated with the excitation ({sentence}), where the selection's final model reads a misfit{}; the selection scores every candidate under the starting model's predictor, and a fit that predictor bent (a low-pass disturbance it takes for white noise) stays bent there, so check it against the FRF criterion's reading (--criterion frf)",
+            "{effect} was added after the selection: fitted alone on the starting model under its own predictor, it is the one candidate that leaves the innovations uncorrelated with the excitation ({sentence}), where the selection's final model reads a misfit{}; the selection scores every candidate under the starting model's predictor, and a fit that predictor bent (a low-pass disturbance or a coarse quantizer's memory, which it takes for white noise) stays bent there, so check it against the FRF criterion's reading (--criterion frf)",
             left_out.unwrap_or_default()
         ));
         d.conclusion.warnings.extend(notes);
@@ -1563,7 +1558,7 @@ impl Workbench {
     }
 
     /// The candidates that, each fitted alone on top of `last` under its own predictor (from
-    /// `last`'s fit, and else from the documented values as `fit --with` fits it), leave the
+    /// `last`'s fit, and else from the FRF criterion's fit, as `fit --with` may), leave the
     /// innovations uncorrelated with the excitation, each with its new parameters ([`super::discover::Conclusion::explain_alone`]). The selection scores a
     /// candidate by how much it lowers the prediction error, and some effects barely do: a
     /// reactor's thermocouple offset of 0.5 K, which the loop regulates away and the rate
@@ -1588,20 +1583,20 @@ impl Workbench {
                     let explains = |(r, design): (FitResult, Design)| {
                         self.explained_under_own(&with, Some(&effect), r, design)
                     };
-                    // From `last`'s fit, and else from the documented values as `fit --with`
-                    // starts: from a fit bent by a low-pass disturbance under the held design
-                    // the candidate's fit can stay bent (a car above its critical speed, its
-                    // rear cornering stiffness at a fifth of the truth: `tyre_lag` explained
-                    // nothing from there and the logs from the documented values, p > 0.999).
+                    // From `last`'s fit, and where that does not explain, from the FRF
+                    // criterion's fit of the candidate's model (which the excitation alone
+                    // drives), as `fit --with` may start: from a fit bent by a low-pass
+                    // disturbance under the held design the candidate's fit can stay bent (a
+                    // car above its critical speed, its rear cornering stiffness at a fifth of
+                    // the truth: `tyre_lag` explained nothing from there, and from the FRF fit
+                    // the logs, p > 0.999; from the documented values alone it did not).
                     let tried = || -> Result<Option<Explained>> {
                         let start = self.carry_over(&last.model, &last.r.theta, &with)?;
                         if let Some(found) = explains(self.fit_time(&with, Some(&start), None)?)? {
                             return Ok(Some(found));
                         }
-                        let mut alone = self.clone();
-                        alone.model = with.clone();
-                        let (r, design, _) = alone.fit_starting()?;
-                        explains((r, design))
+                        let (frf, _) = self.fit_reweighted(&with, None)?;
+                        explains(self.fit_time(&with, Some(&frf.theta), None)?)
                     };
                     let Some((step, p_value, fitted, design)) = tried().ok().flatten() else {
                         return Ok(None);
@@ -2094,6 +2089,16 @@ impl Search for TimeSearch<'_> {
     fn parallel(&self) -> bool {
         self.wb.model.parallel()
     }
+}
+
+/// Whether a fit `theta` of `params` sits where a missing effect bent it: a parameter at a
+/// bound or [`FAR_FROM_DOCUMENTED`] times from its documented value.
+fn bent(params: &[Parameter], theta: &[f64]) -> bool {
+    let far = 1.0 / FAR_FROM_DOCUMENTED..=FAR_FROM_DOCUMENTED;
+    params.iter().zip(theta).any(|(q, &v)| {
+        (q.lower < q.upper && (v <= q.lower || v >= q.upper))
+            || (q.value != 0.0 && !far.contains(&(v / q.value)))
+    })
 }
 
 /// Why a misfit verdict may be the logs' quantization rather than the model
