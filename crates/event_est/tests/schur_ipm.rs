@@ -18,9 +18,17 @@ fn rel(a: f64, b: f64) -> f64 {
 
 /// Step 1 objective tr X = c*²·s: both solvers return post-verified gains; where Clarabel
 /// reports `Solved` (3 vehicles) the optima agree to 1e-6, where it stops at `AlmostSolved`
-/// (≥ 4 vehicles) the Schur method's c* is never larger and within 1e-3 of Clarabel's.
+/// (≥ 4 vehicles) the Schur method's c* is never larger than Clarabel's, and within 5e-4 of
+/// the spec's independent CVXPY + Clarabel reproduction (table 7.5, 4 digits, itself stopped
+/// at `AlmostSolved`). Where in-process Clarabel stops depends on the machine: on one with
+/// AVX-512 it stopped at c* = 0.029174 for 6 vehicles, 1.1e-3 above the table's 0.02914,
+/// where the Schur method's 0.029148 is 2.9e-4 from it.
 #[test]
 fn cor13_step1_matches_clarabel_for_3_4_6_vehicles() {
+    let table = |m: usize| match m {
+        4 => 0.01535,
+        _ => 0.02914,
+    };
     for m in [3usize, 4, 6] {
         let (sys, _) = platoon(m).unwrap();
         let ipm = step1_using(&sys, Stability::Cor13, Solver::SchurIpm).unwrap();
@@ -40,9 +48,11 @@ fn cor13_step1_matches_clarabel_for_3_4_6_vehicles() {
             );
         } else {
             assert!(ipm.c_star <= cla.c_star * (1.0 + 1e-7), "M = {m}");
+            let spec = rel(ipm.c_star, table(m));
             assert!(
-                objective < 1e-3,
-                "M = {m}: relative objective gap {objective:e}"
+                spec < 5e-4,
+                "M = {m}: c* {} is {spec:e} from the table",
+                ipm.c_star
             );
         }
         // Gains of the two solvers agree to the accuracy of the objective.
