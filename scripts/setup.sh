@@ -31,7 +31,7 @@ if [ ! -x .venv/bin/python ]; then
     python3 -m venv .venv
 fi
 stamp=.venv/.stabilis-deps
-deps="maturin>=1.9.4,<2 pytest numpy scipy mcap control dask[distributed]"
+deps="maturin>=1.9.4,<2 pytest pytest-xdist numpy scipy mcap control dask[distributed]"
 # Versions pinned by a constraints file: an unpinned install changed numpy/scipy under the
 # tests between two machines (see the file's header).
 constraints=scripts/python-constraints.txt

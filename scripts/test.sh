@@ -1,8 +1,15 @@
 #!/usr/bin/env bash
 # Runs every check of stabilis: formatting, lints, Rust tests, the no_std builds,
-# benchmark compilation, the Python wheel and its tests.
+# benchmark compilation, the Python wheel and its tests. `--campaigns` adds the further seeds of
+# the studies that take a minute or more per seed (pytest's `campaign` mark, STABILIS_CAMPAIGNS).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+campaigns=false
+case "${1:-}" in
+    "") ;;
+    --campaigns) campaigns=true ;;
+    *) echo "usage: scripts/test.sh [--campaigns]" >&2; exit 2 ;;
+esac
 scripts/setup.sh
 
 step() { echo; echo "== $*"; }
@@ -12,7 +19,12 @@ cargo fmt --all --check
 step "cargo clippy"
 cargo clippy --workspace --all-targets --release -- -D warnings
 step "cargo test"
-cargo test --workspace --release
+# The Rust studies read the same choice from STABILIS_CAMPAIGNS (their further seeds).
+if $campaigns; then
+    STABILIS_CAMPAIGNS=1 cargo test --workspace --release
+else
+    cargo test --workspace --release
+fi
 step "no_std builds"
 for crate in rigid_body tilt cubli event_est; do
     cargo build --release -p "$crate" --no-default-features --features libm
@@ -31,4 +43,7 @@ step "pytest"
 cargo build --release -q -p sim --bin stabilis
 export STABILIS_BIN="$PWD/target/release/stabilis"
 site="$PWD/target/pytest-site"
-(cd py && PYTHONPATH="$site" ../.venv/bin/python -m pytest -q tests)
+# Two workers; a worker that runs out of tests takes some of the other's.
+select=(-m "not campaign")
+$campaigns && select=()
+(cd py && PYTHONPATH="$site" ../.venv/bin/python -m pytest -q -n 2 --dist worksteal "${select[@]}" tests)

@@ -29,6 +29,7 @@ import pytest
 from mcap.reader import make_reader
 
 import independent_cartpole as ic
+from seeds import campaign_seeds
 from test_interop import stabilis_bin
 
 MODEL = Path(__file__).parent / "data" / "cart_pole.toml"
@@ -375,7 +376,8 @@ def check(case, doc):
     CHECKS.get(case, lambda d: check_found(d, case))(doc)
 
 
-@pytest.mark.parametrize("case, seed", [(c, s) for c, seeds in SEEDS.items() for s in seeds])
+@pytest.mark.parametrize("case, seed", [p for c, seeds in SEEDS.items()
+                                         for p in campaign_seeds(*((c, s) for s in seeds))])
 def test_cli_discover_with_the_model_file(campaigns, tmp_path, case, seed):
     check(case, discover_cli(campaigns(case, seed), tmp_path))
 

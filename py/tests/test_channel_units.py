@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 import independent_cartpole as ic
+from seeds import campaign_seeds
 from test_interop import run_cli
 
 MODEL = Path(__file__).parent / "data" / "cart_pole.toml"
@@ -63,7 +64,7 @@ def test_a_channel_in_another_unit_is_named(tmp_path, case, seed):
         assert sentence in text, text
 
 
-@pytest.mark.parametrize("seed", (1, 2))
+@pytest.mark.parametrize("seed", campaign_seeds(1, 2))
 def test_some_outputs_in_another_unit_are_named_together(tmp_path, seed):
     # The double pendulum's two link angles logged in degrees, its cart in metres: neither
     # one angle alone nor every output explains the logs, the two angles together do (cost 6

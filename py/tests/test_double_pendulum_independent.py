@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 import independent_double_pendulum as dp
 from test_interop import discover_model_file
 
@@ -54,6 +56,7 @@ def test_correct_logs_name_the_quantization_and_read_explained_under_the_frf_cri
     assert frf.endswith("the same logs read explained, nothing added"), frf
 
 
+@pytest.mark.campaign  # about 6 minutes
 def test_an_encoder_offset_is_added_alone_and_its_refit_kept(tmp_path):
     # A 0.01 rad offset of the first link's encoder. With each record's predictor started at
     # the operating point (not at its fitted state) a rod's viscous friction was added beside

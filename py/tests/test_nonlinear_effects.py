@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 import independent_cartpole as ic
+from seeds import campaign_seeds
 from test_cartpole_independent import python_model
 from test_nonlinear_independent import MODEL, python_cart_pole, why
 
@@ -112,7 +113,7 @@ def file_fit_with_viscous(stabilis, data):
     return ref.fit()["steps"][-1]["params"]
 
 
-@pytest.mark.parametrize("seed", [7, 8])
+@pytest.mark.parametrize("seed", campaign_seeds(7, 8))
 def test_a_suspected_nonlinear_effect_is_found_as_the_file_declares_it(tmp_path, seed):
     # Discovery on the Python model with the suspected effect names it (and nothing else),
     # b within TOLERANCE of the truth, every fitted parameter of its last step the model

@@ -1470,23 +1470,19 @@ impl Workbench {
             return Ok(d);
         };
         progress("fitting each candidate alone where the misfit remains");
-        let removers = self.misfit_removers(last)?;
         // The one candidate that explains the logs on the starting model alone is added,
         // fitted and tested under its own predictor, in place of what the selection added
         // (tentative, as the misfit remained).
         let start = &selected[0];
-        let mut alone = if selected.len() == 1 {
-            removers
-        } else {
-            let alone = self.misfit_removers(start)?;
-            if alone.len() != 1 {
-                d.conclusion.explain_alone = removers.into_iter().map(|r| r.sentence).collect();
-                return Ok(d);
-            }
-            alone
-        };
+        let mut alone = self.misfit_removers(start)?;
         if alone.len() != 1 {
-            d.conclusion.explain_alone = alone.into_iter().map(|r| r.sentence).collect();
+            // Otherwise the verdict names those that explain on top of the selection's model.
+            let named = if selected.len() > 1 {
+                self.misfit_removers(last)?
+            } else {
+                alone
+            };
+            d.conclusion.explain_alone = named.into_iter().map(|r| r.sentence).collect();
             return Ok(d);
         }
         let Remover {
@@ -1579,7 +1575,7 @@ impl Workbench {
                     let Ok(with) = last.model.with_effect(&effect) else {
                         return Ok(None);
                     };
-                    // The verdict of `with` fitted under its own predictor from `start`'s fit.
+                    // The verdict of `with` fitted under its own predictor from a start.
                     let explains = |(r, design): (FitResult, Design)| {
                         self.explained_under_own(&with, Some(&effect), r, design)
                     };

@@ -71,6 +71,17 @@ const CLEAN: Truth = Truth {
 };
 
 /// Truth: k = 25, c = 12, dry friction `tc`, sensor offset `bias`.
+/// The seeds of a study that takes a minute or more per seed: the first on every run, all of
+/// them where `STABILIS_CAMPAIGNS` is set (`scripts/test.sh --campaigns`), as pytest's
+/// `campaign` mark does.
+fn campaign_seeds(seeds: &[u64]) -> &[u64] {
+    if std::env::var_os("STABILIS_CAMPAIGNS").is_some() {
+        seeds
+    } else {
+        &seeds[..1]
+    }
+}
+
 fn campaign(tc: f64, bias: f64, seed: u64) -> Dataset {
     simulate(Truth { tc, bias, ..CLEAN }, seed)
 }
@@ -576,7 +587,8 @@ fn nothing_hidden_finds_nothing() {
 #[test]
 fn dry_friction_and_a_sensor_offset_are_found_as_themselves() {
     let mut confirmed = 0;
-    for seed in [21, 22, 23] {
+    let seeds = campaign_seeds(&[21, 22, 23]);
+    for &seed in seeds {
         let wb = workbench(campaign(0.3, 0.0, seed));
         let d = wb.discover().unwrap();
         // The step table's fit % is the criterion's own (the EKF's k-step prediction), and it
@@ -609,8 +621,12 @@ fn dry_friction_and_a_sensor_offset_are_found_as_themselves() {
         let tc = last.params.iter().find(|p| p.name == "tc").unwrap().value;
         assert!((tc / 0.3 - 1.0).abs() < 0.1, "seed {seed}: tc {tc}");
     }
-    assert!(confirmed >= 2, "confirmed on {confirmed} of 3 seeds");
-    for seed in [31, 32, 33] {
+    // The rate over the campaign's three seeds.
+    assert!(
+        seeds.len() < 3 || confirmed >= 2,
+        "confirmed on {confirmed} of 3 seeds"
+    );
+    for &seed in campaign_seeds(&[31, 32, 33]) {
         let d = workbench(campaign(0.0, 0.02, seed)).discover().unwrap();
         // One input and one output held by the loop: an angle offset b and a torque offset
         // d = -k b / c hold the same levels (k sin(y - b) + c u = 0 against k sin(y) + c (u +
@@ -935,7 +951,7 @@ fn far_documented_values_reach_the_same_discovery() {
             "c = { value = 96.0, min = 1.0, max = 100.0 }",
         );
     assert_ne!(far, PENDULUM);
-    for seed in [21, 23] {
+    for &seed in campaign_seeds(&[21, 23]) {
         let near = workbench(campaign(0.3, 0.0, seed)).discover().unwrap();
         let d = workbench_with(&far, campaign(0.3, 0.0, seed), None)
             .discover()
@@ -1499,7 +1515,7 @@ fn a_weak_actuator_is_found_by_its_gain() {
 /// criterion reads a misfit too, still the lag and how to fit it (3 of 3; before, nothing).
 #[test]
 fn an_output_lag_the_frf_criterion_adds_is_named_beside_a_misfit() {
-    for seed in 1..=3 {
+    for &seed in campaign_seeds(&[1, 2, 3]) {
         for coupling in [0.0, 0.03] {
             let truth = StandTruth {
                 gyro_lag: 0.01,
