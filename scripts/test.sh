@@ -10,6 +10,8 @@ case "${1:-}" in
     --campaigns) campaigns=true ;;
     *) echo "usage: scripts/test.sh [--campaigns]" >&2; exit 2 ;;
 esac
+# The Rust studies read the choice from STABILIS_CAMPAIGNS (their further seeds).
+$campaigns && export STABILIS_CAMPAIGNS=1
 scripts/setup.sh
 
 step() { echo; echo "== $*"; }
@@ -19,12 +21,7 @@ cargo fmt --all --check
 step "cargo clippy"
 cargo clippy --workspace --all-targets --release -- -D warnings
 step "cargo test"
-# The Rust studies read the same choice from STABILIS_CAMPAIGNS (their further seeds).
-if $campaigns; then
-    STABILIS_CAMPAIGNS=1 cargo test --workspace --release
-else
-    cargo test --workspace --release
-fi
+cargo test --workspace --release
 step "no_std builds"
 for crate in rigid_body tilt cubli event_est; do
     cargo build --release -p "$crate" --no-default-features --features libm

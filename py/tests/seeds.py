@@ -13,3 +13,9 @@ def campaign_seeds(*seeds) -> list:
     mark = pytest.mark.campaign
     return [first, *(pytest.param(*s, marks=mark) if isinstance(s, tuple)
                      else pytest.param(s, marks=mark) for s in rest)]
+
+
+def campaign_cases(seeds: dict, *names: str) -> list:
+    """(case, seed) pairs of `seeds` (each case's seeds, by name) for the cases `names` (all
+    where none are named), each case's seeds after its first marked `campaign`."""
+    return [p for c in (names or seeds) for p in campaign_seeds(*((c, s) for s in seeds[c]))]

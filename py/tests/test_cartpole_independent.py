@@ -29,7 +29,7 @@ import pytest
 from mcap.reader import make_reader
 
 import independent_cartpole as ic
-from seeds import campaign_seeds
+from seeds import campaign_cases
 from test_interop import stabilis_bin
 
 MODEL = Path(__file__).parent / "data" / "cart_pole.toml"
@@ -376,8 +376,7 @@ def check(case, doc):
     CHECKS.get(case, lambda d: check_found(d, case))(doc)
 
 
-@pytest.mark.parametrize("case, seed", [p for c, seeds in SEEDS.items()
-                                         for p in campaign_seeds(*((c, s) for s in seeds))])
+@pytest.mark.parametrize("case, seed", campaign_cases(SEEDS))
 def test_cli_discover_with_the_model_file(campaigns, tmp_path, case, seed):
     check(case, discover_cli(campaigns(case, seed), tmp_path))
 

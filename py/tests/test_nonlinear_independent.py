@@ -34,7 +34,7 @@ import pytest
 from scipy.linalg import solve_discrete_are
 
 import independent_cartpole as ic
-from seeds import campaign_seeds
+from seeds import campaign_cases, campaign_seeds
 from test_cartpole_independent import (bad_copy, campaign_cache, check_names_the_unstable_pole,
                                        cli, evaluate, param, python_model, read_log,
                                        refused, require_model_option)
@@ -314,12 +314,6 @@ def cases(*names):
     return [(c, s) for c in names for s in SEEDS[c]]
 
 
-def studies(*names):
-    """`cases` of the discoveries that take half a minute per seed, each case's further seeds
-    marked `campaign`."""
-    return [p for c in names for p in campaign_seeds(*cases(c))]
-
-
 @pytest.mark.parametrize("case, seed", cases("nothing", "offset_x"))
 def test_nothing_hidden_finds_nothing(campaigns, tmp_path, case, seed):
     # offset_x: the logs are those of the nominal cart started at x = OFFSET_X (see
@@ -330,7 +324,7 @@ def test_nothing_hidden_finds_nothing(campaigns, tmp_path, case, seed):
     assert doc["steps"][-1]["residual_tests"]["coherence"]["band_hz"] is None, why(doc)
 
 
-@pytest.mark.parametrize("case, seed", studies("flex"))
+@pytest.mark.parametrize("case, seed", campaign_cases(SEEDS, "flex"))
 def test_a_missing_mode_is_located_at_its_frequency(campaigns, tmp_path, case, seed):
     # The appendage's resonance is in no effect of the file: the verdict is a misfit, and it
     # says where: the band where the innovations cohere with the excitation holds FLEX_HZ, and
@@ -352,7 +346,7 @@ FOUND = {"viscous": ("cart_viscous", "b", B_TRUE), "dry": ("cart_coulomb", "fc",
          "force_offset": ("input_bias", "bias_F", FORCE_OFFSET)}
 
 
-@pytest.mark.parametrize("case, seed", studies(*FOUND))
+@pytest.mark.parametrize("case, seed", campaign_cases(SEEDS, *FOUND))
 def test_a_hidden_effect_is_found_as_its_effect_at_its_level(campaigns, tmp_path, case, seed):
     # Viscous friction as cart_viscous, not cart_coulomb; dry friction as cart_coulomb, not
     # cart_viscous; the angle offset as sensor_bias (its bias_x stays unidentified: no test on

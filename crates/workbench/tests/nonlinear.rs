@@ -70,7 +70,6 @@ const CLEAN: Truth = Truth {
     fs: 100.0,
 };
 
-/// Truth: k = 25, c = 12, dry friction `tc`, sensor offset `bias`.
 /// The seeds of a study that takes a minute or more per seed: the first on every run, all of
 /// them where `STABILIS_CAMPAIGNS` is set (`scripts/test.sh --campaigns`), as pytest's
 /// `campaign` mark does.
@@ -82,6 +81,7 @@ fn campaign_seeds(seeds: &[u64]) -> &[u64] {
     }
 }
 
+/// Truth: k = 25, c = 12, dry friction `tc`, sensor offset `bias`.
 fn campaign(tc: f64, bias: f64, seed: u64) -> Dataset {
     simulate(Truth { tc, bias, ..CLEAN }, seed)
 }
