@@ -109,7 +109,7 @@ fn experiment(
         .is_some_and(|x| x.eq_ignore_ascii_case("csv"));
     Ok(if is_csv {
         let table = read_csv(file)?;
-        let fs = table.sample_rate(None, file)?;
+        let fs = sample_rate(&table, None, file)?;
         // The channels first: a log without an input names the input, not its excitation.
         let (u, y) = (columns(&table, inputs, "")?, columns(&table, outputs, "")?);
         let r = if table.fields.iter().any(|f| f.starts_with("r_")) {
@@ -185,7 +185,7 @@ fn experiment(
                 ));
             }
         }
-        let fs = input.sample_rate(meta.as_ref().map(|m| m.sample_rate_hz), file)?;
+        let fs = sample_rate(input, meta.as_ref().map(|m| m.sample_rate_hz), file)?;
         for (topic, t) in [("output", Some(output)), ("excitation", excitation)]
             .into_iter()
             .filter_map(|(topic, t)| Some((topic, t?)))
@@ -206,6 +206,16 @@ fn experiment(
         };
         (e, fs)
     })
+}
+
+/// The sample rate of `table` (see [`Table::sample_rate`]), with a warning on standard error
+/// when its stamps scatter around a regular grid: the samples are then taken as evenly spaced.
+fn sample_rate(table: &Table, declared: Option<f64>, file: &Path) -> Result<f64> {
+    let (fs, jitter) = table.sample_rate(declared, file)?;
+    if let Some(j) = jitter {
+        eprintln!("warning: {}: {j}", file.display());
+    }
+    Ok(fs)
 }
 
 /// Relative difference below which two logs' sample rates are one: loggers' clocks differ by

@@ -224,9 +224,13 @@ pub struct WelchLayout {
 pub const LOWER_EDGE_BIN: usize = 3;
 
 /// Segment length that puts `f_low` on bin [`LOWER_EDGE_BIN`]: `3 fs / f_low`, rounded up to
-/// even.
+/// even. A quotient within 1e-9 (relative) above an integer is that integer: the band's low
+/// edge is often the lowest frequency [`excited_band`] resolves, `3 fs / l` itself, and
+/// rounding then made the segment two samples longer or not as the clock's last digit fell
+/// (a levitator's logs, t shifted by 1 s or scaled by 1 + 1e-9: 1766 samples and 60 segments
+/// against 1764 and 64, and the fitted damping half a standard error apart).
 pub fn segment_length(sample_rate_hz: f64, f_low: f64) -> usize {
-    let l = (LOWER_EDGE_BIN as f64 * sample_rate_hz / f_low).ceil() as usize;
+    let l = (LOWER_EDGE_BIN as f64 * sample_rate_hz / f_low * (1.0 - 1e-9)).ceil() as usize;
     l + l % 2
 }
 
@@ -673,6 +677,20 @@ mod tests {
             if lengths.len() == 1 && l > 0 {
                 proptest::prop_assert_eq!(l, (2 * lengths[0] / (MIN_SEGMENTS + 1)) & !1);
             }
+        }
+    }
+
+    proptest::proptest! {
+        /// A band whose low edge is the lowest frequency `l`-sample segments resolve gets
+        /// those segments back, however `3 fs / l` rounds; a slightly lower edge rounds up.
+        #[test]
+        fn the_lowest_resolved_frequency_gives_its_segment_back(
+            half in 4usize..50_000, fs in 1e-3f64..1e5,
+        ) {
+            let l = 2 * half;
+            let floor = LOWER_EDGE_BIN as f64 * fs / l as f64;
+            proptest::prop_assert_eq!(segment_length(fs, floor), l);
+            proptest::prop_assert_eq!(segment_length(fs, floor * (1.0 - 1e-6)), l + 2);
         }
     }
 

@@ -10,7 +10,7 @@ mod writer;
 pub use self::csv::read_csv;
 pub use experiment::{Experiment, Periodic, EXPERIMENT};
 pub use reader::{read_mcap, read_mcap_bytes, Log};
-pub use table::Table;
+pub use table::{Jitter, Table};
 pub use writer::{LogWriter, TopicId, DEFAULT_FLUSH_EVERY};
 
 /// Refuses a list of logs in which one file appears twice (by another path, a link, or as an

@@ -7,6 +7,40 @@ use crate::error::{Result, SimError};
 /// repeated sample is a whole step off).
 pub const UNIFORM_TOLERANCE: f64 = 0.01;
 
+/// How far a stamp may lie from the regular grid fitted to all stamps, as a fraction of the
+/// period, for the samples to be taken as evenly spaced. A logger that stamps a message when it
+/// handles it scatters the stamps around the instants a hardware clock sampled; a missing or
+/// repeated sample moves every later stamp by a whole period, which no line through the stamps
+/// follows to better than half a period.
+pub const JITTER_TOLERANCE: f64 = 0.2;
+
+/// Time stamps that scatter around a regular grid by more than [`UNIFORM_TOLERANCE`] of a step
+/// but at most [`JITTER_TOLERANCE`] of the period: the samples are taken as evenly spaced at
+/// the grid's period, which the caller reports.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Jitter {
+    /// The sample whose stamp lies farthest from the grid.
+    pub sample: usize,
+    /// Its distance from the grid, s.
+    pub deviation: f64,
+    /// The grid's period (least squares through every stamp), s.
+    pub period: f64,
+}
+
+impl std::fmt::Display for Jitter {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "time stamps scatter around a regular grid by up to {:.3e} s ({:.1} % of the period, \
+             at sample {}); the samples are taken as evenly spaced at {:.6} Hz",
+            self.deviation,
+            100.0 * self.deviation / self.period,
+            self.sample,
+            1.0 / self.period
+        )
+    }
+}
+
 /// Time-stamped samples of named fields, stored by column.
 ///
 /// ```
@@ -116,12 +150,19 @@ impl Table {
         self.t.is_empty()
     }
 
-    /// The sample rate of a uniformly sampled table, Hz: a named error unless `t` increases in
-    /// steps that each stay within [`UNIFORM_TOLERANCE`] of their median, and, when `declared`
-    /// (the `sample_rate_hz` of the experiment record), unless that rate agrees with the steps
-    /// to the same tolerance. The spectral and time-domain fits assume one known step, so
-    /// either problem is an error, not a warning.
-    pub fn sample_rate(&self, declared: Option<f64>, file: &std::path::Path) -> Result<f64> {
+    /// The sample rate of a uniformly sampled table, Hz, and the stamps' [`Jitter`] if they
+    /// scatter. A named error unless `t` increases and either every step stays within
+    /// [`UNIFORM_TOLERANCE`] of the median step, or every stamp lies within
+    /// [`JITTER_TOLERANCE`] of a period from the regular grid fitted to them (a missing,
+    /// repeated or out-of-order sample, or a clock that changes rate, fails both); and, when
+    /// `declared` (the `sample_rate_hz` of the experiment record), unless that rate agrees with
+    /// the stamps to [`UNIFORM_TOLERANCE`]. The spectral and time-domain fits assume one known
+    /// step, so each problem is an error, not a warning.
+    pub fn sample_rate(
+        &self,
+        declared: Option<f64>,
+        file: &std::path::Path,
+    ) -> Result<(f64, Option<Jitter>)> {
         let t = &self.t;
         let name = if self.name == file.display().to_string() {
             self.name.clone()
@@ -135,7 +176,6 @@ impl Table {
                 "need at least two samples",
             ));
         }
-        let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
         for (k, w) in t.windows(2).enumerate() {
             if (w[1] - w[0]).partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                 return Err(SimError::invalid(
@@ -150,20 +190,71 @@ impl Table {
         let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
         let mid = steps.len() / 2;
         let typical = *steps.select_nth_unstable_by(mid, f64::total_cmp).1;
-        for (k, w) in t.windows(2).enumerate() {
-            let step = w[1] - w[0];
-            if (step - typical).abs() > UNIFORM_TOLERANCE * typical {
-                return Err(SimError::invalid(
-                    format!("t of {name} at sample {}", k + 1),
-                    format!("{} s", w[1]),
-                    format!(
-                        "uneven sampling: a step of {step:.6} s where the typical (median) step \
-                         is {typical:.6} s (samples missing, repeated or out of order?)"
-                    ),
-                ));
-            }
+        let uneven = |k: usize, value: f64, why: String| {
+            SimError::invalid(
+                format!("t of {name} at sample {k}"),
+                format!("{value} s"),
+                format!("uneven sampling: {why} (samples missing, repeated or out of order?)"),
+            )
+        };
+        let stray = |tol: f64| {
+            t.windows(2)
+                .enumerate()
+                .find(|(_, w)| ((w[1] - w[0]) - typical).abs() > tol * typical)
+        };
+        if stray(UNIFORM_TOLERANCE).is_none() {
+            let rate = 1.0 / ((t[t.len() - 1] - t[0]) / (t.len() - 1) as f64);
+            return Ok((Self::agree(&name, declared, rate)?, None));
         }
-        let rate = 1.0 / dt;
+        // Jitter of at most JITTER_TOLERANCE per stamp changes a step by at most twice that:
+        // a longer or shorter step is a sample missing or repeated, named where it is.
+        if let Some((k, w)) = stray(2.0 * JITTER_TOLERANCE) {
+            let step = w[1] - w[0];
+            return Err(uneven(
+                k + 1,
+                w[1],
+                format!("a step of {step:.6} s where the typical (median) step is {typical:.6} s"),
+            ));
+        }
+        // The regular grid t0 + k T through the stamps (least squares, centred for accuracy).
+        let n = t.len() as f64;
+        let kbar = 0.5 * (n - 1.0);
+        let tbar = t.iter().map(|v| v - t[0]).sum::<f64>() / n;
+        let (mut sxy, mut sxx) = (0.0, 0.0);
+        for (k, v) in t.iter().enumerate() {
+            let dk = k as f64 - kbar;
+            sxy += dk * (v - t[0] - tbar);
+            sxx += dk * dk;
+        }
+        let period = sxy / sxx;
+        let (sample, deviation) = t
+            .iter()
+            .enumerate()
+            .map(|(k, v)| (k, (v - t[0] - tbar - (k as f64 - kbar) * period).abs()))
+            .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
+        if deviation.is_nan() || deviation > JITTER_TOLERANCE * period {
+            return Err(uneven(
+                sample,
+                t[sample],
+                format!(
+                    "the stamp lies {deviation:.3e} s ({:.0} % of the {period:.6} s period) from \
+                     the regular grid through all stamps, more than the {:.0} % a logger's \
+                     jitter may",
+                    100.0 * deviation / period,
+                    100.0 * JITTER_TOLERANCE
+                ),
+            ));
+        }
+        let jitter = Jitter {
+            sample,
+            deviation,
+            period,
+        };
+        Ok((Self::agree(&name, declared, 1.0 / period)?, Some(jitter)))
+    }
+
+    /// The declared rate where one is given and agrees with the stamps' `rate`, else `rate`.
+    fn agree(name: &str, declared: Option<f64>, rate: f64) -> Result<f64> {
         match declared {
             Some(fs)
                 if (fs - rate).abs().is_nan() || (fs - rate).abs() > UNIFORM_TOLERANCE * rate =>
