@@ -154,28 +154,30 @@ fn experiment(
         }
         let input = log.topic(&format!("/{system}/input"))?;
         let output = log.topic(&format!("/{system}/output"))?;
-        if input.len() != output.len() {
-            return Err(SimError::LengthMismatch {
+        let meta = log.experiment().map(Meta::from_metadata).transpose()?;
+        let fs = sample_rate(input, meta.as_ref().map(|m| m.sample_rate_hz), file)?;
+        let paired = |topic: &str, other: &Table| -> Result<()> {
+            if other.len() == input.len() {
+                return Ok(());
+            }
+            Err(SimError::LengthMismatch {
                 what: format!(
-                    "messages of /{system}/output in {name} (one output per input sample)"
+                    "messages of /{system}/{topic} in {name} (one per input sample; {})",
+                    unpaired(&input.t, &other.t, fs)
                 ),
                 expected: input.len(),
-                found: output.len(),
-            });
-        }
+                found: other.len(),
+            })
+        };
+        paired("output", output)?;
         let excitation = log.topics.get(&format!("/{system}/excitation"));
         let r = match excitation {
-            Some(t) if t.len() == input.len() => Some(columns(t, inputs, "")?),
             Some(t) => {
-                return Err(SimError::LengthMismatch {
-                    what: format!("messages of /{system}/excitation in {name}"),
-                    expected: input.len(),
-                    found: t.len(),
-                })
+                paired("excitation", t)?;
+                Some(columns(t, inputs, "")?)
             }
             None => None,
         };
-        let meta = log.experiment().map(Meta::from_metadata).transpose()?;
         if let Some(p) = meta.as_ref().and_then(|m| m.periodic.as_ref()) {
             if let Some(x) = p.excited.iter().find(|x| !inputs.contains(x)) {
                 return Err(SimError::invalid(
@@ -185,7 +187,6 @@ fn experiment(
                 ));
             }
         }
-        let fs = sample_rate(input, meta.as_ref().map(|m| m.sample_rate_hz), file)?;
         for (topic, t) in [("output", Some(output)), ("excitation", excitation)]
             .into_iter()
             .filter_map(|(topic, t)| Some((topic, t?)))
@@ -216,6 +217,32 @@ fn sample_rate(table: &Table, declared: Option<f64>, file: &Path) -> Result<f64>
         eprintln!("warning: {}: {j}", file.display());
     }
     Ok(fs)
+}
+
+/// Where a topic's messages stop pairing with the input samples `input` (stamps `other`, rate
+/// `fs`): the first message more than half a sample from its input sample's time, or the
+/// samples at the end that one of them lacks.
+fn unpaired(input: &[f64], other: &[f64], fs: f64) -> String {
+    let half = 0.5 / fs;
+    match input
+        .iter()
+        .zip(other)
+        .position(|(a, b)| (a - b).abs() > half)
+    {
+        Some(k) => format!(
+            "the first unpaired is input sample {k} at t = {} s, where the message is at t = {} \
+             s: a message is missing or extra there",
+            input[k], other[k]
+        ),
+        None if other.len() < input.len() => format!(
+            "the input samples from t = {} s on have none: the topic ends early",
+            input[other.len()]
+        ),
+        None => format!(
+            "the messages from t = {} s on have no input sample: the input ends early",
+            other[input.len()]
+        ),
+    }
 }
 
 /// Relative difference below which two logs' sample rates are one: loggers' clocks differ by
@@ -364,8 +391,15 @@ mod tests {
     }
 
     /// A log `name` in `dir` of the pendulum's topics, 40 samples at 100 Hz, the output
-    /// stamped `offset` s after its input, with `excited` in the metadata when given.
-    fn pendulum_log(dir: &Path, name: &str, offset: f64, excited: Option<&str>) -> PathBuf {
+    /// stamped `offset` s after its input and missing at the samples `dropped`, with `excited`
+    /// in the metadata when given.
+    fn pendulum_log(
+        dir: &Path,
+        name: &str,
+        offset: f64,
+        excited: Option<&str>,
+        dropped: &[usize],
+    ) -> PathBuf {
         let path = dir.join(name);
         let mut log = crate::log::LogWriter::create(&path).unwrap();
         let mut meta = Meta::new(100.0);
@@ -383,7 +417,9 @@ mod tests {
             let t = k as f64 / 100.0;
             let r = ((k % 10) as f64).sin();
             log.write(input, t, &[r]).unwrap();
-            log.write(output, t + offset, &[0.1 * r]).unwrap();
+            if !dropped.contains(&k) {
+                log.write(output, t + offset, &[0.1 * r]).unwrap();
+            }
         }
         log.finish().unwrap();
         path
@@ -396,9 +432,9 @@ mod tests {
     fn misaligned_topics_and_unknown_excited_inputs_are_named() {
         let (inputs, outputs) = (vec!["T".to_string()], vec!["theta".to_string()]);
         let dir = scratch("workbench-load-tests-");
-        let ok = pendulum_log(dir.path(), "ok.mcap", 0.004, Some("T"));
+        let ok = pendulum_log(dir.path(), "ok.mcap", 0.004, Some("T"), &[]);
         assert!(load("pend", &inputs, &outputs, &[ok]).is_ok());
-        let late = pendulum_log(dir.path(), "late.mcap", 0.25, None);
+        let late = pendulum_log(dir.path(), "late.mcap", 0.25, None, &[]);
         let err = load("pend", &inputs, &outputs, &[late])
             .unwrap_err()
             .to_string();
@@ -406,7 +442,7 @@ mod tests {
             err.contains("/pend/output in") && err.contains("message 0 at t = 0.25 s"),
             "{err}"
         );
-        let unknown = pendulum_log(dir.path(), "x.mcap", 0.0, Some("X"));
+        let unknown = pendulum_log(dir.path(), "x.mcap", 0.0, Some("X"), &[]);
         let err = load("pend", &inputs, &outputs, &[unknown])
             .unwrap_err()
             .to_string();
@@ -415,6 +451,34 @@ mod tests {
                 && err.contains("= X: names no input of the model (inputs T)"),
             "{err}"
         );
+    }
+
+    /// An output message dropped by the logger is named at its input sample, and a topic that
+    /// ends early at the first sample it lacks (it used to give the two counts only).
+    #[test]
+    fn a_dropped_message_is_named_where_it_is() {
+        let (inputs, outputs) = (vec!["T".to_string()], vec!["theta".to_string()]);
+        let dir = scratch("workbench-load-dropped-");
+        let cases = [
+            (
+                &[17][..],
+                "input sample 17 at t = 0.17 s, where the message is at t = 0.18 s",
+            ),
+            (
+                &[37, 38, 39][..],
+                "input samples from t = 0.37 s on have none",
+            ),
+        ];
+        for (k, (dropped, named)) in cases.into_iter().enumerate() {
+            let log = pendulum_log(dir.path(), &format!("d{k}.mcap"), 0.0, None, dropped);
+            let err = load("pend", &inputs, &outputs, &[log])
+                .unwrap_err()
+                .to_string();
+            assert!(
+                err.contains("/pend/output") && err.contains(named) && err.contains("found"),
+                "{err}"
+            );
+        }
     }
 
     /// A CSV without an input and its excitation column names the input, the channel the
