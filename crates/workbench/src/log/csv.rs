@@ -66,7 +66,15 @@ pub fn read_csv(path: impl AsRef<Path>) -> Result<Table> {
     let mut values = Vec::with_capacity(header.len());
     for record in reader.records() {
         let record = record.map_err(|e| csv_error(e.to_string()))?;
-        let line = record.position().map_or(0, |p| p.line());
+        // The line from the record's byte offset. After a Windows line end (`\r\n`) the reader
+        // places a record on the `\n` that ends the line before, and counts lines the same way,
+        // so such a file named the line before the bad one: that `\n` is counted here too.
+        let line = || {
+            record.position().map_or(0, |p| {
+                let end = (p.byte() as usize + 1).min(text.len());
+                1 + text[..end].iter().filter(|&&b| b == b'\n').count()
+            })
+        };
         values.clear();
         let mut t = 0.0;
         for (i, (cell, name)) in record.iter().zip(&header).enumerate() {
@@ -77,12 +85,13 @@ pub fn read_csv(path: impl AsRef<Path>) -> Result<Table> {
                     ""
                 };
                 csv_error(format!(
-                    "line {line}, column {name:?}: {cell:?} is not a number{hint}"
+                    "line {}, column {name:?}: {cell:?} is not a number{hint}",
+                    line()
                 ))
             })?;
             if !value.is_finite() {
                 return Err(SimError::NotFinite {
-                    context: format!("{} line {line}", path.display()),
+                    context: format!("{} line {}", path.display(), line()),
                     field: name.clone(),
                     value: cell.to_string(),
                 });

@@ -338,6 +338,17 @@ fn csv_errors_are_named() {
             "t,x\n0,one\n",
             "line 2, column \"x\": \"one\" is not a number",
         ),
+        // Windows line ends and a comment: the line is still the file's (it read "line 3").
+        (
+            "word-crlf.csv",
+            "# rig 3\r\nt,x\r\n0,1\r\n0.1,one\r\n",
+            "line 4, column \"x\": \"one\" is not a number",
+        ),
+        (
+            "nan-crlf.csv",
+            "t,x\r\n0,1\r\n1,nan\r\n",
+            "nan-crlf.csv line 3",
+        ),
         ("ragged.csv", "t,x\n0,1\n1\n", "bad CSV file"),
         ("empty.csv", " \n", "the file is empty"),
         (
