@@ -223,12 +223,7 @@ fn sample_rate(table: &Table, declared: Option<f64>, file: &Path) -> Result<f64>
 /// `fs`): the first message more than half a sample from its input sample's time, or the
 /// samples at the end that one of them lacks.
 fn unpaired(input: &[f64], other: &[f64], fs: f64) -> String {
-    let half = 0.5 / fs;
-    match input
-        .iter()
-        .zip(other)
-        .position(|(a, b)| (a - b).abs() > half)
-    {
+    match first_apart(input, other, fs) {
         Some(k) => format!(
             "the first unpaired is input sample {k} at t = {} s, where the message is at t = {} \
              s: a message is missing or extra there",
@@ -254,13 +249,8 @@ pub const SAME_RATE: f64 = 1e-3;
 /// half a sample period): messages are paired by their order, so an output log that starts
 /// late would pair every input with a later output.
 fn aligned(file: &str, topic: &str, input: &[f64], other: &[f64], fs: f64) -> Result<()> {
-    let half = 0.5 / fs;
-    if let Some((k, (a, b))) = input
-        .iter()
-        .zip(other)
-        .enumerate()
-        .find(|(_, (a, b))| (*a - *b).abs() > half)
-    {
+    if let Some(k) = first_apart(input, other, fs) {
+        let (a, b, half) = (input[k], other[k], 0.5 / fs);
         return Err(SimError::invalid(
             format!("{topic} in {file}"),
             format!("message {k} at t = {b} s"),
@@ -270,6 +260,16 @@ fn aligned(file: &str, topic: &str, input: &[f64], other: &[f64], fs: f64) -> Re
         ));
     }
     Ok(())
+}
+
+/// The first message of stamps `other` more than half a sample period (rate `fs`) from the
+/// input sample it is paired with by order, over the samples both have.
+fn first_apart(input: &[f64], other: &[f64], fs: f64) -> Option<usize> {
+    let half = 0.5 / fs;
+    input
+        .iter()
+        .zip(other)
+        .position(|(a, b)| (a - b).abs() > half)
 }
 
 /// The sample rate the experiments share (within [`SAME_RATE`], their mean); when they do not,
