@@ -57,6 +57,27 @@ def test_discover_finds_what_is_hidden(tmp_path, case, seed):
 
 
 @pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("hidden", ({}, {"c": C_TRUE}), ids=("nothing", "eddy"))
+def test_one_record_alone_is_unbiased_by_its_coarse_bins(tmp_path, hidden, seed):
+    """A 15 s record alone is cut into 64 segments of 460 samples: 2.17 Hz bins, the unstable
+    pole's region at the band's low edge. A model compared with each line at its own frequency
+    read c = 9.17-9.69 on seed 1's four records, 2.3-3.6 standard errors high on 4 of 4; seen
+    through the window's kernel c is within 3 standard errors of the truth on each record
+    (measured -1.6 to 2.3 on the 8 records of seeds 1 and 2), and the clean records find
+    nothing. Every record of a seed is checked."""
+    data = campaign(tmp_path, hidden, seed)
+    for record in sorted(data.glob("exp_*.csv")):
+        doc = discover_cli(record, tmp_path)
+        assert doc["found"] == (["eddy_damping"] if hidden else []), (record.name,
+                                                                       doc["verdict_text"])
+        assert doc["frequencies_hz"][0] > 6.0, "one record's band starts at its coarse bins"
+        if hidden:
+            step = doc["steps"][-1]
+            z = (step["params"]["c"] - C_TRUE) / step["std"]["c"]
+            assert abs(z) < 3.0, (record.name, step["params"]["c"], step["std"]["c"])
+
+
+@pytest.mark.parametrize("seed", SEEDS)
 def test_a_sensor_mount_resonance_is_unexplained_and_nothing_is_found(tmp_path, seed):
     doc = discover_cli(campaign(tmp_path, {"flex_hz": 120.0}, seed), tmp_path)
     assert doc["found"] == [], doc["verdict_text"]

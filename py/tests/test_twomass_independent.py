@@ -3,8 +3,9 @@ under its experimenter's state feedback, simulated by independent_twomass.py (nu
 no stabilis code) with a non-periodic excitation, so that a Welch estimate carries the
 comparison. Its mode (3.8 Hz, 0.3 Hz half-power width with the hidden friction) is narrower
 than two bins of a Welch estimate from 45 s records (0.19 Hz bins); 180 s records resolve it
-(0.06 Hz). Each (record length, seed) is its own case, so the pass rate is the count of
-passing cases.
+(0.06 Hz). The model is compared with each line through the window's kernel, so coarse bins
+cost precision, not truth. Each (record length, seed) is its own case, so the pass rate is the
+count of passing cases.
 """
 from __future__ import annotations
 
@@ -24,10 +25,16 @@ def discover(tmp: Path, b2: float, seconds: float, seed: int) -> dict:
     return discover_model_file(MODEL, data, tmp)
 
 
-@pytest.mark.parametrize("seed", (1, 2))
+@pytest.mark.parametrize("seconds", (45.0, 180.0))
+@pytest.mark.parametrize("seed", (1, 2, 3))
 @pytest.mark.parametrize("b2", (B2, 0.0))
-def test_records_that_resolve_the_mode_find_what_is_hidden(tmp_path, b2, seed):
-    doc = discover(tmp_path, b2, 180.0, seed)
+def test_the_hidden_friction_is_found_whether_or_not_the_bins_resolve_the_mode(
+        tmp_path, b2, seed, seconds):
+    """On the 45 s records a model compared with each line at its own frequency drew a friction
+    of mass 1 that is not there into the model in 2 of 3 seeds, and its stiffness came out 8
+    standard errors off; seen through the window's kernel it finds what is hidden on either
+    length (measured b2 0.797-0.800, k 189.7-190.3, m2 0.479-0.481)."""
+    doc = discover(tmp_path, b2, seconds, seed)
     assert doc["found"] == (["friction2"] if b2 else []), doc["verdict_text"]
     assert doc["tentative"] == [], doc["tentative_why"]
     params = doc["steps"][-1]["params"]
@@ -35,15 +42,3 @@ def test_records_that_resolve_the_mode_find_what_is_hidden(tmp_path, b2, seed):
     assert params["m2"] == pytest.approx(0.48, rel=0.01), params
     if b2:
         assert params["b2"] == pytest.approx(b2, rel=0.05), params
-
-
-@pytest.mark.parametrize("seed", (1, 2, 3))
-def test_a_mode_narrower_than_the_welch_bins_leaves_every_added_effect_tentative(tmp_path, seed):
-    """On these records the smoothed resonance drew a friction of mass 1 that is not there
-    into the model in 2 of 3 seeds; nothing may be reported found, and the reason names the
-    mode and the resolution that would resolve it."""
-    doc = discover(tmp_path, B2, 45.0, seed)
-    assert doc["found"] == [], doc["verdict_text"]
-    assert "friction2" in doc["tentative"], doc["verdict_text"]
-    why = doc["tentative_why"]
-    assert any("smooths the model's mode at 3.8" in w for w in why), why

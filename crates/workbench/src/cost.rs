@@ -3,7 +3,7 @@
 //! whitened real residuals so that Gauss-Newton and Levenberg-Marquardt apply.
 use nalgebra::{DMatrix, DVector};
 
-use super::frf::{CMatrix, FrfEstimate};
+use super::frf::{CMatrix, FrfEstimate, LineMap};
 use super::spectra::C64;
 use crate::error::{Result, SimError};
 
@@ -62,6 +62,8 @@ fn chol_inv(cov: &CMatrix, what: &str) -> Result<CMatrix> {
 pub struct WeightedCost {
     /// Line frequencies in Hz.
     pub freqs_hz: Vec<f64>,
+    /// Where a model is evaluated and how the lines see it ([`crate::Model::frf_seen`]).
+    pub map: LineMap,
     targets: Vec<CMatrix>,
     whiten: Vec<Whitener>,
     /// Standard deviation of each FRF entry per line (outputs x inputs), for bands and
@@ -128,6 +130,7 @@ impl WeightedCost {
         }
         Ok(Self {
             freqs_hz: frf.freqs_hz(),
+            map: LineMap::new(frf),
             targets: frf.lines.iter().map(|l| l.g.clone()).collect(),
             whiten,
             std,

@@ -555,14 +555,6 @@ impl Verdict {
     }
 }
 
-/// Standard errors of a Welch estimate at a resonance's peak that its smoothing bias may reach
-/// before the effects a discovery adds are tentative. Set between two campaigns of a two-mass
-/// spring (`py/tests/test_twomass_independent.py`, seeds 1-3): biases of 2.4-3.2 errors
-/// (0.06 Hz bins) left the discovery right in 3 of 3, biases of 6.1-7.5 (0.19 Hz) came with a
-/// friction that is not there in 2 of 3. The fit absorbs part of a bias in the parameters it
-/// has, so the limit is above the one error at which a bias is first visible.
-pub const SMOOTHING_BIAS_LIMIT: f64 = 4.0;
-
 /// Why added effects are tentative when the final model leaves a structured misfit.
 pub const MISFIT_CAVEAT: &str =
     "the final model leaves a structured misfit, which the tests that added them took for noise";
@@ -744,9 +736,10 @@ impl Workbench {
         let hold = self.fit_options().hold;
         let fs = self.data().sample_rate_hz;
         let cost = |c: f64| -> Option<f64> {
-            let freqs: Vec<f64> = self.cost.freqs_hz.iter().map(|f| f / c).collect();
+            let map = &self.cost.map;
+            let freqs: Vec<f64> = map.grid_hz().iter().map(|f| f / c).collect();
             let g = self.model.frf(theta, &freqs, hold.map(|h| h * c)).ok()?;
-            let v = self.cost.cost(&g);
+            let v = self.cost.cost(&map.seen(&g).lines);
             v.is_finite().then_some(v)
         };
         let (v, c, what) = CLOCK_UNITS
@@ -954,9 +947,10 @@ impl Workbench {
         let theta = self.model.documented()?;
         let rescaled = self
             .model
-            .frf(&theta, &self.cost.freqs_hz, self.fit_options().hold)
+            .frf_seen(&theta, &self.cost.map, self.fit_options().hold)
             .ok()
             .and_then(|g| {
+                let g = g.lines;
                 let own = self.cost.cost(&g);
                 own.is_finite()
                     .then(|| self.rescaled_sentence(&theta, &g, own))
@@ -1279,7 +1273,7 @@ impl Workbench {
             Some(t) => (t.to_vec(), 0),
             None => (model.documented()?, REWEIGHTINGS),
         };
-        let g = model.frf(&theta, &self.cost.freqs_hz, opts.hold)?;
+        let g = model.frf_seen(&theta, &self.cost.map, opts.hold)?;
         let mut cost = self.noise_weighting(&g)?;
         let mut r = fit(model, &cost, Some(&theta), &opts)?;
         for _ in 0..again {
@@ -1325,7 +1319,7 @@ impl Workbench {
     }
 
     /// The cost weighted with the noise estimated from the residual of the model FRF `g`.
-    fn noise_weighting(&self, g: &[super::frf::CMatrix]) -> Result<WeightedCost> {
+    fn noise_weighting(&self, g: &super::frf::ModelFrf) -> Result<WeightedCost> {
         WeightedCost::with_noise(&self.frf, &super::frf::model_noise(&self.frf, g)?)
     }
 
@@ -1335,7 +1329,7 @@ impl Workbench {
             &self.frf,
             self.weighting(&fitted),
             &self.noise,
-            &fitted.r.model_frf,
+            &fitted.r.model_frf.lines,
             fitted.r.free,
         );
         let Fitted {
@@ -1383,7 +1377,7 @@ impl Workbench {
             residual_tests,
             candidates,
             theta: r.theta,
-            model_frf: r.model_frf,
+            model_frf: r.model_frf.lines,
         })
     }
 
@@ -1456,8 +1450,8 @@ impl Workbench {
             for v in scan_grid(&params[i]) {
                 let mut t = scanned.clone();
                 t[i] = v;
-                if let Ok(g) = with.frf(&t, &cost.freqs_hz, hold) {
-                    let c = cost.cost(&g);
+                if let Ok(g) = with.frf_seen(&t, &cost.map, hold) {
+                    let c = cost.cost(&g.lines);
                     if c < best.0 {
                         best = (c, v);
                     }
@@ -1471,7 +1465,10 @@ impl Workbench {
         let per_line = |g: &[super::frf::CMatrix]| -> Vec<f64> {
             (0..g.len()).map(|k| cost.line_cost(k, &g[k])).collect()
         };
-        let (before, after) = (per_line(&current.r.model_frf), per_line(&r.model_frf));
+        let (before, after) = (
+            per_line(&current.r.model_frf.lines),
+            per_line(&r.model_frf.lines),
+        );
         // On clean simulated logs momentum drag's six parameters take 1-2% of a noise-level
         // cost with F p ~ 1e-6: the effect-size rule (one standard deviation of the
         // Monte-Carlo noise reference) keeps such a mismatch from being claimed.
@@ -1615,65 +1612,6 @@ impl Workbench {
             ));
         }
         why
-    }
-
-    /// A Welch estimate's caveat against the final model: the smoothing bias at the peak of
-    /// each lightly damped mode in the band ([`super::welch::peak_smoothing_bias`]), against
-    /// the estimate's standard error at the nearest line. Where it exceeds
-    /// [`SMOOTHING_BIAS_LIMIT`] errors the estimate cannot test the model there, and an added
-    /// effect may be absorbing the bias.
-    /// The bias is the open-loop one; under feedback the loop reshapes it, so this names the
-    /// order of magnitude, not a correction.
-    fn smoothing_caveat(&self, last: Option<&Fitted>) -> Result<Option<String>> {
-        let (Some(layout), Some(last)) = (&self.frf.welch, last) else {
-            return Ok(None);
-        };
-        let cost = self.weighting(last);
-        let freqs = &cost.freqs_hz;
-        let (Some(&lo), Some(&hi)) = (freqs.first(), freqs.last()) else {
-            return Ok(None);
-        };
-        let tau = 2.0 * std::f64::consts::PI;
-        let mut worst: Option<(f64, f64, f64, f64)> = None; // (ratio, freq, width, bias)
-        for p in last.model.state_space(&last.r.theta)?.poles()? {
-            let (freq, width) = (p.im / tau, p.re.abs() / std::f64::consts::PI);
-            if p.im <= 0.0 || !(lo..=hi).contains(&freq) || width <= 0.0 {
-                continue;
-            }
-            let bias = super::welch::peak_smoothing_bias(layout.resolution_hz, width);
-            let k = freqs
-                .iter()
-                .enumerate()
-                .min_by(|a, b| (a.1 - freq).abs().total_cmp(&(b.1 - freq).abs()))
-                .map_or(0, |(k, _)| k);
-            let g = last
-                .model
-                .frf(&last.r.theta, &[freq], self.fit_options().hold)?;
-            let ratio = g[0]
-                .iter()
-                .zip(cost.std[k].iter())
-                .filter(|(_, sd)| **sd > 0.0)
-                .map(|(g, sd)| bias * g.norm() / sd)
-                .fold(0.0, f64::max);
-            if ratio > SMOOTHING_BIAS_LIMIT && worst.is_none_or(|w| ratio > w.0) {
-                worst = Some((ratio, freq, width, bias));
-            }
-        }
-        Ok(worst.map(|(ratio, freq, width, bias)| {
-            // The resolution at which the bias falls to the limit (it goes with its square).
-            let needed = layout.resolution_hz * (SMOOTHING_BIAS_LIMIT / ratio).sqrt();
-            format!(
-                "the Welch estimate ({:.3} Hz bins) smooths the model's mode at {freq:.2} Hz \
-                 (half-power width {width:.3} Hz): a bias of about {:.0} % at its peak, {ratio:.1} \
-                 times the standard error there, which an effect can absorb; bins of {needed:.3} \
-                 Hz (segments of {:.0} s, {} of them over the records) or a periodic \
-                 excitation resolve it",
-                layout.resolution_hz,
-                100.0 * bias,
-                1.0 / needed,
-                super::welch::MIN_SEGMENTS,
-            )
-        }))
     }
 
     /// A misfit whose excess over the noise sits at one excited line (at least
@@ -1821,7 +1759,6 @@ impl Workbench {
             done.push(self.refined(last)?);
         }
         self.common_weighting(&mut done)?;
-        let smoothing = self.smoothing_caveat(done.last())?;
         let last_fit = done.last().map(|f| (f.model.clone(), f.r.params.clone()));
         let steps = self.records(done)?;
         let last = steps
@@ -1829,7 +1766,6 @@ impl Workbench {
             .ok_or_else(|| SimError::invalid("discovery", "no step", "nothing was fitted"))?;
         let verdict = self.verdict(last);
         let mut caveats = self.caveats(&verdict);
-        caveats.extend(smoothing);
         caveats.extend(rivals(
             steps
                 .iter()

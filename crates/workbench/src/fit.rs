@@ -7,7 +7,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use super::cost::WeightedCost;
-use super::frf::{model_noise, CMatrix, FrfEstimate};
+use super::frf::{model_noise, FrfEstimate, LineMap, ModelFrf};
 use super::model::{Model, Parameter};
 use crate::error::{Result, SimError};
 
@@ -72,8 +72,8 @@ pub struct FitResult {
     pub params: Vec<ParamEstimate>,
     /// Weighted cost at the estimate.
     pub cost: f64,
-    /// Model FRF at the estimate on the cost's lines.
-    pub model_frf: Vec<CMatrix>,
+    /// Model FRF at the estimate as the cost's lines see it.
+    pub model_frf: ModelFrf,
     /// Iterations used.
     pub iterations: usize,
     /// Number of free (estimated) parameters.
@@ -112,15 +112,16 @@ struct FrfCriterion<'a> {
 
 impl LeastSquares for FrfCriterion<'_> {
     fn residuals(&self, theta: &[f64]) -> Result<DVector<f64>> {
-        let g = self.model.frf(theta, &self.cost.freqs_hz, self.hold)?;
-        Ok(self.cost.residuals(&g))
+        let g = self.model.frf_seen(theta, &self.cost.map, self.hold)?;
+        Ok(self.cost.residuals(&g.lines))
     }
 
     fn jacobian(&self, theta: &[f64], _r: &DVector<f64>) -> Result<DMatrix<f64>> {
+        let map = &self.cost.map;
         let (_, d) = self
             .model
-            .frf_with_jacobian(theta, &self.cost.freqs_hz, self.hold)?;
-        Ok(self.cost.jacobian(&d))
+            .frf_with_jacobian(theta, map.grid_hz(), self.hold)?;
+        Ok(self.cost.jacobian(&map.seen_derivatives(&d)))
     }
 }
 
@@ -135,21 +136,21 @@ impl LeastSquares for FrfCriterion<'_> {
 struct NoiseWeightedCriterion<'a> {
     model: &'a Model,
     frf: &'a FrfEstimate,
-    freqs_hz: Vec<f64>,
+    map: LineMap,
     hold: Option<f64>,
 }
 
 impl NoiseWeightedCriterion<'_> {
     /// The cost weighted by the noise of the residual of the model FRF `g`.
-    fn weighting(&self, g: &[CMatrix]) -> Result<WeightedCost> {
+    fn weighting(&self, g: &ModelFrf) -> Result<WeightedCost> {
         WeightedCost::with_noise(self.frf, &model_noise(self.frf, g)?)
     }
 }
 
 impl LeastSquares for NoiseWeightedCriterion<'_> {
     fn residuals(&self, theta: &[f64]) -> Result<DVector<f64>> {
-        let g = self.model.frf(theta, &self.freqs_hz, self.hold)?;
-        Ok(self.weighting(&g)?.residuals(&g))
+        let g = self.model.frf_seen(theta, &self.map, self.hold)?;
+        Ok(self.weighting(&g)?.residuals(&g.lines))
     }
 
     fn jacobian(&self, theta: &[f64], r0: &DVector<f64>) -> Result<DMatrix<f64>> {
@@ -204,12 +205,12 @@ pub fn fit_noise_weighted(
     let criterion = NoiseWeightedCriterion {
         model,
         frf,
-        freqs_hz: frf.freqs_hz(),
+        map: LineMap::new(frf),
         hold: opts.hold,
     };
     let params = model.parameters()?;
     let mut r = solve(&criterion, &params, start, opts)?;
-    r.model_frf = model.frf(&r.theta, &criterion.freqs_hz, opts.hold)?;
+    r.model_frf = model.frf_seen(&r.theta, &criterion.map, opts.hold)?;
     let weighting = criterion.weighting(&r.model_frf)?;
     Ok((r, weighting))
 }
@@ -228,7 +229,7 @@ pub fn fit(
     };
     let params = model.parameters()?;
     let mut r = solve(&criterion, &params, start, opts)?;
-    r.model_frf = model.frf(&r.theta, &cost.freqs_hz, opts.hold)?;
+    r.model_frf = model.frf_seen(&r.theta, &cost.map, opts.hold)?;
     Ok(r)
 }
 
@@ -287,7 +288,7 @@ pub fn solve(
                     theta,
                     params: estimates,
                     cost: v,
-                    model_frf: Vec::new(),
+                    model_frf: ModelFrf::default(),
                     iterations,
                     free,
                     gave_up,

@@ -98,6 +98,126 @@ pub struct FrfLine {
     /// mean does; `P - 1` of them lie between harmonic `k P` and the next, the degrees of
     /// freedom of the deviations.
     pub noise_spectra: Vec<(CMatrix, CMatrix)>,
+    /// Welch estimates: the window's kernel, through which the line sees the plant's response
+    /// at the bins beside it (see [`KernelTap`]); empty for periodic estimates, whose lines
+    /// see the response at their own frequency.
+    pub kernel: Vec<KernelTap>,
+}
+
+/// One bin of the window's kernel at a Welch line. A Hann-windowed transform is
+/// `X_w(k) = X(k)/2 - X(k-1)/4 - X(k+1)/4` in the segment's plain transforms, and a linear
+/// plant gives `Y(m) = G(m) U(m)` there up to a smooth transient that the window's
+/// differencing suppresses. So the estimate's line holds `Σ_d G(k+d) c_d U(k+d) W`, not
+/// `G(k)`: where the response bends within a bin (an unstable pole or a resonance a few bins
+/// wide) the two differ, and a model compared with the line at its own frequency absorbs the
+/// difference as an effect. A model seen through these taps does not.
+#[derive(Debug, Clone)]
+pub struct KernelTap {
+    /// The bin's frequency, Hz.
+    pub freq_hz: f64,
+    /// `c_d U(k+d)` per segment (inputs x segments): the segments' plain input transforms at
+    /// the bin times the window's coefficient.
+    pub u: CMatrix,
+    /// `c_d U(k+d) W` (inputs x inputs): how the response at the bin enters the line.
+    pub gain: CMatrix,
+}
+
+/// A model's FRF as an estimate sees it.
+#[derive(Debug, Clone, Default)]
+pub struct ModelFrf {
+    /// Per line, what the estimate's line holds for this model (outputs x inputs).
+    pub lines: Vec<CMatrix>,
+    /// Per line, the response at each of its kernel taps (empty for lines without a kernel).
+    pub taps: Vec<Vec<CMatrix>>,
+}
+
+/// The frequencies at which a model must be evaluated to be compared with an estimate's
+/// lines (the lines' own, or with a Welch kernel the bins beside them, each once), and how
+/// each line combines them.
+#[derive(Debug, Clone)]
+pub struct LineMap {
+    grid_hz: Vec<f64>,
+    /// Per line: grid index and tap gain (`None`: the line sees the response itself).
+    taps: Vec<Vec<(usize, Option<CMatrix>)>>,
+}
+
+impl LineMap {
+    /// The map of `frf`'s lines.
+    pub fn new(frf: &FrfEstimate) -> Self {
+        let mut grid_hz: Vec<f64> = frf
+            .lines
+            .iter()
+            .flat_map(|l| {
+                if l.kernel.is_empty() {
+                    vec![l.freq_hz]
+                } else {
+                    l.kernel.iter().map(|t| t.freq_hz).collect()
+                }
+            })
+            .collect();
+        grid_hz.sort_by(f64::total_cmp);
+        grid_hz.dedup();
+        let index = |f: f64| grid_hz.partition_point(|&g| g < f);
+        let taps = frf
+            .lines
+            .iter()
+            .map(|l| {
+                if l.kernel.is_empty() {
+                    vec![(index(l.freq_hz), None)]
+                } else {
+                    l.kernel
+                        .iter()
+                        .map(|t| (index(t.freq_hz), Some(t.gain.clone())))
+                        .collect()
+                }
+            })
+            .collect();
+        Self { grid_hz, taps }
+    }
+
+    /// Frequencies (Hz, ascending) at which the model is evaluated.
+    pub fn grid_hz(&self) -> &[f64] {
+        &self.grid_hz
+    }
+
+    /// One line's value from per-grid-frequency matrices `grid`: `Σ_d G_d K_d`.
+    fn line(&self, k: usize, grid: &[CMatrix]) -> CMatrix {
+        let term = |(i, gain): &(usize, Option<CMatrix>)| match gain {
+            Some(gain) => &grid[*i] * gain,
+            None => grid[*i].clone(),
+        };
+        match self.taps[k].split_first() {
+            Some((first, rest)) => rest.iter().fold(term(first), |acc, t| acc + term(t)),
+            None => CMatrix::zeros(0, 0),
+        }
+    }
+
+    /// The lines' view of the model FRF `grid` (one matrix per [`LineMap::grid_hz`]).
+    pub fn seen(&self, grid: &[CMatrix]) -> ModelFrf {
+        ModelFrf {
+            lines: (0..self.taps.len()).map(|k| self.line(k, grid)).collect(),
+            taps: self
+                .taps
+                .iter()
+                .map(|t| match t.as_slice() {
+                    [(_, None)] => Vec::new(),
+                    t => t.iter().map(|(i, _)| grid[*i].clone()).collect(),
+                })
+                .collect(),
+        }
+    }
+
+    /// The lines' view of FRF derivatives `d[f][i] = dG(f)/dθ_i` on the grid: per line and
+    /// parameter (the kernel is linear in the response).
+    pub fn seen_derivatives(&self, d: &[Vec<CMatrix>]) -> Vec<Vec<CMatrix>> {
+        let params = d.first().map_or(0, |v| v.len());
+        let columns: Vec<Vec<CMatrix>> = (0..params)
+            .map(|i| d.iter().map(|df| df[i].clone()).collect())
+            .collect();
+        (0..self.taps.len())
+            .map(|k| columns.iter().map(|c| self.line(k, c)).collect())
+            .collect()
+    }
 }
 
 /// A non-parametric FRF over the excited lines.
@@ -315,6 +435,7 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
             coherence: None,
             kronecker: Some((m, s)),
             noise_spectra,
+            kernel: Vec::new(),
         });
     }
     Ok(FrfEstimate {
@@ -466,16 +587,16 @@ fn period_noise(spectra: &[(CMatrix, CMatrix)], g: &CMatrix, dof: usize) -> CMat
 }
 
 /// Noise covariance `S` of every line re-estimated from the residual of the model FRF
-/// `model` (one matrix per line): for periodic estimates `y - G u` at the whole record's
+/// `model` (as the estimate's lines see it, [`LineMap::seen`]): for periodic estimates `y - G u` at the whole record's
 /// bins beside each line ([`period_noise`]), for Welch estimates the segment residual projected away
 /// from the weights ([`super::welch::model_noise`]). This is what the instrumental-variable
 /// cost is weighted with in discovery: at the true model its distribution is the Monte-Carlo
 /// reference's.
-pub fn model_noise(frf: &FrfEstimate, model: &[CMatrix]) -> Result<Vec<CMatrix>> {
-    if model.len() != frf.lines.len() {
+pub fn model_noise(frf: &FrfEstimate, model: &ModelFrf) -> Result<Vec<CMatrix>> {
+    if model.lines.len() != frf.lines.len() {
         return Err(SimError::invalid(
             "model FRF",
-            format!("{} lines", model.len()),
+            format!("{} lines", model.lines.len()),
             format!("need one per FRF line ({})", frf.lines.len()),
         ));
     }
@@ -485,7 +606,7 @@ pub fn model_noise(frf: &FrfEstimate, model: &[CMatrix]) -> Result<Vec<CMatrix>>
     Ok(frf
         .lines
         .iter()
-        .zip(model)
+        .zip(&model.lines)
         .map(|(line, g)| period_noise(&line.noise_spectra, g, frf.noise_dof))
         .collect())
 }

@@ -9,7 +9,7 @@ use std::sync::Arc;
 use serde::Serialize;
 
 use super::dynamics::Dynamics;
-use super::frf::CMatrix;
+use super::frf::{CMatrix, LineMap, ModelFrf};
 use super::spectra::C64;
 use crate::error::{Result, SimError};
 
@@ -626,6 +626,11 @@ impl Model {
     /// FRF on `freqs_hz` at `theta`.
     pub fn frf(&self, theta: &[f64], freqs_hz: &[f64], hold: Option<f64>) -> Result<Vec<CMatrix>> {
         Ok(self.state_space(theta)?.frf_lines(freqs_hz, hold)?)
+    }
+
+    /// FRF as the lines of `map` see it (a Welch line through its window's kernel).
+    pub fn frf_seen(&self, theta: &[f64], map: &LineMap, hold: Option<f64>) -> Result<ModelFrf> {
+        Ok(map.seen(&self.frf(theta, map.grid_hz(), hold)?))
     }
 
     /// FRF and its derivatives with respect to each parameter, `out[k][i] = dG(w_k)/dtheta_i`.

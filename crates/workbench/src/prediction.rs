@@ -1066,7 +1066,7 @@ impl Workbench {
                 (r, design)
             }
         };
-        r.model_frf = model.frf(&r.theta, &self.cost.freqs_hz, opts.hold)?;
+        r.model_frf = model.frf_seen(&r.theta, &self.cost.map, opts.hold)?;
         Ok((r, design))
     }
 
@@ -1328,7 +1328,7 @@ impl Workbench {
                 }
             }
         }
-        r.model_frf = with.frf(&r.theta, &self.cost.freqs_hz, self.fit_options().hold)?;
+        r.model_frf = with.frf_seen(&r.theta, &self.cost.map, self.fit_options().hold)?;
         let p = design.whiten.nrows();
         let r1 = pe.residuals(&r.theta)?;
         let (v0, v1) = (r0.norm_squared(), r1.norm_squared());
@@ -1993,7 +1993,13 @@ impl Workbench {
                 against,
             );
         }
-        let diagnosis = diagnose(&self.frf, &self.cost, &self.noise, &f.r.model_frf, f.r.free);
+        let diagnosis = diagnose(
+            &self.frf,
+            &self.cost,
+            &self.noise,
+            &f.r.model_frf.lines,
+            f.r.free,
+        );
         Ok(Step {
             added: f.added,
             effects: f.model.enabled(),
@@ -2006,7 +2012,7 @@ impl Workbench {
             residual_tests: tests,
             candidates: f.candidates,
             theta: f.r.theta,
-            model_frf: f.r.model_frf,
+            model_frf: f.r.model_frf.lines,
         })
     }
 }
@@ -2073,7 +2079,7 @@ impl Search for TimeSearch<'_> {
         let start = self.wb.carry_over(&at.model, &at.r.theta, &model)?;
         let pe = PredictionError::new(self.wb, &model, self.design);
         let mut r = solve(&pe, &params, Some(&start), &self.wb.time_fit_options())?;
-        r.model_frf = model.frf(&r.theta, &self.wb.cost.freqs_hz, self.wb.fit_options().hold)?;
+        r.model_frf = model.frf_seen(&r.theta, &self.wb.cost.map, self.wb.fit_options().hold)?;
         Ok(Fitted {
             model,
             added: None,

@@ -286,9 +286,9 @@ fn cost_at_the_truth_matches_the_noise_reference() {
         )
         .unwrap();
         let g = model
-            .frf(&truth.theta, &wb.frf().freqs_hz(), Some(1.0 / FS))
+            .frf_seen(&truth.theta, &wb.cost().map, Some(1.0 / FS))
             .unwrap();
-        let ratio = wb.cost().cost(&g) / wb.noise().mean();
+        let ratio = wb.cost().cost(&g.lines) / wb.noise().mean();
         assert!(
             (0.7..1.4).contains(&ratio),
             "seed {seed}: cost at truth / noise mean = {ratio}"
@@ -320,12 +320,12 @@ fn a_slow_closed_loop_mode_leaves_the_noise_reference_right() {
         let wb =
             Workbench::new(Arc::new(Toy), data, EstimatorChoice::InstrumentalVariable).unwrap();
         let g = model
-            .frf(&truth.theta, &wb.frf().freqs_hz(), Some(1.0 / FS))
+            .frf_seen(&truth.theta, &wb.cost().map, Some(1.0 / FS))
             .unwrap();
         let own = workbench::frf::model_noise(wb.frf(), &g).unwrap();
         let cost = workbench::cost::WeightedCost::with_noise(wb.frf(), &own)
             .unwrap()
-            .cost(&g);
+            .cost(&g.lines);
         sum += cost / wb.noise().mean();
         if cost > wb.noise().quantile(0.95) {
             above += 1;
@@ -361,7 +361,7 @@ fn a_low_pass_disturbance_in_closed_loop_leaves_the_fit_unbiased() {
             ..Default::default()
         };
         let weighting = |theta: &[f64]| {
-            let g = model.frf(theta, &wb.frf().freqs_hz(), opts.hold).unwrap();
+            let g = model.frf_seen(theta, &wb.cost().map, opts.hold).unwrap();
             let noise = workbench::frf::model_noise(wb.frf(), &g).unwrap();
             workbench::cost::WeightedCost::with_noise(wb.frf(), &noise).unwrap()
         };
