@@ -87,6 +87,51 @@ def test_a_sensor_mount_resonance_is_unexplained_and_nothing_is_found(tmp_path, 
     assert lo < 120.0 < hi, doc["verdict"]
 
 
+def test_mcap_logs_without_t_read_by_their_log_time(tmp_path):
+    """A recorder that stamps its messages (wall clock, ns) but writes no `t` field: the same
+    campaign as MCAP with `log_time` as the only time reads as the CSV does (same fit to 1e-6),
+    with a warning that names the topics."""
+    import json
+    import subprocess
+
+    import numpy as np
+    from mcap.writer import Writer
+
+    from test_interop import stabilis_bin
+
+    csv_dir = campaign(tmp_path, {"c": C_TRUE}, 1)
+    mcap_dir = tmp_path / "mcap"
+    mcap_dir.mkdir()
+    epoch = 1_700_000_000_000_000_000
+    for path in sorted(csv_dir.glob("exp_*.csv")):
+        t, i, z, r = np.loadtxt(path, delimiter=",", skiprows=1, unpack=True)
+        with open(mcap_dir / (path.stem + ".mcap"), "wb") as f:
+            writer = Writer(f)
+            writer.start(profile="", library="a recorder")
+            topics = {"/maglev/input": ("i", i), "/maglev/output": ("z", z),
+                      "/maglev/excitation": ("i", r)}
+            for topic, (field, values) in topics.items():
+                channel = writer.register_channel(topic, "json", 0)
+                for k, (tk, v) in enumerate(zip(t, values)):
+                    ns = epoch + int(round(tk * 1e9))
+                    writer.add_message(channel, ns, json.dumps({field: float(v)}).encode(), ns,
+                                       sequence=k)
+            writer.finish()
+    from_csv = discover_cli(csv_dir, tmp_path)
+    out = tmp_path / "mcap.json"
+    done = subprocess.run([stabilis_bin(), "discover", "--model", str(MODEL), "--data",
+                           str(mcap_dir), "--json", str(out)], capture_output=True, text=True,
+                          check=False)
+    assert done.returncode == 0, done.stderr
+    assert ("carry no t; their log_time (the recorder's stamp) is taken as the sample time"
+            in done.stderr), done.stderr
+    assert "/maglev/excitation, /maglev/input, /maglev/output" in done.stderr, done.stderr
+    from_mcap = json.loads(out.read_text())
+    assert from_mcap["found"] == from_csv["found"] == ["eddy_damping"]
+    assert from_mcap["steps"][-1]["params"]["c"] == pytest.approx(
+        from_csv["steps"][-1]["params"]["c"], rel=1e-6)
+
+
 def test_python_workbench_agrees_with_the_cli(tmp_path):
     import stabilis
 

@@ -419,7 +419,7 @@ pub struct Step {
     /// Parameter vector (model order).
     #[serde(skip)]
     pub theta: Vec<f64>,
-    /// Model FRF on the lines.
+    /// Model FRF on the lines, as the estimate sees it (a Welch line through its kernel).
     #[serde(skip)]
     pub model_frf: Vec<super::frf::CMatrix>,
 }
@@ -762,9 +762,9 @@ impl Workbench {
     /// output's row of its response (or every output's, or those that each fit better under
     /// one factor), or one input's column (likewise), scaled by one of [`CHANNEL_UNITS`]. A
     /// pitch axis's rate logged in deg/s against a model in rad/s fitted M_alpha at 1.4e5 for
-    /// 3.6 and only the parameters' distance hinted at it. `g` the documented model's response on the logs' lines, `own`
-    /// its cost.
-    fn unit_rescaled(&self, g: &[CMatrix], own: f64) -> Option<Rescaled> {
+    /// 3.6 and only the parameters' distance hinted at it. `grid` the documented model's
+    /// response where the cost evaluates it ([`WeightedCost::map`]), `own` its cost.
+    fn unit_rescaled(&self, grid: &[CMatrix], own: f64) -> Option<Rescaled> {
         let data = self.data();
         let (ny, nu) = (data.outputs.len(), data.inputs.len());
         // (channels named, outputs scaled, inputs scaled): each channel alone, then each side.
@@ -786,7 +786,7 @@ impl Workbench {
         // A logged output is c times the model's; a logged input c times the model's, so the
         // response per logged input is 1/c times.
         let cost = |rows: &[usize], cols: &[usize], c: f64| -> f64 {
-            let scaled: Vec<_> = g
+            let scaled: Vec<_> = grid
                 .iter()
                 .map(|m| {
                     let mut m = m.clone();
@@ -799,7 +799,7 @@ impl Workbench {
                     m
                 })
                 .collect();
-            self.cost.cost(&scaled)
+            self.cost.cost(&self.cost.map.seen(&scaled).lines)
         };
         // The channels of one side that each fit better scaled by one factor, scaled together:
         // three gyros of six outputs logged in deg/s, which neither one channel nor the whole
@@ -851,13 +851,13 @@ impl Workbench {
 
     /// The pair of outputs (or of inputs) under whose swap the documented model fits the logs
     /// best: columns logged in another order than the model names them (a maglev's gap and
-    /// coil current given as `[i, z]` read a misfit "largest in u->i" and nothing more). `g`
-    /// the documented model's response on the logs' lines, `own` its cost.
-    fn swapped(&self, g: &[CMatrix], own: f64) -> Option<Rescaled> {
+    /// coil current given as `[i, z]` read a misfit "largest in u->i" and nothing more).
+    /// `grid` the documented model's response where the cost evaluates it, `own` its cost.
+    fn swapped(&self, grid: &[CMatrix], own: f64) -> Option<Rescaled> {
         let data = self.data();
         let pairs = |n: usize| (0..n).flat_map(move |a| (a + 1..n).map(move |b| (a, b)));
         let cost = |edit: &dyn Fn(&mut CMatrix)| {
-            let edited: Vec<CMatrix> = g
+            let edited: Vec<CMatrix> = grid
                 .iter()
                 .map(|m| {
                     let mut m = m.clone();
@@ -865,7 +865,7 @@ impl Workbench {
                     m
                 })
                 .collect();
-            self.cost.cost(&edited)
+            self.cost.cost(&self.cost.map.seen(&edited).lines)
         };
         let outputs = pairs(data.outputs.len()).map(|(a, b)| {
             let names = format!("outputs {} and {}", data.outputs[a], data.outputs[b]);
@@ -903,12 +903,13 @@ impl Workbench {
     /// [channel](Self::unit_rescaled) rescaling and the [swap](Self::swapped) (rival
     /// explanations of one misfit), when it fits the logs [`CLOCK_GAIN`]
     /// times better than none and to within [`NEAR_NOISE`] times the cost of noise alone.
-    /// `theta` the documented values, `g` their response on the logs' lines, `own` its cost.
-    fn rescaled_sentence(&self, theta: &[f64], g: &[CMatrix], own: f64) -> Option<String> {
+    /// `theta` the documented values, `grid` their response where the cost evaluates it, `own`
+    /// its cost.
+    fn rescaled_sentence(&self, theta: &[f64], grid: &[CMatrix], own: f64) -> Option<String> {
         [
             self.clock_rescaled(theta, own),
-            self.unit_rescaled(g, own),
-            self.swapped(g, own),
+            self.unit_rescaled(grid, own),
+            self.swapped(grid, own),
         ]
         .into_iter()
         .flatten()
@@ -947,13 +948,12 @@ impl Workbench {
         let theta = self.model.documented()?;
         let rescaled = self
             .model
-            .frf_seen(&theta, &self.cost.map, self.fit_options().hold)
+            .frf(&theta, self.cost.map.grid_hz(), self.fit_options().hold)
             .ok()
-            .and_then(|g| {
-                let g = g.lines;
-                let own = self.cost.cost(&g);
+            .and_then(|grid| {
+                let own = self.cost.cost(&self.cost.map.seen(&grid).lines);
                 own.is_finite()
-                    .then(|| self.rescaled_sentence(&theta, &g, own))
+                    .then(|| self.rescaled_sentence(&theta, &grid, own))
                     .flatten()
             });
         let named = rescaled.is_some();

@@ -152,6 +152,13 @@ fn experiment(
         if let Some(problem) = &log.problem {
             eprintln!("warning: {name} is incomplete ({problem}); using what was read");
         }
+        if !log.stamped_by_log_time.is_empty() {
+            eprintln!(
+                "warning: {name}: the messages of {} carry no t; their log_time (the recorder's \
+                 stamp) is taken as the sample time",
+                log.stamped_by_log_time.join(", ")
+            );
+        }
         let input = log.topic(&format!("/{system}/input"))?;
         let output = log.topic(&format!("/{system}/output"))?;
         let meta = log.experiment().map(Meta::from_metadata).transpose()?;

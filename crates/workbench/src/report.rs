@@ -1098,7 +1098,7 @@ fn html(wb: &Workbench, d: &Discovery) -> String {
     let _ = write!(body, "<h2>Residuals</h2><p>Weighted misfit per line divided by what noise alone gives (log10; 0 = noise level).</p>{}", chart("misfit / noise per line", FREQUENCY, "log10 ratio", &series));
     body.push_str(&distortion_plot(wb));
     // FRF per channel and step.
-    body.push_str("<h2>Frequency response, measured and model</h2><p>Dots: measured FRF; shaded: one standard deviation; lines: model after each step.</p>");
+    body.push_str("<h2>Frequency response, measured and model</h2><p>Dots: measured FRF; shaded: one standard deviation; lines: model after each step, as the fit compares it (for a Welch estimate seen through the window's kernel).</p>");
     for (o, i) in channels(d, wb) {
         let name = format!("{} -> {}", frf.inputs[i], frf.outputs[o]);
         let entry = |g: &CMatrix| g[(o, i)];

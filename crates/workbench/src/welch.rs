@@ -502,7 +502,8 @@ fn gram_inverse(w: &CMatrix, freq_hz: f64) -> Result<CMatrix> {
 }
 
 /// Per-segment noise covariance from the residual `V = Y - G U` (outputs x segments) of an
-/// FRF `G` at one line, with its part in the span of the weights `W` removed (`Π = I - W (W^H W)^-1 W^H`):
+/// FRF `G` at one line, with its part in the span of the weights `W` removed
+/// (`Π = I - W (W^H W)^-1 W^H`):
 /// `S = V Π V^H / (segments - inputs) = (V V^H - (V W)(W^H W)^-1 (V W)^H) / dof`.
 ///
 /// For the instrumental variable `W` spans `R^H`, so at the true `G` this is the noise
@@ -510,7 +511,9 @@ fn gram_inverse(w: &CMatrix, freq_hz: f64) -> Result<CMatrix> {
 /// feedback does to U. With the estimate itself for `G` (`V = Y - Ĝ U`) the noise would be
 /// mixed with the estimate's own error times the noise-driven input (`(Ĝ - G) U`), which at
 /// the lowest lines of a closed loop distorts it several-fold; with a fitted model the error
-/// is that of a few parameters. For H1 (`W` spans `U^H`) `S` does not depend on `G`.
+/// is that of a few parameters. For H1 (`W` spans `U^H`) `G U` lies in that span and `S`
+/// does not depend on `G`; a model seen through the kernel ([`model_noise`]) also reaches the
+/// bins beside the line, which do not.
 fn projected_noise(v: &CMatrix, w: &CMatrix, gram_inv: &CMatrix) -> Result<CMatrix> {
     let (nu, n) = (w.ncols(), v.ncols());
     if n <= nu {

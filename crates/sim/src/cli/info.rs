@@ -34,6 +34,7 @@ impl Args {
                 metadata: BTreeMap::new(),
                 complete: true,
                 problem: None,
+                stamped_by_log_time: Vec::new(),
             }
         } else {
             read_mcap(&self.file)?
@@ -85,6 +86,9 @@ fn summarize(log: &Log) -> Output {
             human.push_str(&format!(", t = {a} .. {b} s"));
         }
         human.push_str(&format!(", fields: {}", table.fields.join(" ")));
+        if log.stamped_by_log_time.contains(name) {
+            human.push_str(" (no t field: times are the messages' log_time)");
+        }
     }
     for (name, record) in &log.metadata {
         human.push_str(&format!("\n  metadata {name}:"));
@@ -98,7 +102,12 @@ fn summarize(log: &Log) -> Output {
         .map(|(name, table)| {
             (
                 name.clone(),
-                json!({"messages": table.len(), "span": span(table), "fields": table.fields}),
+                json!({
+                    "messages": table.len(),
+                    "span": span(table),
+                    "fields": table.fields,
+                    "stamped_by_log_time": log.stamped_by_log_time.contains(name),
+                }),
             )
         })
         .collect();

@@ -255,11 +255,18 @@ fn foreign_logs_read_by_schema_and_bad_values_are_named() {
         "field \"a\" in /raw at t = 0 is not a finite number: null"
     );
 
-    let path = raw_log(dir.path(), "no-t.mcap", SCHEMA, &[r#"{"a":1,"b":1}"#]);
+    // A topic whose first message has `t` needs it in every message.
+    let path = raw_log(
+        dir.path(),
+        "no-t-later.mcap",
+        SCHEMA,
+        &[r#"{"t":0,"a":1,"b":1}"#, r#"{"a":1,"b":1}"#],
+    );
     let err = read_mcap(&path).unwrap_err();
     assert!(
-        err.to_string()
-            .starts_with("missing field \"t\" in /raw message 0"),
+        err.to_string().starts_with(
+            "missing field \"t\" in /raw message 1 (the topic's first message has one)"
+        ),
         "{err}"
     );
 
@@ -705,4 +712,59 @@ fn the_same_log_twice_is_refused() {
         let err = refuse_repeats(&[a.clone(), other.clone(), repeat]).unwrap_err();
         assert!(err.to_string().contains("is the same log as"), "{err}");
     }
+}
+
+/// A recorder that stamps its messages but writes no `t` field: the topic's times are the
+/// messages' `log_time` (wall clock, ns), the log lists the topic as such, and a stamp that
+/// does not increase is named as a `log_time`.
+#[test]
+fn a_topic_without_t_takes_its_log_time() {
+    let dir = scratch();
+    let write = |name: &str, stamps: &[u64]| -> PathBuf {
+        let path = dir.path().join(name);
+        let file = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
+        let mut w = mcap::Writer::new(file).unwrap();
+        let channel = w
+            .add_channel(0, "/rig/output", "json", &BTreeMap::new())
+            .unwrap();
+        for (k, &log_time) in stamps.iter().enumerate() {
+            let header = mcap::records::MessageHeader {
+                channel_id: channel,
+                sequence: k as u32,
+                log_time,
+                publish_time: log_time,
+            };
+            let data = format!("{{\"x\":{k}}}");
+            w.write_to_known_channel(&header, data.as_bytes()).unwrap();
+        }
+        w.finish().unwrap();
+        path
+    };
+    let epoch = 1_700_000_000_000_000_000u64;
+    let stamps: Vec<u64> = (0..5).map(|k| epoch + k * 1_000_000).collect();
+    let log = read_mcap(write("stamped.mcap", &stamps)).unwrap();
+    assert_eq!(log.stamped_by_log_time, ["/rig/output"]);
+    let table = log.topic("/rig/output").unwrap();
+    assert_eq!(table.fields, ["x"]);
+    for (t, &stamp) in table.t.iter().zip(&stamps) {
+        assert_eq!(*t, (stamp - epoch) as f64 * 1e-9);
+    }
+    assert_eq!(table.column("x").unwrap(), &[0.0, 1.0, 2.0, 3.0, 4.0]);
+    let (rate, jitter) = table
+        .sample_rate(None, &dir.path().join("stamped.mcap"))
+        .unwrap();
+    assert!((rate - 1000.0).abs() < 1e-9, "{rate}");
+    assert!(jitter.is_none());
+
+    let mut back = stamps.clone();
+    back.swap(2, 3);
+    let err = read_mcap(write("back.mcap", &back))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("/rig/output message 3")
+            && err.contains("log_time = ")
+            && err.contains("does not increase"),
+        "{err}"
+    );
 }
