@@ -391,9 +391,14 @@ fn add_message(
             return Err(SimError::BadMessage {
                 context: context(),
                 reason: format!(
-                    "{clock} = {t} s does not increase (the message before is at {clock} = \
-                     {last} s): out of order or duplicated",
-                    clock = if by_log_time { "log_time (from the first message)" } else { "t" }
+                    "{clock} = {t} s does not increase (the message before is at {last} s){}: \
+                     out of order or duplicated",
+                    if by_log_time {
+                        ", counted from the file's first message"
+                    } else {
+                        ""
+                    },
+                    clock = if by_log_time { "log_time" } else { "t" }
                 ),
             });
         }

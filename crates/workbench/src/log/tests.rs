@@ -209,6 +209,27 @@ fn raw_log(dir: &std::path::Path, name: &str, schema: &str, messages: &[&str]) -
     path
 }
 
+/// An MCAP file written with the MCAP library directly: one schemaless JSON channel `topic`,
+/// `messages` as `(log_time, JSON)`, the header naming `library`.
+fn stamped_log(path: &std::path::Path, library: &str, topic: &str, messages: &[(u64, String)]) {
+    let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+    let mut w = mcap::WriteOptions::new()
+        .library(library)
+        .create(file)
+        .unwrap();
+    let channel = w.add_channel(0, topic, "json", &BTreeMap::new()).unwrap();
+    for (k, (log_time, data)) in messages.iter().enumerate() {
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: k as u32,
+            log_time: *log_time,
+            publish_time: *log_time,
+        };
+        w.write_to_known_channel(&header, data.as_bytes()).unwrap();
+    }
+    w.finish().unwrap();
+}
+
 const SCHEMA: &str = r#"{"type":"object","properties":{"t":{"type":"number"},"b":{"type":"number"},"a":{"type":"number"},"label":{"type":"string"}}}"#;
 
 #[test]
@@ -538,25 +559,11 @@ fn times_out_of_order_or_off_their_log_time_are_named_errors() {
     // t against log_time in a log that says stabilis wrote it, written with the MCAP library
     // directly: a constant offset (a rebased log) is fine, a message whose t disagrees is not.
     let write = |path: &std::path::Path, stamps: &[(f64, u64)]| {
-        let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
-        let mut w = mcap::WriteOptions::new()
-            .library("stabilis (test)")
-            .create(file)
-            .unwrap();
-        let channel = w
-            .add_channel(0, "/demo/output", "json", &BTreeMap::new())
-            .unwrap();
-        for (k, (t, log_time)) in stamps.iter().enumerate() {
-            let header = mcap::records::MessageHeader {
-                channel_id: channel,
-                sequence: k as u32,
-                log_time: *log_time,
-                publish_time: *log_time,
-            };
-            let data = format!("{{\"t\":{t},\"x\":1}}");
-            w.write_to_known_channel(&header, data.as_bytes()).unwrap();
-        }
-        w.finish().unwrap();
+        let messages: Vec<(u64, String)> = stamps
+            .iter()
+            .map(|(t, log_time)| (*log_time, format!("{{\"t\":{t},\"x\":1}}")))
+            .collect();
+        stamped_log(path, "stabilis (test)", "/demo/output", &messages);
     };
     let epoch = 1_700_000_000_000_000_000u64;
     let wall = dir.path().join("wall.mcap");
@@ -722,22 +729,12 @@ fn a_topic_without_t_takes_its_log_time() {
     let dir = scratch();
     let write = |name: &str, stamps: &[u64]| -> PathBuf {
         let path = dir.path().join(name);
-        let file = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
-        let mut w = mcap::Writer::new(file).unwrap();
-        let channel = w
-            .add_channel(0, "/rig/output", "json", &BTreeMap::new())
-            .unwrap();
-        for (k, &log_time) in stamps.iter().enumerate() {
-            let header = mcap::records::MessageHeader {
-                channel_id: channel,
-                sequence: k as u32,
-                log_time,
-                publish_time: log_time,
-            };
-            let data = format!("{{\"x\":{k}}}");
-            w.write_to_known_channel(&header, data.as_bytes()).unwrap();
-        }
-        w.finish().unwrap();
+        let messages: Vec<(u64, String)> = stamps
+            .iter()
+            .enumerate()
+            .map(|(k, &log_time)| (log_time, format!("{{\"x\":{k}}}")))
+            .collect();
+        stamped_log(&path, "a recorder", "/rig/output", &messages);
         path
     };
     let epoch = 1_700_000_000_000_000_000u64;
@@ -763,8 +760,7 @@ fn a_topic_without_t_takes_its_log_time() {
         .to_string();
     assert!(
         err.contains("/rig/output message 3")
-            && err.contains("log_time = ")
-            && err.contains("does not increase"),
+            && err.contains("log_time = 0.002 s does not increase"),
         "{err}"
     );
 }
