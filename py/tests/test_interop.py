@@ -113,7 +113,8 @@ def test_log_of_the_official_writer_reads_with_stabilis_info(tmp_path):
     info = json.loads(done.stdout)
     assert info["complete"] is True
     assert info["messages"] == 75
-    assert info["topics"]["/cubli/output"] == {"messages": 50, "span": [0.0, 0.49], "fields": ["wx", "wy", "wz"]}
+    assert info["topics"]["/cubli/output"] == {"messages": 50, "span": [0.0, 0.49], "fields": ["wx", "wy", "wz"],
+                                               "stamped_by_log_time": False}
     assert info["topics"]["/cubli/input"]["messages"] == 25
     assert info["metadata"]["experiment"] == {"sample_rate_hz": "100", "excited": "T1"}
 

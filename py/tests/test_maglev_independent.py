@@ -126,6 +126,12 @@ def test_mcap_logs_without_t_read_by_their_log_time(tmp_path):
     assert ("carry no t; their log_time (the recorder's stamp) is taken as the sample time"
             in done.stderr), done.stderr
     assert "/maglev/excitation, /maglev/input, /maglev/output" in done.stderr, done.stderr
+    info = subprocess.run([stabilis_bin(), "info", str(mcap_dir / "exp_01.mcap"), "--json"],
+                          capture_output=True, text=True, check=False)
+    assert info.returncode == 0, info.stderr
+    topics = json.loads(info.stdout)["topics"]
+    assert all(topics[name]["stamped_by_log_time"] for name in topics), topics
+    assert topics["/maglev/output"]["span"][0] == 0.0, topics
     from_mcap = json.loads(out.read_text())
     assert from_mcap["found"] == from_csv["found"] == ["eddy_damping"]
     assert from_mcap["steps"][-1]["params"]["c"] == pytest.approx(

@@ -227,6 +227,8 @@ pub fn read_mcap_bytes(path: &Path, bytes: &[u8]) -> Result<Log> {
             .entry(channel.topic.clone())
             .or_insert_with(|| Table::new(channel.topic, channel.fields.unwrap_or_default()));
     }
+    // Channels come from a hash map: name the topics in a stable order.
+    log.stamped_by_log_time.sort();
     Ok(log)
 }
 
