@@ -60,8 +60,6 @@ fn chol_inv(cov: &CMatrix, what: &str) -> Result<CMatrix> {
 /// Whitening operators per line, built once from the FRF covariance.
 #[derive(Debug, Clone)]
 pub struct WeightedCost {
-    /// Line frequencies in Hz.
-    pub freqs_hz: Vec<f64>,
     /// Where a model is evaluated and how the lines see it ([`crate::Model::frf_seen`]).
     pub map: LineMap,
     targets: Vec<CMatrix>,
@@ -129,7 +127,6 @@ impl WeightedCost {
             std.push(sd);
         }
         Ok(Self {
-            freqs_hz: frf.freqs_hz(),
             map: LineMap::new(frf),
             targets: frf.lines.iter().map(|l| l.g.clone()).collect(),
             whiten,
