@@ -105,6 +105,44 @@ def write_with_official_writer(path):
     return t
 
 
+def test_messages_written_out_of_time_order_read_as_the_official_reader_orders_them(tmp_path):
+    """MCAP lets a writer put its messages out of time order (here three blocks of a topic in
+    separate chunks, the last first). stabilis reads them in time order, as the official reader
+    does with log_time_order=True, marks the topic, and refuses a message repeated at one time."""
+    rng = np.random.default_rng(3)
+    t = np.arange(60) / 100.0
+    x = rng.standard_normal(60)
+
+    def write(path, order):
+        with open(path, "wb") as f:
+            writer = Writer(f, chunk_size=200)
+            writer.start()
+            channel = writer.register_channel(topic="/rig/output", message_encoding="json", schema_id=0)
+            for k in order:
+                ns = int(round(t[k] * 1e9))
+                writer.add_message(channel, log_time=ns, publish_time=ns,
+                                   data=json.dumps({"t": t[k], "x": x[k]}).encode())
+            writer.finish()
+
+    path = tmp_path / "blocks.mcap"
+    write(path, [*range(40, 60), *range(20, 40), *range(0, 20)])
+    with open(path, "rb") as f:
+        official = [json.loads(m.data) for _, _, m in make_reader(f).iter_messages(log_time_order=True)]
+    tt, fields = stabilis.read_mcap(path)["/rig/output"]
+    np.testing.assert_array_equal(tt, [m["t"] for m in official])
+    np.testing.assert_array_equal(fields["x"], [m["x"] for m in official])
+    np.testing.assert_array_equal(fields["x"], x)
+    done = run_cli("info", str(path), "--json")
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["topics"]["/rig/output"]["reordered"] is True
+
+    repeated = tmp_path / "repeated.mcap"
+    write(repeated, [*range(0, 30), 12, *range(30, 60)])
+    done = run_cli("info", str(repeated))
+    assert done.returncode != 0
+    assert "messages 12 and 30 are both at t = 0.12 s" in done.stderr, done.stderr
+
+
 def test_log_of_the_official_writer_reads_with_stabilis_info(tmp_path):
     path = tmp_path / "foreign.mcap"
     t = write_with_official_writer(path)
@@ -114,7 +152,7 @@ def test_log_of_the_official_writer_reads_with_stabilis_info(tmp_path):
     assert info["complete"] is True
     assert info["messages"] == 75
     assert info["topics"]["/cubli/output"] == {"messages": 50, "span": [0.0, 0.49], "fields": ["wx", "wy", "wz"],
-                                               "stamped_by_log_time": False}
+                                               "stamped_by_log_time": False, "reordered": False}
     assert info["topics"]["/cubli/input"]["messages"] == 25
     assert info["metadata"]["experiment"] == {"sample_rate_hz": "100", "excited": "T1"}
 

@@ -159,6 +159,13 @@ fn experiment(
                 log.stamped_by_log_time.join(", ")
             );
         }
+        if !log.reordered.is_empty() {
+            eprintln!(
+                "warning: {name}: the file holds the messages of {} out of time order (chunks \
+                 written out of order); they are read in time order",
+                log.reordered.join(", ")
+            );
+        }
         let input = log.topic(&format!("/{system}/input"))?;
         let output = log.topic(&format!("/{system}/output"))?;
         let meta = log.experiment().map(Meta::from_metadata).transpose()?;

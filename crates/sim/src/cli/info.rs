@@ -35,6 +35,7 @@ impl Args {
                 complete: true,
                 problem: None,
                 stamped_by_log_time: Vec::new(),
+                reordered: Vec::new(),
             }
         } else {
             read_mcap(&self.file)?
@@ -89,6 +90,9 @@ fn summarize(log: &Log) -> Output {
         if log.stamped_by_log_time.contains(name) {
             human.push_str(" (no t field: times are the messages' log_time)");
         }
+        if log.reordered.contains(name) {
+            human.push_str(" (the file holds them out of time order: put back in order)");
+        }
     }
     for (name, record) in &log.metadata {
         human.push_str(&format!("\n  metadata {name}:"));
@@ -107,6 +111,7 @@ fn summarize(log: &Log) -> Output {
                     "span": span(table),
                     "fields": table.fields,
                     "stamped_by_log_time": log.stamped_by_log_time.contains(name),
+                    "reordered": log.reordered.contains(name),
                 }),
             )
         })

@@ -4,13 +4,14 @@
 //!
 //! Damage is an error, never numbers: every chunk's CRC is checked before any of its messages
 //! is used, every record length is bounded before anything is allocated for it (see
-//! [`record_limit`]), and within a topic `t` must increase. In logs this program wrote, whose
-//! `log_time` is `t` in nanoseconds by construction, the two must agree (other recorders stamp
-//! `log_time` at reception, so there it is not compared). A topic whose first message has no
-//! `t` takes every message's `log_time` as its sample time instead (a recorder that stamps
-//! messages but writes no time field), listed in [`Log::stamped_by_log_time`]. A file that
-//! merely stops early (a killed run) is read up to its last complete chunk, with
-//! [`Log::problem`] saying so.
+//! [`record_limit`]), and within a topic no two messages may share a time. MCAP does not ask a
+//! writer to keep its messages in time order (chunks may be flushed out of order), so a topic
+//! whose messages are not is read in time order and listed in [`Log::reordered`]. In logs this program wrote, whose `log_time` is `t` in
+//! nanoseconds by construction, the two must agree (other recorders stamp `log_time` at
+//! reception, so there it is not compared). A topic whose first message has no `t` takes every
+//! message's `log_time` as its sample time instead (a recorder that stamps messages but writes
+//! no time field), listed in [`Log::stamped_by_log_time`]. A file that merely stops early (a
+//! killed run) is read up to its last complete chunk, with [`Log::problem`] saying so.
 use std::borrow::Cow;
 use std::collections::{BTreeMap, HashMap};
 use std::fmt;
@@ -38,9 +39,11 @@ pub struct Log {
     /// Why reading stopped early, when it did.
     pub problem: Option<String>,
     /// Topics whose messages carry no `t`: their sample times are the messages' `log_time`,
-    /// in seconds from the file's first message (a wall clock's nanoseconds near 1.7e18 would
-    /// keep only 0.24 µs in an f64, 0.02 % of a 1 ms step).
+    /// in seconds from the file's earliest message (a wall clock's nanoseconds near 1.7e18
+    /// would keep only 0.24 µs in an f64, 0.02 % of a 1 ms step).
     pub stamped_by_log_time: Vec<String>,
+    /// Topics whose messages the file holds out of time order, put back in order.
+    pub reordered: Vec<String>,
 }
 
 impl Log {
@@ -122,11 +125,14 @@ pub fn read_mcap_bytes(path: &Path, bytes: &[u8]) -> Result<Log> {
         complete: false,
         problem: None,
         stamped_by_log_time: Vec::new(),
+        reordered: Vec::new(),
     };
     // Whether `log_time` is `t` in nanoseconds by construction (logs this program wrote).
     let mut ours = false;
-    // The first message's `log_time`, from which topics without `t` count their times.
+    // The first message's `log_time`, from which topics without `t` count their times until
+    // the earliest is known.
     let mut first_log_time: Option<u64> = None;
+    let mut earliest_log_time = u64::MAX;
     let damaged = |source| SimError::Mcap {
         path: path.to_path_buf(),
         source,
@@ -197,6 +203,7 @@ pub fn read_mcap_bytes(path: &Path, bytes: &[u8]) -> Result<Log> {
                             reason: "its channel was never declared".into(),
                         })?;
                 let base = *first_log_time.get_or_insert(header.log_time);
+                earliest_log_time = earliest_log_time.min(header.log_time);
                 let since_first = (i128::from(header.log_time) - i128::from(base)) as f64 * 1e-9;
                 let stamp = Stamp {
                     log_time: header.log_time,
@@ -229,7 +236,48 @@ pub fn read_mcap_bytes(path: &Path, bytes: &[u8]) -> Result<Log> {
     }
     // Channels come from a hash map: name the topics in a stable order.
     log.stamped_by_log_time.sort();
+    log.stamped_by_log_time.dedup();
+    // Count the stamped times from the earliest message rather than the first in the file.
+    let rebase = first_log_time.map_or(0.0, |first| (first - earliest_log_time) as f64 * 1e-9);
+    for (name, table) in &mut log.topics {
+        let by_log_time = log.stamped_by_log_time.contains(name);
+        if by_log_time && rebase > 0.0 {
+            table.t.iter_mut().for_each(|t| *t += rebase);
+        }
+        if put_in_time_order(table, if by_log_time { "log_time" } else { "t" })? {
+            log.reordered.push(name.clone());
+        }
+    }
     Ok(log)
+}
+
+/// Puts a topic's messages in time order; true if they had to move. Two messages at the same
+/// time cannot both be samples (a repeated chunk, two recordings on one topic): an error
+/// naming both.
+fn put_in_time_order(table: &mut Table, clock: &str) -> Result<bool> {
+    let t = &table.t;
+    if t.windows(2).all(|w| w[0] < w[1]) {
+        return Ok(false);
+    }
+    let mut order: Vec<usize> = (0..t.len()).collect();
+    order.sort_by(|&a, &b| t[a].total_cmp(&t[b]));
+    if let Some(pair) = order.windows(2).find(|p| t[p[0]] == t[p[1]]) {
+        return Err(SimError::BadMessage {
+            context: table.name.clone(),
+            reason: format!(
+                "messages {} and {} are both at {clock} = {} s (repeated, or two recordings on \
+                 one topic?)",
+                pair[0].min(pair[1]),
+                pair[0].max(pair[1]),
+                t[pair[0]]
+            ),
+        });
+    }
+    table.t = order.iter().map(|&k| t[k]).collect();
+    for column in &mut table.columns {
+        *column = order.iter().map(|&k| column[k]).collect();
+    }
+    Ok(true)
 }
 
 /// Number fields of a jsonschema object, `required` order first, then the rest by name.
@@ -384,23 +432,6 @@ fn add_message(
                 reason: format!(
                     "t = {t} s disagrees with its log_time {log_time} ns (expected {:.0} ns)",
                     (t + offset) * 1e9
-                ),
-            });
-        }
-    }
-    if let Some(&last) = topics.get(&channel.topic).and_then(|table| table.t.last()) {
-        if t <= last {
-            return Err(SimError::BadMessage {
-                context: context(),
-                reason: format!(
-                    "{clock} = {t} s does not increase (the message before is at {last} s){}: \
-                     out of order or duplicated",
-                    if by_log_time {
-                        ", counted from the file's first message"
-                    } else {
-                        ""
-                    },
-                    clock = if by_log_time { "log_time" } else { "t" }
                 ),
             });
         }

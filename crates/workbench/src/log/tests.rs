@@ -437,6 +437,27 @@ proptest! {
         let column = read.topic("/p/q").unwrap().column("value").unwrap().to_vec();
         prop_assert_eq!(column.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), values.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
     }
+
+    /// Whatever order a file holds a topic's samples in (written over several chunks), they are
+    /// read in time order, each time with its own values.
+    #[test]
+    fn samples_in_any_order_read_in_time_order(order in Just((0..40).collect::<Vec<usize>>()).prop_shuffle()) {
+        let dir = scratch();
+        let path = dir.path().join("shuffled.mcap");
+        let mut log = LogWriter::with_flush_every(&path, &[], 7).unwrap();
+        let topic = log.add_topic("/p/q", &["k", "x"]).unwrap();
+        for &k in &order {
+            log.write(topic, k as f64 * 0.001, &[k as f64, (k as f64).sin()]).unwrap();
+        }
+        log.finish().unwrap();
+        let read = read_mcap(&path).unwrap();
+        let table = read.topic("/p/q").unwrap();
+        prop_assert_eq!(table.column("k").unwrap(), &(0..40).map(|k| k as f64).collect::<Vec<_>>()[..]);
+        prop_assert_eq!(table.column("x").unwrap(), &(0..40).map(|k| (k as f64).sin()).collect::<Vec<_>>()[..]);
+        prop_assert!(table.t.windows(2).all(|w| w[0] < w[1]));
+        let sorted = order.windows(2).all(|w| w[0] < w[1]);
+        prop_assert_eq!(read.reordered.is_empty(), sorted);
+    }
 }
 
 #[test]
@@ -543,18 +564,57 @@ fn a_corrupt_chunk_size_is_an_error_before_any_allocation() {
     }
 }
 
-#[test]
-fn times_out_of_order_or_off_their_log_time_are_named_errors() {
-    let dir = scratch();
-    let path = dir.path().join("order.mcap");
-    let mut log = LogWriter::create(&path).unwrap();
+/// Writes one topic's messages at `times` in that order, x = 10 t.
+fn written_in_order(path: &std::path::Path, times: &[f64]) -> crate::error::Result<Log> {
+    let mut log = LogWriter::create(path).unwrap();
     let topic = log.add_topic("/demo/output", &["x"]).unwrap();
-    for t in [0.0, 0.02, 0.01] {
-        log.write(topic, t, &[1.0]).unwrap();
+    for &t in times {
+        log.write(topic, t, &[10.0 * t]).unwrap();
     }
     log.finish().unwrap();
-    let err = read_mcap(&path).unwrap_err().to_string();
-    assert!(err.contains("does not increase"), "{err}");
+    read_mcap(path)
+}
+
+/// Messages out of time order (chunks written out of order) are read in time order and the
+/// topic is named; two messages at one time are an error naming both.
+#[test]
+fn messages_out_of_time_order_are_put_back_or_named() {
+    let dir = scratch();
+    let path = dir.path().join("order.mcap");
+    for times in [
+        &[0.03, 0.04, 0.0, 0.01, 0.02, 0.05][..],
+        &[0.0, 0.02, 0.01, 0.03, 0.04, 0.05],
+        &[0.05, 0.04, 0.03, 0.02, 0.01, 0.0],
+    ] {
+        let log = written_in_order(&path, times).unwrap();
+        let table = log.topic("/demo/output").unwrap();
+        assert_eq!(table.t, [0.0, 0.01, 0.02, 0.03, 0.04, 0.05]);
+        assert_eq!(table.column("x").unwrap(), &[0.0, 0.1, 0.2, 0.3, 0.4, 0.5]);
+        assert_eq!(log.reordered, ["/demo/output"]);
+    }
+    let log = written_in_order(&path, &[0.0, 0.01, 0.02]).unwrap();
+    assert!(log.reordered.is_empty());
+    for (times, named) in [
+        (
+            &[0.0, 0.01, 0.01][..],
+            "messages 1 and 2 are both at t = 0.01 s",
+        ),
+        (
+            &[0.02, 0.0, 0.01, 0.02],
+            "messages 0 and 3 are both at t = 0.02 s",
+        ),
+    ] {
+        let err = written_in_order(&path, times).unwrap_err().to_string();
+        assert!(
+            err.contains("/demo/output") && err.contains(named),
+            "{times:?}: {err}"
+        );
+    }
+}
+
+#[test]
+fn times_off_their_log_time_are_named_errors() {
+    let dir = scratch();
 
     // t against log_time in a log that says stabilis wrote it, written with the MCAP library
     // directly: a constant offset (a rebased log) is fine, a message whose t disagrees is not.
@@ -753,14 +813,25 @@ fn a_topic_without_t_takes_its_log_time() {
     assert!((rate - 1000.0).abs() < 1e-9, "{rate}");
     assert!(jitter.is_none());
 
-    let mut back = stamps.clone();
-    back.swap(2, 3);
-    let err = read_mcap(write("back.mcap", &back))
+    // Stamps in two runs that follow one another: in time order, counted from the earliest.
+    let mut later_first = stamps[3..].to_vec();
+    later_first.extend_from_slice(&stamps[..3]);
+    let log = read_mcap(write("later_first.mcap", &later_first)).unwrap();
+    let table = log.topic("/rig/output").unwrap();
+    assert_eq!(log.reordered, ["/rig/output"]);
+    for (t, &stamp) in table.t.iter().zip(&stamps) {
+        assert!((*t - (stamp - epoch) as f64 * 1e-9).abs() < 1e-15, "{t}");
+    }
+    assert_eq!(table.column("x").unwrap(), &[2.0, 3.0, 4.0, 0.0, 1.0]);
+
+    let mut again = stamps.clone();
+    again[4] = again[2];
+    let err = read_mcap(write("again.mcap", &again))
         .unwrap_err()
         .to_string();
     assert!(
-        err.contains("/rig/output message 3")
-            && err.contains("log_time = 0.002 s does not increase"),
+        err.contains("/rig/output")
+            && err.contains("messages 2 and 4 are both at log_time = 0.002 s"),
         "{err}"
     );
 }
