@@ -91,7 +91,7 @@ fn summarize(log: &Log) -> Output {
             human.push_str(" (no t field: times are the messages' log_time)");
         }
         if log.reordered.contains(name) {
-            human.push_str(" (the file holds them out of time order: put back in order)");
+            human.push_str(" (out of time order in the file; read in time order)");
         }
     }
     for (name, record) in &log.metadata {
