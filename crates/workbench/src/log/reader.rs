@@ -8,10 +8,11 @@
 //! writer to keep its messages in time order (chunks may be flushed out of order), so a topic
 //! whose messages are not is read in time order and listed in [`Log::reordered`]. In logs
 //! this program wrote, whose `log_time` is `t` in nanoseconds by construction, the two must
-//! agree (other recorders stamp `log_time` at reception, so there it is not compared). A topic whose first message has no `t` takes every
-//! message's `log_time` as its sample time instead (a recorder that stamps messages but writes
-//! no time field), listed in [`Log::stamped_by_log_time`]. A file that merely stops early (a
-//! killed run) is read up to its last complete chunk, with [`Log::problem`] saying so.
+//! agree (other recorders stamp `log_time` at reception, so there it is not compared). A
+//! topic whose first message has no `t` takes every message's `log_time` as its sample time
+//! instead (a recorder that stamps messages but writes no time field), listed in
+//! [`Log::stamped_by_log_time`]. A file that merely stops early (a killed run) is read up to
+//! its last complete chunk, with [`Log::problem`] saying so.
 use std::borrow::Cow;
 use std::collections::{BTreeMap, HashMap};
 use std::fmt;
