@@ -260,6 +260,7 @@ fn put_in_time_order(table: &mut Table, clock: &str) -> Result<bool> {
     if t.windows(2).all(|w| w[0] < w[1]) {
         return Ok(false);
     }
+    // Stable: messages at one time keep their file order, so the first of a pair is earlier.
     let mut order: Vec<usize> = (0..t.len()).collect();
     order.sort_by(|&a, &b| t[a].total_cmp(&t[b]));
     if let Some(pair) = order.windows(2).find(|p| t[p[0]] == t[p[1]]) {
@@ -268,9 +269,7 @@ fn put_in_time_order(table: &mut Table, clock: &str) -> Result<bool> {
             reason: format!(
                 "messages {} and {} are both at {clock} = {} s (repeated, or two recordings on \
                  one topic?)",
-                pair[0].min(pair[1]),
-                pair[0].max(pair[1]),
-                t[pair[0]]
+                pair[0], pair[1], t[pair[0]]
             ),
         });
     }
