@@ -29,6 +29,88 @@ impl Whitener {
     }
 }
 
+/// Correlation of the whitened errors of neighbouring Welch lines, which share the window's
+/// kernel (see [`crate::welch::CORRELATED_LINES`]): after each line's whitening `z_k = (L_Mk^-1
+/// ⊗ L_Sk^-1) vec E_k`, `E[z_k z_j^H] = A_kj ⊗ I` with `A_kj = L_Mk^-1 M_kj L_Mj^-H` for a noise
+/// flat over the lines. The fit keeps every line and weighs each alone (whitening across
+/// lines with a modelled noise cross-spectrum bent a two-output fit whose noise turns within a
+/// few bins); this correlation goes into its parameters' covariance ([`LineCorrelation::gram`]).
+#[derive(Debug, Clone, Default)]
+pub struct LineCorrelation {
+    /// `A_kj` per line for `j = k - 1, k - 2, ...`, nearest first; empty for periodic lines.
+    blocks: Vec<Vec<CMatrix>>,
+    ny: usize,
+}
+
+impl LineCorrelation {
+    /// The correlation of the lines of `frf` (none for periodic estimates).
+    pub fn new(frf: &FrfEstimate) -> Result<Self> {
+        if frf.lines.iter().all(|l| l.previous.is_empty()) {
+            return Ok(Self::default());
+        }
+        let l_inv: Vec<CMatrix> = frf
+            .lines
+            .iter()
+            .map(|line| match &line.kronecker {
+                Some((m, _)) => chol_inv(m, &format!("FRF weights at {:.3} Hz", line.freq_hz)),
+                None => Err(SimError::invalid(
+                    format!("FRF line at {:.3} Hz", line.freq_hz),
+                    "correlated with its neighbours but not of the form M ⊗ S",
+                    "only a Kronecker-structured covariance has a line correlation",
+                )),
+            })
+            .collect::<Result<_>>()?;
+        let blocks = frf
+            .lines
+            .iter()
+            .enumerate()
+            .map(|(k, line)| {
+                (1..=k)
+                    .zip(&line.previous)
+                    .map(|(d, m)| &l_inv[k] * m * l_inv[k - d].adjoint())
+                    .collect()
+            })
+            .collect();
+        Ok(Self {
+            blocks,
+            ny: frf.ny(),
+        })
+    }
+
+    /// `J^T Ω J` for a Jacobian `j` of the stacked real residuals `[Re z_k; Im z_k]` (one
+    /// column per parameter), `Ω` the residuals' correlation: `Re Σ_kj J_k^H Ω_kj J_j` in the
+    /// complex residuals. `J^T J` when the lines are independent.
+    pub fn gram(&self, j: &DMatrix<f64>) -> DMatrix<f64> {
+        let mut g = j.transpose() * j;
+        if self.blocks.is_empty() {
+            return g;
+        }
+        let p = j.ncols();
+        let m = j.nrows() / (2 * self.blocks.len());
+        let line = |k: usize| {
+            CMatrix::from_fn(m, p, |r, c| {
+                C64::new(j[(2 * m * k + r, c)], j[(2 * m * k + m + r, c)])
+            })
+        };
+        let lines: Vec<CMatrix> = (0..self.blocks.len()).map(line).collect();
+        for (k, blocks_k) in self.blocks.iter().enumerate() {
+            for (d, a) in blocks_k.iter().enumerate() {
+                // (A ⊗ I_ny) J_j, vec index `input * ny + output`.
+                let jj = &lines[k - d - 1];
+                let moved = CMatrix::from_fn(m, p, |r, c| {
+                    let (ai, oi) = (r / self.ny, r % self.ny);
+                    (0..a.ncols())
+                        .map(|b| a[(ai, b)] * jj[(b * self.ny + oi, c)])
+                        .sum()
+                });
+                let cross = (lines[k].adjoint() * moved).map(|v| v.re);
+                g += &cross + cross.transpose();
+            }
+        }
+        g
+    }
+}
+
 /// Lower Cholesky factor's inverse of a Hermitian matrix with a relative ridge of 1e-12 (keeps
 /// a channel without noise, such as a constant output, from breaking the factorisation).
 fn chol_inv(cov: &CMatrix, what: &str) -> Result<CMatrix> {
@@ -64,6 +146,8 @@ pub struct WeightedCost {
     pub map: LineMap,
     targets: Vec<CMatrix>,
     whiten: Vec<Whitener>,
+    /// How the lines' whitened errors correlate, for the parameters' covariance.
+    pub correlation: LineCorrelation,
     /// Standard deviation of each FRF entry per line (outputs x inputs), for bands and
     /// standardised errors.
     pub std: Vec<DMatrix<f64>>,
@@ -130,6 +214,7 @@ impl WeightedCost {
             map: LineMap::new(frf),
             targets: frf.lines.iter().map(|l| l.g.clone()).collect(),
             whiten,
+            correlation: LineCorrelation::new(frf)?,
             std,
             ny,
             nu,
@@ -249,6 +334,51 @@ mod tests {
             };
             prop_assert!((a.norm_squared() - b.norm_squared()).abs() <= 1e-6 * (1.0 + direct));
             prop_assert!((a.norm_squared() - direct).abs() <= 1e-6 * (1.0 + direct));
+        }
+
+        /// `LineCorrelation::gram` is `J^T Ω_r J` with `Ω_r` the real form `[[Re Ω, -Im Ω],
+        /// [Im Ω, Re Ω]]` of the complex correlation `Ω` (blocks `A_kj ⊗ I` below the diagonal,
+        /// their adjoints above, `I` on it), written out densely; two outputs, two inputs, five
+        /// lines, each correlated with the two before it.
+        #[test]
+        fn line_correlation_gram_is_the_dense_sandwich_middle(
+            a in proptest::collection::vec(-0.3f64..0.3, 5 * 2 * 8),
+            jv in proptest::collection::vec(-1.0f64..1.0, 5 * 8 * 3),
+        ) {
+            let (nl, ny, nu, p) = (5, 2, 2, 3);
+            let m = ny * nu;
+            let block = |k: usize, d: usize| {
+                let o = (k * 2 + d) * 8;
+                CMatrix::from_fn(nu, nu, |i, j| C64::new(a[o + 2 * (i * nu + j)], a[o + 2 * (i * nu + j) + 1]))
+            };
+            let blocks: Vec<Vec<CMatrix>> = (0..nl).map(|k| (0..k.min(2)).map(|d| block(k, d)).collect()).collect();
+            let omega = |k: usize, j: usize| -> CMatrix {
+                if k == j {
+                    CMatrix::identity(m, m)
+                } else if k > j && k - j <= 2 {
+                    blocks[k][k - j - 1].kronecker(&CMatrix::identity(ny, ny))
+                } else if j > k && j - k <= 2 {
+                    blocks[j][j - k - 1].kronecker(&CMatrix::identity(ny, ny)).adjoint()
+                } else {
+                    CMatrix::zeros(m, m)
+                }
+            };
+            let n = 2 * m * nl;
+            let dense = DMatrix::from_fn(n, n, |r, c| {
+                let (k, j) = (r / (2 * m), c / (2 * m));
+                let (rr, cc) = (r % (2 * m), c % (2 * m));
+                let w = omega(k, j)[(rr % m, cc % m)];
+                match (rr < m, cc < m) {
+                    (true, true) | (false, false) => w.re,
+                    (true, false) => -w.im,
+                    (false, true) => w.im,
+                }
+            });
+            let j = DMatrix::from_column_slice(n, p, &jv);
+            let correlation = LineCorrelation { blocks, ny };
+            let direct = j.transpose() * dense * &j;
+            let gram = correlation.gram(&j);
+            prop_assert!((&gram - &direct).norm() <= 1e-9 * (1.0 + direct.norm()), "{gram} vs {direct}");
         }
     }
 }

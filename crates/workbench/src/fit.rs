@@ -6,7 +6,7 @@
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
-use super::cost::WeightedCost;
+use super::cost::{LineCorrelation, WeightedCost};
 use super::frf::{model_noise, FrfEstimate, LineMap, ModelFrf};
 use super::model::{Model, Parameter};
 use crate::error::{Result, SimError};
@@ -101,6 +101,12 @@ pub trait LeastSquares: Sync {
     /// The Jacobian of the residuals by every parameter (columns in model order) at `theta`,
     /// where they are `r` (a criterion that differences them starts from these).
     fn jacobian(&self, theta: &[f64], r: &DVector<f64>) -> Result<DMatrix<f64>>;
+    /// `J^T Ω J` with `Ω` the correlation of the residuals (unit diagonal), for the
+    /// parameters' covariance `σ² (J^T J)^-1 J^T Ω J (J^T J)^-1`: `J^T J` for independent
+    /// residuals.
+    fn correlated_gram(&self, j: &DMatrix<f64>) -> DMatrix<f64> {
+        j.transpose() * j
+    }
 }
 
 /// The FRF criterion: the weighted misfit of the model FRF on the cost's lines.
@@ -123,6 +129,10 @@ impl LeastSquares for FrfCriterion<'_> {
             .frf_with_jacobian(theta, map.grid_hz(), self.hold)?;
         Ok(self.cost.jacobian(&map.seen_derivatives(&d)))
     }
+
+    fn correlated_gram(&self, j: &DMatrix<f64>) -> DMatrix<f64> {
+        self.cost.correlation.gram(j)
+    }
 }
 
 /// The FRF criterion weighted at every parameter vector by the noise of that model's own
@@ -138,6 +148,8 @@ struct NoiseWeightedCriterion<'a> {
     frf: &'a FrfEstimate,
     map: LineMap,
     hold: Option<f64>,
+    /// The lines' correlation (the weights' alone, whatever the noise).
+    correlation: LineCorrelation,
 }
 
 impl NoiseWeightedCriterion<'_> {
@@ -157,6 +169,10 @@ impl LeastSquares for NoiseWeightedCriterion<'_> {
         // By differences: the weighting moves with the parameters, and its share of the
         // gradient is what removes the pull.
         difference_jacobian(self, self.model, theta, r0)
+    }
+
+    fn correlated_gram(&self, j: &DMatrix<f64>) -> DMatrix<f64> {
+        self.correlation.gram(j)
     }
 }
 
@@ -207,6 +223,7 @@ pub fn fit_noise_weighted(
         frf,
         map: LineMap::new(frf),
         hold: opts.hold,
+        correlation: LineCorrelation::new(frf)?,
     };
     let params = model.parameters()?;
     let mut r = solve(&criterion, &params, start, opts)?;
@@ -275,7 +292,8 @@ pub fn solve(
             }
             None => {
                 let v = r.norm_squared();
-                let estimates = report(params, &held, &theta, &j, v, r.len());
+                let gram = criterion.correlated_gram(&j);
+                let estimates = report(params, &held, &theta, &j, &gram, v, r.len());
                 // A fit that gave up has not held its unseen combinations; they are not
                 // free parameters of its cost either.
                 let unseen = if gave_up {
@@ -558,12 +576,15 @@ fn report(
     held: &[bool],
     theta: &[f64],
     j: &DMatrix<f64>,
+    correlated_gram: &DMatrix<f64>,
     v: f64,
     n: usize,
 ) -> Vec<ParamEstimate> {
     let free = free_indices(held);
     let sigma2 = v / (n.saturating_sub(free.len()).max(1)) as f64;
-    let cov = (j.transpose() * j).try_inverse();
+    let cov = (j.transpose() * j)
+        .try_inverse()
+        .map(|inv| &inv * correlated_gram * &inv);
     params
         .iter()
         .enumerate()

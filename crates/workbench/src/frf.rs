@@ -102,6 +102,11 @@ pub struct FrfLine {
     /// at the bins beside it (see [`KernelTap`]); empty for periodic estimates, whose lines
     /// see the response at their own frequency.
     pub kernel: Vec<KernelTap>,
+    /// Welch estimates: `M_kj` of `Cov(vec Ĝ_k, vec Ĝ_j) = M_kj ⊗ S` for the lines `j = k - 1,
+    /// k - 2, ...` before this one, nearest first (neighbouring bins share the window's
+    /// kernel, see [`crate::welch::CORRELATED_LINES`]); empty for periodic estimates, whose
+    /// lines are independent.
+    pub previous: Vec<CMatrix>,
 }
 
 /// One bin of the window's kernel at a Welch line. A Hann-windowed transform is
@@ -436,6 +441,7 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
             kronecker: Some((m, s)),
             noise_spectra,
             kernel: Vec::new(),
+            previous: Vec::new(),
         });
     }
     Ok(FrfEstimate {
