@@ -745,7 +745,6 @@ mod tests {
     /// power it is refused.
     #[test]
     fn excited_band_is_read_from_the_excitation() {
-        use crate::dataset::Experiment;
         let (fs, n) = (50.0, 20_000);
         let bin = fs / ((2 * n / (MIN_SEGMENTS + 1)) & !1) as f64;
         let r = DMatrix::from_fn(n, 1, |k, _| {
@@ -756,18 +755,7 @@ mod tests {
                 })
                 .sum::<f64>()
         });
-        let mut data = Dataset {
-            sample_rate_hz: fs,
-            inputs: vec!["u".into()],
-            outputs: vec!["y".into()],
-            experiments: vec![Experiment {
-                name: "e".into(),
-                u: r.clone(),
-                y: r.clone(),
-                r: Some(r.clone()),
-                periodic: None,
-            }],
-        };
+        let mut data = one_record(fs, r.clone(), r.clone(), Some(r.clone()));
         for logged in [true, false] {
             if !logged {
                 data.experiments[0].r = None;
@@ -861,18 +849,7 @@ mod tests {
                 r[(i, 0)] + 0.5 * rng.sample::<f64, _>(StandardNormal)
             });
             let estimate = |y: DMatrix<f64>| {
-                let data = Dataset {
-                    sample_rate_hz: fs,
-                    inputs: vec!["u".into()],
-                    outputs: vec!["y".into()],
-                    experiments: vec![Experiment {
-                        name: "log".into(),
-                        u: u.clone(),
-                        y,
-                        r: Some(r.clone()),
-                        periodic: None,
-                    }],
-                };
+                let data = one_record(fs, u.clone(), y, Some(r.clone()));
                 welch_frf(
                     &data,
                     choice,
@@ -915,6 +892,27 @@ mod tests {
         }
     }
 
+    /// One non-periodic record of input `u`, output `y` and, if logged, excitation `r`.
+    fn one_record(
+        sample_rate_hz: f64,
+        u: DMatrix<f64>,
+        y: DMatrix<f64>,
+        r: Option<DMatrix<f64>>,
+    ) -> Dataset {
+        Dataset {
+            sample_rate_hz,
+            inputs: vec!["u".into()],
+            outputs: vec!["y".into()],
+            experiments: vec![Experiment {
+                name: "log".into(),
+                u,
+                y,
+                r,
+                periodic: None,
+            }],
+        }
+    }
+
     fn first_order(seed: u64, n: usize, noise: f64, feedback: f64) -> Dataset {
         // y[i] = 0.8 y[i-1] + 0.5 u[i-1] + v; u = r - feedback * y (closed loop when > 0).
         let mut rng = StdRng::seed_from_u64(seed);
@@ -931,18 +929,7 @@ mod tests {
             u[(i, 0)] = r[(i, 0)] - feedback * y[(i, 0)];
             prev_u = u[(i, 0)];
         }
-        Dataset {
-            sample_rate_hz: 10.0,
-            inputs: vec!["u".into()],
-            outputs: vec!["y".into()],
-            experiments: vec![Experiment {
-                name: "log".into(),
-                u,
-                y,
-                r: Some(r),
-                periodic: None,
-            }],
-        }
+        one_record(10.0, u, y, Some(r))
     }
 
     /// Closed form `G(z) = 0.5 z^-1 / (1 - 0.8 z^-1)` at frequency f.
@@ -1001,18 +988,7 @@ mod tests {
             (y2, y1) = (y1, next);
             y[(i, 0)] = next + 0.5 * rng.sample::<f64, _>(StandardNormal);
         }
-        Dataset {
-            sample_rate_hz: 100.0,
-            inputs: vec!["u".into()],
-            outputs: vec!["y".into()],
-            experiments: vec![Experiment {
-                name: "log".into(),
-                u,
-                y,
-                r: None,
-                periodic: None,
-            }],
-        }
+        one_record(100.0, u, y, None)
     }
 
     /// Closed form of [`resonance_log`]'s plant at frequency f (Hz).
