@@ -35,7 +35,7 @@ def last_steps(tmp: Path, model: Path, simulate) -> list[dict]:
     return steps
 
 
-@pytest.mark.campaign  # about 2 minutes
+@pytest.mark.campaign  # 40 discoveries of about 3 s each
 def test_maglev_welch_errors_follow_the_spread(tmp_path):
     """Both hidden effects (eddy damping, coil lag): RMS z within 0.8-1.45. The rest above 1
     comes with the force disturbance fed back to the input (README)."""
@@ -46,7 +46,7 @@ def test_maglev_welch_errors_follow_the_spread(tmp_path):
     assert all(0.8 < v < 1.45 for v in rms.values()), rms
 
 
-@pytest.mark.campaign  # about 1 minute
+@pytest.mark.campaign  # 40 discoveries of about 1 s each
 def test_twomass_welch_errors_follow_the_spread(tmp_path):
     """The hidden friction of mass 2 on 45 s records: RMS z of the masses and the spring, seen
     across the band, within 0.8-1.25; of the mode's damping, which the model of the lines'
