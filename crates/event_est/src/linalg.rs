@@ -102,7 +102,10 @@ pub fn h2_squared(a_hat: &DMatrix<f64>, b_hat: &DMatrix<f64>) -> Result<f64, Eve
 }
 
 /// H∞ norm of G(z) = Ĉ (zI − Â)^{-1} B̂ by a frequency sweep over ω ∈ [0, π]
-/// (log-spaced near 0, where the slow platoon modes peak, then refined around the maximum).
+/// (log-spaced near 0, where the slow platoon modes peak, plus the angle of every pole of Â,
+/// then refined around the maximum). Without the poles' angles a lightly damped pole at
+/// ω = 2.56 (|p| = 0.92) fell between the grid's points 0.1 apart, and the sweep gave the
+/// value at ω = 0, 3.4 % below the peak.
 pub fn hinf_norm(a_hat: &DMatrix<f64>, b_hat: &DMatrix<f64>, c_hat: &DMatrix<f64>) -> f64 {
     let n = a_hat.nrows();
     let eval = |omega: f64| -> f64 {
@@ -125,6 +128,13 @@ pub fn hinf_norm(a_hat: &DMatrix<f64>, b_hat: &DMatrix<f64>, c_hat: &DMatrix<f64
         let t = k as f64 / (points - 1) as f64;
         grid.push(1e-6 * (std::f64::consts::PI / 1e-6).powf(t));
     }
+    grid.extend(
+        a_hat
+            .complex_eigenvalues()
+            .iter()
+            .map(|p| p.im.atan2(p.re).abs()),
+    );
+    grid.sort_by(f64::total_cmp);
     let (mut best_w, mut best) = (0.0, eval(0.0));
     for &w in &grid {
         let g = eval(w);
@@ -158,4 +168,59 @@ pub fn cholesky_lower(m: &DMatrix<f64>, name: &'static str) -> Result<DMatrix<f6
         .cholesky()
         .ok_or(EventEstError::NotPositiveDefinite { name })?
         .l())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A lightly damped pole pair at ω = 2.556 (|p| = 0.919) between the sweep's log-spaced
+    /// points: the norm is the peak of a dense sweep of 200 001 points over [0, π] (the
+    /// independent reference) within 1e-6, not the value at ω = 0 (3.4 % lower). The case a
+    /// property test of the bounded-real certificate found.
+    #[test]
+    fn a_sharp_peak_between_the_grid_points_is_found() {
+        let v = [
+            0.8129301032335399,
+            -0.2725659240154933,
+            -0.2521819936160757,
+            -0.4835954286014227,
+            -0.7242244966919832,
+            -0.4070255364816848,
+            0.5199427729562413,
+            0.4576783489733033,
+            -0.7530635488836819,
+        ];
+        let a0 = DMatrix::from_column_slice(3, 3, &v);
+        let a = &a0 * (0.9187878586580117 / spectral_radius(&a0));
+        let b = DMatrix::from_column_slice(
+            3,
+            2,
+            &[
+                0.8271853796774447,
+                0.40323922139880547,
+                0.0,
+                -0.2734079919051301,
+                0.45961286030006504,
+                0.0,
+            ],
+        );
+        let c = DMatrix::identity(3, 3);
+        let dense = (0..=200_000)
+            .map(|k| {
+                let w = std::f64::consts::PI * k as f64 / 200_000.0;
+                let z = Complex::new(w.cos(), w.sin());
+                let m = DMatrix::from_fn(3, 3, |i, j| {
+                    (if i == j { z } else { Complex::new(0.0, 0.0) }) - Complex::new(a[(i, j)], 0.0)
+                });
+                let x = m.lu().solve(&b.map(|v| Complex::new(v, 0.0))).unwrap();
+                x.singular_values().max()
+            })
+            .fold(0.0, f64::max);
+        let norm = hinf_norm(&a, &b, &c);
+        assert!(
+            (norm - dense).abs() <= 1e-6 * dense,
+            "{norm} against {dense}"
+        );
+    }
 }
