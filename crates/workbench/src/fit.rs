@@ -81,6 +81,68 @@ pub struct FitResult {
     /// Stopped by [`FitOptions::give_up_above`] (the cost is then an upper bound of the
     /// fitted one).
     pub gave_up: bool,
+    /// How the noise enters the fit along its free parameters.
+    pub information: Information,
+}
+
+/// How the noise enters a fit along its free parameters: `J^T J` and `J^T Ω J` at the
+/// estimate (columns scaled as the fit scales them, `Ω` the residuals' correlation). Fitted to
+/// noise alone, parameters absorb `σ² tr((J^T J)^-1 J^T Ω J)` of the cost: their count when
+/// the residuals are independent, more when neighbouring Welch lines correlate, which is what
+/// a nested-model test must allow for ([`Self::design_effect`]).
+#[derive(Debug, Clone)]
+pub struct Information {
+    /// The free parameters' names, in model order.
+    pub free: Vec<String>,
+    /// `J^T J` over them.
+    pub gram: DMatrix<f64>,
+    /// `J^T Ω J` over them.
+    pub correlated: DMatrix<f64>,
+}
+
+impl Information {
+    /// How many times the noise a fit absorbs along the parameters free here but not among
+    /// `base` (another fit's free parameters) exceeds their count: `tr(S^-1 T^T H T) / q`,
+    /// with `S = G_nn - G_nb G_bb^-1 G_bn` and `T = [-G_bb^-1 G_bn; I]` the added columns
+    /// with the base's projected out (`G = J^T J`, `H = J^T Ω J`, both here). Under noise
+    /// alone the cost the added parameters remove is then about `design_effect · σ² χ²_q`,
+    /// so the F statistic divided by it has the F distribution again. 1 for independent
+    /// residuals, when nothing is added, or when the added columns are not of full rank.
+    pub fn design_effect(&self, base: &[String]) -> f64 {
+        let (b, n): (Vec<usize>, Vec<usize>) =
+            (0..self.free.len()).partition(|&i| base.contains(&self.free[i]));
+        if n.is_empty() {
+            return 1.0;
+        }
+        let pick = |m: &DMatrix<f64>, rows: &[usize], cols: &[usize]| {
+            DMatrix::from_fn(rows.len(), cols.len(), |r, c| m[(rows[r], cols[c])])
+        };
+        let g_bb = pick(&self.gram, &b, &b);
+        let g_bn = pick(&self.gram, &b, &n);
+        // G_bb^-1 G_bn by Cholesky (an empty base projects nothing out).
+        let coef = if b.is_empty() {
+            Some(DMatrix::zeros(0, n.len()))
+        } else {
+            g_bb.cholesky().map(|c| c.solve(&g_bn))
+        };
+        let Some(coef) = coef else {
+            return 1.0;
+        };
+        let mut t = DMatrix::zeros(self.free.len(), n.len());
+        for (r, &i) in b.iter().enumerate() {
+            t.row_mut(i).copy_from(&(-coef.row(r)));
+        }
+        for (c, &i) in n.iter().enumerate() {
+            t[(i, c)] = 1.0;
+        }
+        let s = t.transpose() * &self.gram * &t;
+        let h = t.transpose() * &self.correlated * &t;
+        let d = s.cholesky().map(|c| c.solve(&h).trace() / n.len() as f64);
+        match d {
+            Some(d) if d.is_finite() && d > 0.0 => d,
+            _ => 1.0,
+        }
+    }
 }
 
 impl FitResult {
@@ -292,8 +354,15 @@ pub fn solve(
             }
             None => {
                 let v = r.norm_squared();
-                let gram = criterion.correlated_gram(&j);
-                let estimates = report(params, &held, &theta, &j, &gram, v, r.len());
+                let information = Information {
+                    free: free_indices(&held)
+                        .into_iter()
+                        .map(|i| params[i].name.clone())
+                        .collect(),
+                    gram: j.transpose() * &j,
+                    correlated: criterion.correlated_gram(&j),
+                };
+                let estimates = report(params, &held, &theta, &information, v, r.len());
                 // A fit that gave up has not held its unseen combinations; they are not
                 // free parameters of its cost either.
                 let unseen = if gave_up {
@@ -310,6 +379,7 @@ pub fn solve(
                     iterations,
                     free,
                     gave_up,
+                    information,
                 });
             }
         }
@@ -575,16 +645,17 @@ fn report(
     params: &[Parameter],
     held: &[bool],
     theta: &[f64],
-    j: &DMatrix<f64>,
-    correlated_gram: &DMatrix<f64>,
+    information: &Information,
     v: f64,
     n: usize,
 ) -> Vec<ParamEstimate> {
     let free = free_indices(held);
     let sigma2 = v / (n.saturating_sub(free.len()).max(1)) as f64;
-    let cov = (j.transpose() * j)
+    let cov = information
+        .gram
+        .clone()
         .try_inverse()
-        .map(|inv| &inv * correlated_gram * &inv);
+        .map(|inv| &inv * &information.correlated * &inv);
     params
         .iter()
         .enumerate()
@@ -708,5 +779,50 @@ mod tests {
         assert!(!r.gave_up);
         assert_eq!(r.free, 2);
         assert!((r.cost - 1.0).abs() < 1e-9, "{}", r.cost);
+    }
+
+    /// The information of `j` (n x p) under the correlation `omega`, its parameters named
+    /// `p0, p1, ...`.
+    fn information(j: &DMatrix<f64>, omega: &DMatrix<f64>) -> Information {
+        Information {
+            free: (0..j.ncols()).map(|i| format!("p{i}")).collect(),
+            gram: j.transpose() * j,
+            correlated: j.transpose() * omega * j,
+        }
+    }
+
+    proptest::proptest! {
+        /// The design effect is 1 for independent residuals; it is additive, the base's share
+        /// plus the added parameters' making up `tr(G^-1 H)` (the noise all of them absorb);
+        /// and it does not depend on the parameters' units.
+        #[test]
+        fn design_effect_is_the_added_share_of_the_absorbed_noise(
+            entries in proptest::collection::vec(-1.0f64..1.0, 40),
+            rho in 0.0f64..0.45,
+            scales in proptest::collection::vec(0.1f64..10.0, 4),
+            base in 0usize..4,
+        ) {
+            let j = DMatrix::from_column_slice(10, 4, &entries)
+                + DMatrix::from_fn(10, 4, |r, c| if r == c { 3.0 } else { 0.0 });
+            let names: Vec<String> = (0..base).map(|i| format!("p{i}")).collect();
+            let plain = information(&j, &DMatrix::identity(10, 10));
+            proptest::prop_assert!((plain.design_effect(&names) - 1.0).abs() < 1e-9);
+            let omega = DMatrix::from_fn(10, 10, |a, b| match a.abs_diff(b) {
+                0 => 1.0,
+                1 => rho,
+                _ => 0.0,
+            });
+            let all = information(&j, &omega);
+            let absorbed = |i: &Information| {
+                i.gram.clone().try_inverse().map_or(f64::NAN, |g| (g * &i.correlated).trace())
+            };
+            let base_only = information(&j.columns(0, base).into_owned(), &omega);
+            let d = all.design_effect(&names);
+            let total = absorbed(&base_only) + (4 - base) as f64 * d;
+            proptest::prop_assert!((total - absorbed(&all)).abs() < 1e-8 * absorbed(&all), "{total}");
+            let scaled = j * DMatrix::from_diagonal(&nalgebra::DVector::from_vec(scales));
+            let d_scaled = information(&scaled, &omega).design_effect(&names);
+            proptest::prop_assert!((d_scaled - d).abs() < 1e-8 * d, "{d_scaled} against {d}");
+        }
     }
 }

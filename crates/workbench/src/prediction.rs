@@ -1345,6 +1345,7 @@ impl Workbench {
             free_after: r.free,
             scale: s,
             noise_sd: s * (2.0 * n).sqrt(),
+            design_effect: r.information.design_effect(&current.r.information.free),
         };
         let (b0, b1) = (
             PredictionError::block_costs(r0, p),

@@ -388,6 +388,7 @@ mod tests {
                 reduction_percent: 100.0 * gain / at.1,
                 added_parameters: 1,
                 f_statistic: 0.0,
+                design_effect: 1.0,
                 p_value: 1.0,
                 robust_p_value: 1.0,
                 delta_aic: 0.0,

@@ -1143,6 +1143,8 @@ impl CubliBench {
             free_after: fit1.free(),
             scale: 1.0,
             noise_sd: (2.0 * n).sqrt(),
+            // The rows' noise is taken as independent.
+            design_effect: 1.0,
         };
         // The robustness check: the same F test with the probes as nuisance columns in both
         // models (each at its own fitted smoothing speed). Rank-deficient (the probes
