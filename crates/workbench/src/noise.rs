@@ -196,6 +196,23 @@ impl NoiseReference {
         })
     }
 
+    /// The reference with `covariance` (the lines' costs' covariances summed over every
+    /// ordered pair of different lines) added to the total's variance: each draw of the total
+    /// is moved away from the mean by the factor that does it, so the mean stays and the
+    /// quantiles widen with the spread. Draws that take the lines as independent need it where
+    /// the lines correlate (neighbouring Welch lines).
+    pub fn with_cross_line_covariance(mut self, covariance: f64) -> Self {
+        let var = self.sd().powi(2);
+        if covariance.is_finite() && var > 0.0 {
+            let factor = (1.0 + covariance / var).max(0.0).sqrt();
+            let mean = self.total.iter().sum::<f64>() / self.total.len() as f64;
+            for x in &mut self.total {
+                *x = mean + (*x - mean) * factor;
+            }
+        }
+        self
+    }
+
     /// Mean of the total cost at the true parameters.
     pub fn mean(&self) -> f64 {
         self.line_mean.iter().sum()
@@ -277,5 +294,34 @@ mod tests {
             msg.contains("noise degrees of freedom") && msg.contains("log more periods"),
             "{msg}"
         );
+    }
+
+    proptest::proptest! {
+        /// Adding the lines' covariance keeps the mean and the order of the draws and adds
+        /// exactly that covariance to the total's variance.
+        #[test]
+        fn cross_line_covariance_widens_the_total_by_itself(
+            draws in proptest::collection::vec(0.0f64..100.0, 20..60),
+            covariance in 0.0f64..500.0,
+        ) {
+            let mut total = draws;
+            total.sort_by(f64::total_cmp);
+            let reference = NoiseReference {
+                line_mean: vec![total.iter().sum::<f64>() / total.len() as f64],
+                line_sd: vec![1.0],
+                total,
+                row_mean: Vec::new(),
+                row_sd: Vec::new(),
+                entry_mean: DMatrix::zeros(0, 0),
+                n_residuals: 2,
+            };
+            proptest::prop_assume!(reference.sd() > 1e-6);
+            let (mean, var) = (reference.mean(), reference.sd().powi(2));
+            let wide = reference.clone().with_cross_line_covariance(covariance);
+            let wide_mean = wide.total.iter().sum::<f64>() / wide.total.len() as f64;
+            proptest::prop_assert!((wide_mean - mean).abs() < 1e-9 * mean.max(1.0));
+            proptest::prop_assert!((wide.sd().powi(2) - var - covariance).abs() < 1e-8 * (var + covariance));
+            proptest::prop_assert!(wide.total.windows(2).all(|w| w[0] <= w[1]));
+        }
     }
 }
