@@ -1062,12 +1062,11 @@ mod tests {
         }
     }
 
-    /// Closed loop: the cost of the closed-form FRF, weighted with the noise from its own
-    /// residual, lies inside the Monte-Carlo reference, and the reference's mean is the
-    /// Hotelling-type value `(N - 1)/(N - 2)` per line for one input and one output.
-    #[test]
-    fn true_model_cost_matches_its_noise_reference() {
-        let data = first_order(4, 60_000, 0.5, 0.6);
+    /// The IV estimate of the first-order closed loop (`seed`, `n` samples) on 0.2-4 Hz, the
+    /// closed-form FRF as its lines see it, and its cost weighted with the noise of its own
+    /// residual.
+    fn closed_loop_true_model(seed: u64, n: usize) -> (WelchEstimate, WeightedCost, ModelFrf) {
+        let data = first_order(seed, n, 0.5, 0.6);
         let w = welch_frf(
             &data,
             EstimatorChoice::Auto,
@@ -1083,6 +1082,15 @@ mod tests {
             .collect();
         let g = map.seen(&grid);
         let cost = WeightedCost::with_noise(&w.frf, &model_noise(&w.frf, &g).unwrap()).unwrap();
+        (w, cost, g)
+    }
+
+    /// Closed loop: the cost of the closed-form FRF, weighted with the noise from its own
+    /// residual, lies inside the Monte-Carlo reference, and the reference's mean is the
+    /// Hotelling-type value `(N - 1)/(N - 2)` per line for one input and one output.
+    #[test]
+    fn true_model_cost_matches_its_noise_reference() {
+        let (w, cost, g) = closed_loop_true_model(4, 60_000);
         let v = cost.cost(&g.lines);
         let reference = w.noise_reference(400, 1).unwrap();
         let n = w.layout.segments as f64;
@@ -1111,22 +1119,7 @@ mod tests {
         let mut costs: Vec<Vec<f64>> = Vec::new();
         let mut predicted = [0.0; CORRELATED_LINES];
         for seed in 0..realisations {
-            let data = first_order(seed, 12_000, 0.5, 0.6);
-            let w = welch_frf(
-                &data,
-                EstimatorChoice::Auto,
-                (0.2, 4.0),
-                segment_length(10.0, 0.2),
-            )
-            .unwrap();
-            let map = LineMap::new(&w.frf);
-            let grid: Vec<CMatrix> = map
-                .grid_hz()
-                .iter()
-                .map(|&f| CMatrix::from_element(1, 1, truth(f, 10.0)))
-                .collect();
-            let g = map.seen(&grid);
-            let cost = WeightedCost::with_noise(&w.frf, &model_noise(&w.frf, &g).unwrap()).unwrap();
+            let (w, cost, g) = closed_loop_true_model(seed, 12_000);
             let lines = g.lines.len();
             costs.push((0..lines).map(|k| cost.line_cost(k, &g.lines[k])).collect());
             // One line pair at a time: the closed form of a two-line estimate.
