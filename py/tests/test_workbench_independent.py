@@ -244,21 +244,29 @@ def test_metadata_without_periods_detects_the_period_from_the_excitation_and_fin
     # DESIGN.md: the period fields are only for periodic excitation; here only the rate is given.
     # The logged multisine repeats exactly every 250 samples, so the workbench detects the
     # period from it and uses the periodic estimator (a Welch estimate would see the lines
-    # between its bins only through window leakage and leave drag tentative).
-    cfg = ip.Config(drag=DRAG, periods=4, seed=23)
-    (tmp_path / "data").mkdir()
-    for run in ip.simulate(cfg):
-        ip.write_mcap(tmp_path / "data" / f"e{run.index:02d}.mcap", ip.run_topics(run),
-                      {"sample_rate_hz": "50"})
-    code, err, doc = discover(tmp_path / "data", tmp=tmp_path)
-    assert code == 0, err
-    assert doc["estimator"] == "instrumental_variable"
-    assert doc["found"][0] == "momentum_drag"
-    assert doc["tentative"] == []
-    # The 200 samples before the last four whole periods are discarded as the transient: the
-    # excited lines are those of the periodic path, multiples of 50 Hz / 250 = 0.2 Hz.
-    lines = np.asarray(doc["frequencies_hz"]) / 0.2
-    assert np.allclose(lines, np.round(lines), atol=1e-9), doc["frequencies_hz"]
+    # between its bins only through window leakage and leave drag tentative). Seeds 21-25:
+    # drag is added first on every one and found on at least 4 of 5 (measured: 4; seed 23
+    # reads a misfit at p = 1.8e-3 on one machine and not on another, since the simulator's
+    # process-noise root comes from an eigendecomposition with repeated eigenvalues, whose
+    # vectors differ between LAPACK builds, so a seed is not the same draw everywhere).
+    found = 0
+    for seed in range(21, 26):
+        cfg = ip.Config(drag=DRAG, periods=4, seed=seed)
+        data = tmp_path / str(seed) / "data"
+        data.mkdir(parents=True)
+        for run in ip.simulate(cfg):
+            ip.write_mcap(data / f"e{run.index:02d}.mcap", ip.run_topics(run),
+                          {"sample_rate_hz": "50"})
+        code, err, doc = discover(data, tmp=tmp_path / str(seed))
+        assert code == 0, err
+        assert doc["estimator"] == "instrumental_variable", seed
+        assert doc["steps"][1]["added"] == "momentum_drag", (seed, doc["steps"][1]["added"])
+        found += doc["found"] == ["momentum_drag"] and doc["tentative"] == []
+        # The 200 samples before the last four whole periods are discarded as the transient:
+        # the excited lines are those of the periodic path, multiples of 50 Hz / 250 = 0.2 Hz.
+        lines = np.asarray(doc["frequencies_hz"]) / 0.2
+        assert np.allclose(lines, np.round(lines), atol=1e-9), doc["frequencies_hz"]
+    assert found >= 4, found
 
 
 @pytest.fixture(scope="module")
