@@ -636,14 +636,8 @@ impl WelchEstimate {
         let frf = &self.frf;
         let (ny, nu) = (frf.ny(), frf.nu());
         let pairs = neighbours(&self.per_experiment);
-        let ms: Vec<CMatrix> = frf
-            .lines
-            .iter()
-            .zip(&self.rho)
-            .map(|(line, &r)| {
-                let c = [C64::from(1.0), C64::from(r), C64::from(r)];
-                weight_covariance(&line.weights, &line.weights, c, &pairs)
-            })
+        let ms: Vec<CMatrix> = (0..frf.lines.len())
+            .map(|k| self.own_weight_covariance(k, &pairs))
             .collect();
         let grams: Vec<CMatrix> = frf
             .lines
@@ -696,11 +690,25 @@ impl WelchEstimate {
         let mut sum = 0.0;
         for (k, line) in self.frf.lines.iter().enumerate() {
             for (d, m) in line.previous.iter().enumerate().take(k) {
-                sum += (&inv[k] * m * &inv[k - d - 1] * m.adjoint()).trace().re;
+                sum += squared_correlation(&inv[k], m, &inv[k - d - 1]);
             }
         }
         Ok(2.0 * self.frf.ny() as f64 * sum)
     }
+
+    /// Line `k`'s own weight covariance `M_k`: [`weight_covariance`] with the overlap
+    /// correlation `ρ_k` of neighbouring segments (`pairs`, from [`neighbours`]).
+    fn own_weight_covariance(&self, k: usize, pairs: &[usize]) -> CMatrix {
+        let (w, r) = (&self.frf.lines[k].weights, C64::from(self.rho[k]));
+        weight_covariance(w, w, [C64::from(1.0), r, r], pairs)
+    }
+}
+
+/// `tr(M_k^-1 M_kj M_j^-1 M_kj^H)`: the squared Frobenius norm of the whitened errors'
+/// correlation between two lines, per output, from their own inverse weight covariances and
+/// their cross covariance `M_kj`.
+fn squared_correlation(inv_k: &CMatrix, m_kj: &CMatrix, inv_j: &CMatrix) -> f64 {
+    (inv_k * m_kj * inv_j * m_kj.adjoint()).trace().re
 }
 
 #[cfg(test)]
@@ -1124,19 +1132,11 @@ mod tests {
             costs.push((0..lines).map(|k| cost.line_cost(k, &g.lines[k])).collect());
             // One line pair at a time: the closed form of a two-line estimate.
             let pairs = neighbours(&w.per_experiment);
-            let own = |k: usize| {
-                let c = [C64::from(1.0), C64::from(w.rho[k]), C64::from(w.rho[k])];
-                weight_covariance(&w.frf.lines[k].weights, &w.frf.lines[k].weights, c, &pairs)
-            };
+            let own_inverse = |k: usize| w.own_weight_covariance(k, &pairs).try_inverse().unwrap();
             for k in edge..lines - edge {
                 for (d, p) in predicted.iter_mut().enumerate() {
                     let (lag, m) = (d + 1, &w.frf.lines[k].previous[d]);
-                    let pair = (own(k).try_inverse().unwrap()
-                        * m
-                        * own(k - lag).try_inverse().unwrap()
-                        * m.adjoint())
-                    .trace()
-                    .re;
+                    let pair = squared_correlation(&own_inverse(k), m, &own_inverse(k - lag));
                     *p += pair / ((lines - 2 * edge) * realisations as usize) as f64;
                 }
             }
