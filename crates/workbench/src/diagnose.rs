@@ -78,10 +78,11 @@ pub fn diagnose(
     cost: &WeightedCost,
     noise: &NoiseReference,
     model: &[CMatrix],
-    free: usize,
+    absorbed: f64,
 ) -> Diagnosis {
-    // Fitting p parameters removes about p/n of the expected misfit, spread evenly.
-    let shrink = 1.0 - free as f64 / noise.n_residuals as f64;
+    // A fit absorbing `absorbed` residuals' worth of noise (one per free parameter for
+    // independent residuals) removes that share of the expected misfit, spread evenly.
+    let shrink = 1.0 - absorbed / noise.n_residuals as f64;
     let nl = frf.lines.len();
     let lines: Vec<GroupMisfit> = frf
         .lines

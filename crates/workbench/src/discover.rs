@@ -73,6 +73,44 @@ pub struct CandidateScore {
     /// A built-in effect (a lag, a delay, a bias), not one the model file declares
     /// ([`twins`]).
     pub builtin: bool,
+    /// The fitted model's frequency response, what tells one effect under two names where the
+    /// criterion's costs do not ([`twins`]).
+    #[serde(skip)]
+    pub response: Option<Response>,
+}
+
+/// A candidate's fitted frequency response on the lines: its residuals under the workbench's
+/// FRF weighting, in noise standard deviations, and how far (in noise variances) the effect
+/// moved them from its step's model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Response {
+    residuals: nalgebra::DVector<f64>,
+    moved: f64,
+}
+
+impl Response {
+    /// The response of the model FRF `fitted` against the step's `base`, under `cost` with
+    /// `scale` its noise variance of one residual.
+    pub(crate) fn new(
+        cost: &WeightedCost,
+        base: &[CMatrix],
+        fitted: &[CMatrix],
+        scale: f64,
+    ) -> Self {
+        let unit = scale.sqrt();
+        let residuals = cost.residuals(fitted) / unit;
+        let moved = (&residuals - cost.residuals(base) / unit).norm_squared();
+        Self { residuals, moved }
+    }
+
+    /// Whether two effects leave one response: the responses lie closer together than
+    /// [`TWIN_SHARE`] of what either effect moved (an effect that moves none, an offset, is
+    /// told by its costs alone).
+    fn same_as(&self, other: &Self) -> bool {
+        let apart = (&self.residuals - &other.residuals).norm_squared();
+        self.residuals.len() == other.residuals.len()
+            && apart < TWIN_SHARE * self.moved.min(other.moved)
+    }
 }
 
 /// The search a runner-up led to, against the search kept.
@@ -238,6 +276,7 @@ impl CandidateScore {
             failed: None,
             set_aside: None,
             builtin: false,
+            response: None,
         }
     }
 
@@ -264,6 +303,7 @@ impl CandidateScore {
             failed: Some(why),
             set_aside: None,
             builtin: false,
+            response: None,
         }
     }
 
@@ -309,18 +349,31 @@ pub(crate) fn is_rival(chosen: &CandidateScore, other: &CandidateScore) -> bool 
 /// a 2600th of the gap a test at 1 % can resolve.
 pub const TWIN_GAP: f64 = 0.01;
 
+/// Share of an effect's move of the frequency response within which another effect's fit
+/// leaves the same response ([`Response::same_as`]).
+pub const TWIN_SHARE: f64 = 0.01;
+
 /// Whether `a` and `b` are one effect under the file's name and a built-in one: one of each,
-/// as many parameters, and costs within [`TWIN_GAP`]. A model file's own first-order lag on an
-/// input is the built-in `actuator_lag`; a hopper's gimbal lag fitted to 255.61360 against the
-/// built-in's 255.61393, and the discovery called it tentative, "the data do not tell them
-/// apart". A built-in effect is a form, not a cause, so the file's name is the reading. Two
-/// effects of the file that are one term (a motor's back-EMF and a viscous friction) stay
-/// rivals: the data cannot tell which cause it is. The time criterion stops its fits within
-/// half a noise variance, so its twins may stay rivals.
+/// as many parameters, and costs within [`TWIN_GAP`], or costs noise could set apart
+/// ([`rival_p_value`]) and one frequency response ([`Response::same_as`]). A model file's own
+/// first-order lag on an input is the built-in `actuator_lag`; a hopper's gimbal lag fitted
+/// to 255.61360 against the built-in's 255.61393, and the discovery called it tentative, "the
+/// data do not tell them apart". A built-in effect is a form, not a cause, so the file's name
+/// is the reading. Two effects of the file that are one term (a motor's back-EMF and a
+/// viscous friction) stay rivals: the data cannot tell which cause it is. The time criterion
+/// stops its fits within half a noise variance, and its predictor carries a file's lag state
+/// in its noise model where the built-in lag filters the input: a ball-and-beam's motor lag
+/// fitted to the built-in's time constant 1.4 noise variances above it, and was left
+/// tentative. Their responses told them for one.
 pub(crate) fn twins(a: &CandidateScore, b: &CandidateScore) -> bool {
+    let gap = (a.cost - b.cost).abs();
+    let one_response = match (&a.response, &b.response) {
+        (Some(x), Some(y)) => x.same_as(y) && rival_p_value(gap, a.scale) >= LEVEL,
+        _ => false,
+    };
     a.builtin != b.builtin
         && a.added_parameters == b.added_parameters
-        && (a.cost - b.cost).abs() <= TWIN_GAP * a.scale
+        && (gap <= TWIN_GAP * a.scale || one_response)
 }
 
 /// Whether the loop follows `other` through a search of its own besides the `chosen` one
@@ -420,6 +473,9 @@ pub struct Step {
     pub reduction_percent: f64,
     /// Cost divided by what noise alone would give after this fit.
     pub normalized_cost: f64,
+    /// Residuals' worth of noise the fit absorbs ([`crate::fit::Information::absorbed`]):
+    /// what the expected cost under noise alone is lowered by.
+    pub absorbed_noise: f64,
     /// Parameters with standard errors.
     pub params: Vec<ParamEstimate>,
     /// Where the misfit sits.
@@ -1344,7 +1400,7 @@ impl Workbench {
             self.weighting(&fitted),
             &self.noise,
             &fitted.r.model_frf.lines,
-            fitted.r.free,
+            fitted.r.information.absorbed(),
         );
         let Fitted {
             model,
@@ -1377,7 +1433,8 @@ impl Workbench {
         if time_fit.kalman.is_some() {
             residual_tests.residual = "innovations of the stationary Kalman predictor".into();
         }
-        let (expected, _) = self.noise.fitted_level(r.free);
+        let absorbed_noise = r.information.absorbed();
+        let (expected, _) = self.noise.fitted_level(absorbed_noise);
         let base = base_cost.unwrap_or(r.cost);
         Ok(Step {
             added,
@@ -1385,6 +1442,7 @@ impl Workbench {
             cost: r.cost,
             reduction_percent: 100.0 * (1.0 - r.cost / base),
             normalized_cost: r.cost / expected,
+            absorbed_noise,
             params: r.params,
             diagnosis,
             time_fit,
@@ -1407,14 +1465,13 @@ impl Workbench {
             .iter()
             .map(|l| super::frf::CMatrix::zeros(l.g.nrows(), l.g.ncols()))
             .collect();
-        let (mean, _) = self.noise.fitted_level(0);
+        let (mean, _) = self.noise.fitted_level(0.0);
         matched_sf(self.cost.cost(&zero), mean, self.noise.sd())
     }
 
     /// Probability of the step's cost under noise alone.
     pub fn noise_p_value(&self, step: &Step) -> f64 {
-        let free = step.params.iter().filter(|p| !p.held).count();
-        let (mean, _) = self.noise.fitted_level(free);
+        let (mean, _) = self.noise.fitted_level(step.absorbed_noise);
         matched_sf(step.cost, mean, self.noise.sd())
     }
 
@@ -1496,13 +1553,19 @@ impl Workbench {
             noise_sd: self.noise.sd(),
             design_effect: r.information.design_effect(&current.r.information.free),
         };
-        let score = CandidateScore::nested(
+        let mut score = CandidateScore::nested(
             effect,
             &costs,
             Robustness::WithoutBestBlock(&before, &after),
             n_candidates,
             false,
         );
+        score.response = Some(Response::new(
+            cost,
+            &current.r.model_frf.lines,
+            &r.model_frf.lines,
+            costs.scale,
+        ));
         Ok((with, r, score))
     }
 
@@ -1864,8 +1927,7 @@ impl Search for FrfSearch<'_> {
     /// Its cost under its own weighting against the noise reference, as the verdict tests the
     /// final model's.
     fn explained(&self, at: &Fitted) -> Option<bool> {
-        let free = at.r.params.iter().filter(|p| !p.held).count();
-        let (mean, _) = self.0.noise.fitted_level(free);
+        let (mean, _) = self.0.noise.fitted_level(at.r.information.absorbed());
         Some(matched_sf(at.r.cost, mean, self.0.noise.sd()) >= LEVEL)
     }
 
@@ -1970,6 +2032,7 @@ mod tests {
             failed: None,
             set_aside: None,
             builtin: false,
+            response: None,
         }
     }
 
@@ -2067,6 +2130,32 @@ mod tests {
         let mut more = builtin(30_098.8);
         more.added_parameters += 1;
         assert!(!super::twins(&tried[0], &more) && super::twins(&tried[0], &builtin(30_098.8)));
+        // Costs a noise variance and more apart (the time criterion's twins) are one effect
+        // when the fitted responses are one: closer than a hundredth of what each moved. Apart
+        // by more, or with responses the effects did not move (offsets), they stay rivals.
+        let response = |at: f64, moved: f64| super::Response {
+            residuals: nalgebra::DVector::from_vec(vec![at, 0.0]),
+            moved,
+        };
+        let with = |mut c: CandidateScore, r: super::Response| {
+            c.response = Some(r);
+            c
+        };
+        let file = with(tried[0].clone(), response(0.0, 100.0));
+        for (at, moved, cost, twin) in [
+            (0.9, 100.0, 30_100.2, true),
+            (1.1, 100.0, 30_100.2, false),
+            (0.9, 80.0, 30_100.2, false),
+            (0.0, 0.0, 30_100.2, false),
+            (0.0, 100.0, 30_098.8 + 30.0, false),
+        ] {
+            let file = match moved {
+                0.0 => with(tried[0].clone(), response(0.0, 0.0)),
+                _ => file.clone(),
+            };
+            let other = with(builtin(cost), response(at, moved));
+            assert_eq!(super::twins(&file, &other), twin, "{at} {moved} {cost}");
+        }
         // Two rivals are named each with its gap.
         let mut two = tried.clone();
         two.push(scored("bias", 32_331.0, 30_100.0, 1e-30));

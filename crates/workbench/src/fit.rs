@@ -59,7 +59,8 @@ pub struct ParamEstimate {
     pub held: bool,
     /// Ended on a bound.
     pub at_bound: bool,
-    /// Standard error larger than the magnitude of the estimate.
+    /// Standard error larger than the magnitude of the estimate, or known only as a lower
+    /// bound (the time criterion's widening reached its cap).
     pub poorly_determined: bool,
 }
 
@@ -101,6 +102,14 @@ pub struct Information {
 }
 
 impl Information {
+    /// Residuals' worth of noise the free parameters absorb when fitted to noise alone,
+    /// `tr(G^-1 H)`: their count for independent residuals, about the design effect times it
+    /// where neighbouring Welch lines correlate. What a fitted cost's expected level is lowered
+    /// by ([`crate::noise::NoiseReference::fitted_level`]).
+    pub fn absorbed(&self) -> f64 {
+        self.free.len() as f64 * self.design_effect(&[])
+    }
+
     /// How many times the noise a fit absorbs along the parameters free here but not among
     /// `base` (another fit's free parameters) exceeds their count: `tr(S^-1 T^T H T) / q`,
     /// with `S = G_nn - G_nb G_bb^-1 G_bn` and `T = [-G_bb^-1 G_bn; I]` the added columns

@@ -238,10 +238,11 @@ impl NoiseReference {
         self.total[i]
     }
 
-    /// Expected cost and its upper 99% bound after fitting `p` parameters: fitting removes
-    /// about one residual's worth of noise per parameter.
-    pub fn fitted_level(&self, p: usize) -> (f64, f64) {
-        let shift = p as f64 * self.per_residual();
+    /// Expected cost and its upper 99% bound after a fit that absorbs `absorbed` residuals'
+    /// worth of noise ([`crate::fit::Information::absorbed`]: one per free parameter for
+    /// independent residuals).
+    pub fn fitted_level(&self, absorbed: f64) -> (f64, f64) {
+        let shift = absorbed * self.per_residual();
         (self.mean() - shift, self.quantile(0.99) - shift)
     }
 }

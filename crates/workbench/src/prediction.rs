@@ -30,8 +30,8 @@ use super::coherence::locate;
 use super::dataset::Dataset;
 use super::diagnose::{diagnose, LEVEL};
 use super::discover::{
-    in_parallel, CandidateScore, Conclusion, Discovery, NestedCosts, Robustness, Step, Verdict,
-    FAR_FROM_DOCUMENTED,
+    in_parallel, CandidateScore, Conclusion, Discovery, NestedCosts, Response, Robustness, Step,
+    Verdict, FAR_FROM_DOCUMENTED,
 };
 use super::dynamics::Dynamics;
 use super::fit::{difference_jacobian, solve, FitResult, LeastSquares};
@@ -1351,13 +1351,19 @@ impl Workbench {
             PredictionError::block_costs(r0, p),
             PredictionError::block_costs(&r1, p),
         );
-        let score = CandidateScore::nested(
+        let mut score = CandidateScore::nested(
             effect,
             &costs,
             Robustness::WithoutBestBlock(&b0, &b1),
             n_candidates,
             r.gave_up,
         );
+        score.response = Some(Response::new(
+            &self.cost,
+            &current.r.model_frf.lines,
+            &r.model_frf.lines,
+            self.noise.per_residual(),
+        ));
         r.cost = v1;
         Ok((with, r, score))
     }
@@ -1999,7 +2005,7 @@ impl Workbench {
             &self.cost,
             &self.noise,
             &f.r.model_frf.lines,
-            f.r.free,
+            f.r.information.absorbed(),
         );
         Ok(Step {
             added: f.added,
@@ -2007,6 +2013,7 @@ impl Workbench {
             cost,
             reduction_percent: 100.0 * (1.0 - cost / base_cost),
             normalized_cost: cost / n_res,
+            absorbed_noise: f.r.information.absorbed(),
             params: f.r.params,
             diagnosis,
             time_fit,

@@ -264,7 +264,7 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
                 given,
             ),
             (
-                "poorly determined (std > |value|)",
+                "poorly determined (std > |value|, or std a lower bound only)",
                 |p| p.poorly_determined,
                 |_| String::new(),
             ),
@@ -570,6 +570,7 @@ pub fn json(wb: &Workbench, d: &Discovery) -> Value {
             );
             for (k, v) in [
                 ("normalized_cost", json!(s.normalized_cost)),
+                ("absorbed_noise", json!(s.absorbed_noise)),
                 (
                     "fit_percent",
                     step_fit(s)

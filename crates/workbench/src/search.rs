@@ -404,6 +404,7 @@ mod tests {
                 set_aside: None,
                 // The scripted search's built-in effect: the lag every model is offered.
                 builtin: effect == "actuator_lag",
+                response: None,
             };
             Ok(((effects, cost, Vec::new()), score))
         }
