@@ -239,6 +239,8 @@ fn cubli_compare_fit_discover_and_report() {
         .unwrap()
     };
     let nominal = json(&["compare"]);
+    // `diagnose` is `compare` under the name the workbench's steps go by.
+    assert_eq!(json(&["diagnose"]), nominal);
     let fitted = json(&["fit", "--with", "wheel_viscous_friction"]);
     let (s0, s1) = (&nominal["steps"][0], &fitted["steps"][0]);
     assert_eq!(s1["effects"], serde_json::json!(["wheel_viscous_friction"]));

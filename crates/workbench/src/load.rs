@@ -207,6 +207,10 @@ fn experiment(
         {
             aligned(&name, &format!("/{system}/{topic}"), &input.t, &t.t, fs)?;
         }
+        let excited = meta
+            .as_ref()
+            .and_then(|m| m.periodic.as_ref())
+            .map(|p| p.excited.clone());
         let periodic = meta.and_then(|m| m.periodic).map(|p| Periodic {
             period: p.period_samples,
             periods: p.periods,
@@ -219,8 +223,61 @@ fn experiment(
             r,
             periodic,
         };
+        for note in metadata_notes(&e, inputs, excited.as_deref().unwrap_or_default()) {
+            eprintln!("warning: {}: {note}", e.name);
+        }
         (e, fs)
     })
+}
+
+/// Where an experiment's periodic metadata and its record disagree in ways the workbench can
+/// go on with: samples after the declared periods (a transient declared too short puts the
+/// start of the record into the first period, where the plant has not settled), and inputs
+/// the `excited` list names or leaves out against what the logged excitation moves (the
+/// excitation is what the estimate uses).
+fn metadata_notes(e: &Experiment, inputs: &[String], excited: &[String]) -> Vec<String> {
+    let mut notes = Vec::new();
+    if let Some(p) = e.periodic {
+        let (used, n) = (p.transient + p.periods * p.period, e.u.nrows());
+        if n > used {
+            notes.push(format!(
+                "its metadata lays out {used} of its {n} samples (transient_samples {} + {} \
+                 periods of {}): the last {} are not used; if the plant settles later than \
+                 sample {}, transient_samples should say so",
+                p.transient,
+                p.periods,
+                p.period,
+                n - used,
+                p.transient
+            ));
+        }
+    }
+    if let (Some(r), false) = (&e.r, excited.is_empty()) {
+        let moved: Vec<&str> = inputs
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| r.column(i).iter().any(|v| *v != 0.0))
+            .map(|(_, x)| x.as_str())
+            .collect();
+        let listed: Vec<&str> = inputs
+            .iter()
+            .filter(|x| excited.contains(x))
+            .map(String::as_str)
+            .collect();
+        if moved != listed {
+            notes.push(format!(
+                "its metadata lists `excited` = {} where the logged excitation moves {}: the \
+                 excitation is used",
+                listed.join(","),
+                if moved.is_empty() {
+                    "no input".to_string()
+                } else {
+                    moved.join(",")
+                }
+            ));
+        }
+    }
+    notes
 }
 
 /// The sample rate of `table` (see [`Table::sample_rate`]), with a warning on standard error
@@ -386,6 +443,42 @@ mod tests {
             r: None,
             periodic: None,
         }
+    }
+
+    /// Samples after the declared periods and an `excited` list the excitation contradicts are
+    /// named; a layout that covers the record and a list that agrees are not.
+    #[test]
+    fn metadata_the_record_contradicts_is_named() {
+        let inputs = vec!["T1".to_string(), "T2".to_string()];
+        let record = |n: usize| Experiment {
+            name: "x.mcap".into(),
+            u: DMatrix::zeros(n, 2),
+            y: DMatrix::zeros(n, 1),
+            r: Some(DMatrix::from_fn(n, 2, |k, j| {
+                if j == 0 {
+                    (k % 10) as f64
+                } else {
+                    0.0
+                }
+            })),
+            periodic: Some(Periodic {
+                period: 10,
+                periods: 4,
+                transient: 0,
+            }),
+        };
+        assert!(metadata_notes(&record(40), &inputs, &["T1".into()]).is_empty());
+        assert!(metadata_notes(&record(40), &inputs, &[]).is_empty());
+        let notes = metadata_notes(&record(45), &inputs, &["T2".into()]);
+        assert_eq!(notes.len(), 2, "{notes:?}");
+        assert!(
+            notes[0].starts_with("its metadata lays out 40 of its 45 samples (transient_samples 0 + 4 periods of 10): the last 5 are not used"),
+            "{notes:?}"
+        );
+        assert_eq!(
+            notes[1],
+            "its metadata lists `excited` = T2 where the logged excitation moves T1: the excitation is used"
+        );
     }
 
     /// Rates read as a person writes them: ten significant digits, positional but for

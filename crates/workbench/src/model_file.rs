@@ -1029,6 +1029,20 @@ impl ModelFile {
                 )
             })?,
         };
+        // A misspelt key, or a gain of the other kind, would be dropped silently.
+        let keys: &[&str] = match kind {
+            "discrete" => &["sample_rate_hz", "type", "A", "B", "C", "D"],
+            _ => &["sample_rate_hz", "type", "K"],
+        };
+        if let Some(other) = t.keys().find(|k| !keys.contains(&k.as_str())) {
+            return Err(r.err(
+                format!("controller.{other}"),
+                format!(
+                    "unknown field for a controller of type {kind:?} (expected {})",
+                    keys.join(", ")
+                ),
+            ));
+        }
         let get = |k: &str| {
             t.get(k)
                 .ok_or_else(|| r.err(format!("controller.{k}"), "missing"))
@@ -1605,5 +1619,22 @@ C = { "theta,q" = 1 }
             parse(&dc).unwrap().controller(),
             Some(Controller::Discrete { .. })
         ));
+        // A misspelt key, or a gain of the other kind beside the one used, is refused by name.
+        let typo = sf.replace(
+            "sample_rate_hz = 100\n",
+            "sample_rate_hz = 100\nsampel_rate = 100\n",
+        );
+        assert!(
+            error_of(&typo).contains("controller.sampel_rate: unknown field for a controller of type \"state_feedback\" (expected sample_rate_hz, type, K)"),
+            "{}",
+            error_of(&typo)
+        );
+        let both = format!("{dc}K = [[-2.0, -0.3]]\n");
+        assert!(
+            error_of(&both)
+                .contains("controller.K: unknown field for a controller of type \"discrete\""),
+            "{}",
+            error_of(&both)
+        );
     }
 }

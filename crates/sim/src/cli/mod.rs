@@ -42,7 +42,9 @@ pub enum Command {
     /// Find the physical effects a model misses: compare with measured FRFs, add the most
     /// significant candidate effect, refit, repeat until the rest is noise.
     Discover(workbench::DiscoverArgs),
-    /// Fit a model (optionally `--with` effects) to measurements and show where it fails.
+    /// Fit a model (optionally `--with` effects) to measurements and show where it fails
+    /// (`diagnose` is the same verb).
+    #[command(visible_alias = "diagnose")]
     Compare(workbench::FitArgs),
     /// Fit a model with the effects given by `--with EFFECT[,EFFECT]`.
     Fit(workbench::FitArgs),
