@@ -388,7 +388,19 @@ pub(crate) fn worth_following(chosen: &CandidateScore, other: &CandidateScore) -
         && (is_rival(chosen, other) || other.cost - chosen.cost <= 0.1 * chosen.cost_reduction())
 }
 
-/// One sentence per added effect that another candidate of its step fits as well
+/// An added effect that another candidate of its step fits as well ([`rivals`]): why, and
+/// which of the kept model's effects the choice between them leaves unconfirmed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rivalry {
+    /// The sentence naming the rivals and their cost gaps.
+    pub why: String,
+    /// The added effect, and each later one that some rival's own search did not add as well
+    /// (every later one when a rival was not followed): what was added after a coin toss holds
+    /// only if the other side of it adds it too. Effects added before stay confirmed.
+    pub tentative: Vec<String>,
+}
+
+/// One [`Rivalry`] per added effect that another candidate of its step fits as well
 /// ([`is_rival`]) and that the loop did not rule out by following it through a search of its
 /// own ([`Followed::ruled_out`]). The loop's pick between rivals is then a
 /// coin toss (a lag of a tenth of a sample and a delay of the same length, two names for one
@@ -396,7 +408,7 @@ pub(crate) fn worth_following(chosen: &CandidateScore, other: &CandidateScore) -
 /// first.
 pub fn rivals<'a>(
     steps: impl IntoIterator<Item = (Option<&'a str>, &'a [CandidateScore])>,
-) -> Vec<String> {
+) -> Vec<Rivalry> {
     let steps: Vec<_> = steps.into_iter().collect();
     steps
         .windows(2)
@@ -418,6 +430,20 @@ pub fn rivals<'a>(
                 })
                 .collect();
             (!equal.is_empty()).then(|| {
+                // A later effect every rival's own search added too holds whichever was picked.
+                let tentative = kept
+                    .iter()
+                    .enumerate()
+                    .filter(|&(k, later)| {
+                        k == 0
+                            || equal.iter().any(|c| {
+                                c.followed
+                                    .as_ref()
+                                    .is_none_or(|f| !f.added.iter().any(|a| a == later))
+                            })
+                    })
+                    .map(|(_, e)| e.to_string())
+                    .collect();
                 let names: Vec<String> = equal.iter().map(|c| c.effect.clone()).collect();
                 let gaps: Vec<String> = equal
                     .iter()
@@ -436,7 +462,7 @@ pub fn rivals<'a>(
                         )
                     })
                     .collect();
-                match names.as_slice() {
+                let why = match names.as_slice() {
                     [one] => format!(
                         "{one} fits these data as well as {added} (cost {}): the data do not \
                          tell them apart",
@@ -454,7 +480,8 @@ pub fn rivals<'a>(
                             .join("; "),
                     ),
                     [] => String::new(),
-                }
+                };
+                Rivalry { why, tentative }
             })
         })
         .collect()
@@ -1042,19 +1069,32 @@ impl Workbench {
 pub const COST_TEST: &str = "for the remaining cost under noise alone";
 
 impl Conclusion {
-    /// Settles the effects a discovery added: all found when nothing speaks against them
-    /// (no caveat), all tentative with the reasons otherwise. One rule for every criterion.
+    /// Settles the effects a discovery added: all tentative with the reasons when a caveat
+    /// speaks against them all (an estimate biased under feedback, a misfit left), else
+    /// tentative those a [`Rivalry`] leaves unconfirmed, with its reason, and found the rest.
+    /// One rule for every criterion. (A vehicle's two thrust gains, which the data cannot tell
+    /// apart with its mass free, left its sensor lag and drag tentative too, `found: []`.)
     pub fn settle(
         added: Vec<String>,
         caveats: Vec<String>,
+        rivalries: Vec<Rivalry>,
         unexplained: bool,
         verdict: Verdict,
         level: f64,
     ) -> Self {
-        let (found, tentative, caveats) = if caveats.is_empty() || added.is_empty() {
+        let (found, tentative, caveats) = if added.is_empty() {
             (added, Vec::new(), Vec::new())
+        } else if !caveats.is_empty() {
+            let why = caveats
+                .into_iter()
+                .chain(rivalries.into_iter().map(|r| r.why));
+            (Vec::new(), added, why.collect())
         } else {
-            (Vec::new(), added, caveats)
+            let (tentative, found) = added
+                .into_iter()
+                .partition(|e| rivalries.iter().any(|r| r.tentative.contains(e)));
+            let why = rivalries.into_iter().map(|r| r.why).collect();
+            (found, tentative, why)
         };
         Self {
             found,
@@ -1578,9 +1618,16 @@ impl Workbench {
         let warnings = self.warnings(&self.model, &step.params, &step.diagnosis, unexplained)?;
         Ok(Discovery {
             steps: vec![step],
-            conclusion: Conclusion::settle(Vec::new(), Vec::new(), unexplained, verdict, LEVEL)
-                .with_candidates(Candidates::of(&self.model, false))
-                .with_warnings(warnings),
+            conclusion: Conclusion::settle(
+                Vec::new(),
+                Vec::new(),
+                Vec::new(),
+                unexplained,
+                verdict,
+                LEVEL,
+            )
+            .with_candidates(Candidates::of(&self.model, false))
+            .with_warnings(warnings),
             weighting,
         })
     }
@@ -1843,18 +1890,18 @@ impl Workbench {
             .last()
             .ok_or_else(|| SimError::invalid("discovery", "no step", "nothing was fitted"))?;
         let verdict = self.verdict(last);
-        let mut caveats = self.caveats(&verdict);
-        caveats.extend(rivals(
+        let caveats = self.caveats(&verdict);
+        let rivalries = rivals(
             steps
                 .iter()
                 .map(|s| (s.added.as_deref(), s.candidates.as_slice())),
-        ));
+        );
         let unexplained = matches!(verdict, Verdict::UnexplainedStructuredMisfit { .. });
         let warnings = match &last_fit {
             Some((model, params)) => self.warnings(model, params, &last.diagnosis, unexplained)?,
             None => self.data_caveats(),
         };
-        let conclusion = Conclusion::settle(found, caveats, unexplained, verdict, LEVEL)
+        let conclusion = Conclusion::settle(found, caveats, rivalries, unexplained, verdict, LEVEL)
             .with_candidates(Candidates::of(&self.model, true))
             .with_near_misses(&last.candidates)
             .with_warnings(warnings);
@@ -1966,10 +2013,17 @@ where
 #[cfg(test)]
 mod tests {
     use super::{
-        rival_p_value, rivals, unmeasured_effects, CandidateScore, Candidates, Conclusion,
-        ParamEstimate, Verdict,
+        rival_p_value, unmeasured_effects, CandidateScore, Candidates, Conclusion, ParamEstimate,
+        Rivalry, Verdict,
     };
     use proptest::prelude::*;
+
+    /// The sentences of [`super::rivals`].
+    fn rivals<'a>(
+        steps: impl IntoIterator<Item = (Option<&'a str>, &'a [CandidateScore])>,
+    ) -> Vec<String> {
+        super::rivals(steps).into_iter().map(|r| r.why).collect()
+    }
 
     /// A misfit whose excess over the noise sits at one flagged line (95 of 100) is named with
     /// its share; spread over three lines, or at a line not flagged, it is not.
@@ -2051,8 +2105,15 @@ mod tests {
             scored("pendulum_friction", 130_000.0, 129_879.0, 4e-28),
             scored("sensor_bias", 130_000.0, 129_990.0, 0.2),
         ];
-        let c = Conclusion::settle(Vec::new(), Vec::new(), true, misfit.clone(), 0.01)
-            .with_near_misses(&last);
+        let c = Conclusion::settle(
+            Vec::new(),
+            Vec::new(),
+            Vec::new(),
+            true,
+            misfit.clone(),
+            0.01,
+        )
+        .with_near_misses(&last);
         let s = c.verdict_sentence();
         assert!(
             s.contains("no candidate effect explains it beyond the noise: pendulum_friction passes the tests (p = 4.0e-28) but lowers the cost by 121.0, less than noise alone varies it (508.3)"),
@@ -2060,7 +2121,7 @@ mod tests {
         );
         assert!(!s.contains("sensor_bias"), "{s}");
         let explained = Verdict::ExplainedToNoiseLevel { p_value: 0.4 };
-        let c = Conclusion::settle(Vec::new(), Vec::new(), false, explained, 0.01)
+        let c = Conclusion::settle(Vec::new(), Vec::new(), Vec::new(), false, explained, 0.01)
             .with_near_misses(&last);
         assert!(!c.verdict_sentence().contains("pendulum_friction"));
         // The summary's lines still name it, on a line of its own.
@@ -2070,8 +2131,8 @@ mod tests {
                 && !lines.contains("sensor_bias"),
             "{lines}"
         );
-        let c =
-            Conclusion::settle(Vec::new(), Vec::new(), true, misfit, 0.01).with_near_misses(&last);
+        let c = Conclusion::settle(Vec::new(), Vec::new(), Vec::new(), true, misfit, 0.01)
+            .with_near_misses(&last);
         assert!(!c.lines().contains("near miss ("), "{}", c.lines());
     }
 
@@ -2199,6 +2260,31 @@ mod tests {
             rivals([(None, followed.as_slice()), lag_then, last]).len(),
             1
         );
+        // What a rivalry leaves unconfirmed: the added effect, and a later one unless every
+        // rival's own search added it too; an effect added before the coin toss stays found.
+        let first = [scored("drag", 50_000.0, 32_331.0, 1e-30)];
+        let friction = (Some("friction"), &[][..]);
+        for (theirs, tentative) in [
+            (Some(&["delay", "friction"][..]), &["lag"][..]),
+            (Some(&["delay", "far"][..]), &["lag", "friction"][..]),
+            (None, &["lag", "friction"][..]),
+        ] {
+            followed[1].followed = theirs.and_then(|t| delay(t, 0.0, 2));
+            let steps = [
+                (None, &first[..]),
+                (Some("drag"), followed.as_slice()),
+                lag_then,
+                friction,
+            ];
+            let r = super::rivals(steps);
+            assert_eq!(r.len(), 1, "{r:?}");
+            assert_eq!(r[0].tentative, tentative, "{theirs:?}");
+            let added = ["drag", "lag", "friction"].map(String::from).to_vec();
+            let verdict = Verdict::ExplainedToNoiseLevel { p_value: 0.5 };
+            let c = Conclusion::settle(added, Vec::new(), r, false, verdict, 0.01);
+            assert_eq!(c.tentative, tentative);
+            assert!(c.found.starts_with(&["drag".to_string()]), "{:?}", c.found);
+        }
     }
 
     /// A misfit no single output carries says so instead of "in outputs []"; the closing words
@@ -2230,24 +2316,49 @@ mod tests {
     }
 
     proptest! {
-        /// Every added effect ends in exactly one list, in its order; effects are tentative
-        /// exactly when a caveat speaks against them, and the caveats are kept exactly then.
+        /// Every added effect ends in exactly one list, in its order; a caveat makes them all
+        /// tentative, a rivalry those it names; the reasons are kept exactly when something is
+        /// tentative.
         #[test]
-        fn settle_splits_the_added_effects_by_the_caveats(
-            added in proptest::collection::vec("[a-z_]{1,12}", 0..5),
+        fn settle_splits_the_added_effects_by_the_caveats_and_rivalries(
+            added in proptest::collection::btree_set("[a-z_]{1,12}", 0..5),
             caveats in proptest::collection::vec("[a-z ]{1,20}", 0..3),
+            named in proptest::collection::vec(proptest::collection::vec(0usize..6, 1..3), 0..3),
             unexplained: bool,
         ) {
+            let added: Vec<String> = added.into_iter().collect();
+            let rivalries: Vec<Rivalry> = named
+                .iter()
+                .enumerate()
+                .map(|(i, picks)| Rivalry {
+                    why: format!("rivalry {i}"),
+                    tentative: picks.iter().filter_map(|&k| added.get(k).cloned()).collect(),
+                })
+                .collect();
             let verdict = Verdict::ExplainedToNoiseLevel { p_value: 0.5 };
-            let c = Conclusion::settle(added.clone(), caveats.clone(), unexplained, verdict, 0.01);
-            if !added.is_empty() && !caveats.is_empty() {
-                prop_assert_eq!(&c.tentative, &added);
-                prop_assert!(c.found.is_empty());
-                prop_assert_eq!(&c.caveats, &caveats);
+            let c = Conclusion::settle(
+                added.clone(),
+                caveats.clone(),
+                rivalries.clone(),
+                unexplained,
+                verdict,
+                0.01,
+            );
+            let rival = |e: &String| rivalries.iter().any(|r| r.tentative.contains(e));
+            let (tentative, found): (Vec<String>, Vec<String>) = if caveats.is_empty() {
+                added.iter().cloned().partition(rival)
             } else {
-                prop_assert_eq!(&c.found, &added);
-                prop_assert!(c.tentative.is_empty());
+                (added.clone(), Vec::new())
+            };
+            prop_assert_eq!(&c.tentative, &tentative);
+            prop_assert_eq!(&c.found, &found);
+            if added.is_empty() {
                 prop_assert!(c.caveats.is_empty());
+            } else if !caveats.is_empty() {
+                prop_assert!(c.caveats.starts_with(&caveats));
+                prop_assert_eq!(c.caveats.len(), caveats.len() + rivalries.len());
+            } else {
+                prop_assert_eq!(c.caveats.len(), rivalries.len());
             }
             prop_assert_eq!(c.unexplained, unexplained);
         }

@@ -1827,12 +1827,12 @@ impl Workbench {
                 .iter()
                 .map(|s| (s.added.as_deref(), s.candidates.as_slice())),
         );
-        let why: Vec<String> = why.into_iter().chain(rivals).collect();
+        let why: Vec<String> = why.into_iter().collect();
         let offset = found
             .iter()
             .any(|f| f == "sensor_bias" || f == "input_bias")
             .then(|| OFFSET_CAVEAT.to_string());
-        let conclusion = Conclusion::settle(found, why, unexplained, verdict, LEVEL)
+        let conclusion = Conclusion::settle(found, why, rivals, unexplained, verdict, LEVEL)
             .with_candidates(super::discover::Candidates::of(&self.model, true))
             .with_near_misses(&last.candidates)
             .with_test(EXCITATION_TEST)

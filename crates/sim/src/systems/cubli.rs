@@ -1071,7 +1071,8 @@ impl CubliBench {
         );
         let conclusion = Conclusion::settle(
             found,
-            why.into_iter().chain(rivals).collect(),
+            why.into_iter().collect(),
+            rivals,
             unexplained,
             verdict_of(&channel_p_values),
             LEVEL,
