@@ -32,6 +32,25 @@ pub struct Experiment {
     pub periodic: Option<Periodic>,
 }
 
+/// Inputs held over blocks of samples: logs sampled `factor` times faster than their inputs
+/// change (a controller slower than the logger), each block starting at sample `phase[e]`
+/// modulo `factor` in experiment `e` ([`Dataset::input_hold`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Hold {
+    /// Samples per block.
+    pub factor: usize,
+    /// Per experiment, the first sample of its first block.
+    pub phase: Vec<usize>,
+}
+
+/// Share of the blocks at whose start an input or the excitation changes, at least: a
+/// controller's output moves at each of its samples, where a PRBS on a slower clock keeps its
+/// level at about half of its ticks (and logs of it are no faster than its dynamics).
+pub const HOLD_CHANGES: f64 = 0.9;
+
+/// Fewest input changes in an experiment that make a hold pattern evidence.
+const MIN_HOLD_CHANGES: usize = 20;
+
 /// A set of experiments on one system.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Dataset {
@@ -260,6 +279,77 @@ impl Dataset {
         })
     }
 
+    /// How the inputs are held when every experiment's inputs and excitation change only on
+    /// one grid of `factor` >= 2 samples, and at [`HOLD_CHANGES`] of its points at least:
+    /// logs taken faster than the controller runs. `None` when they change at single samples,
+    /// too rarely to tell, or on a grid a periodic layout does not fit (a period or transient
+    /// not a whole number of blocks).
+    pub fn input_hold(&self) -> Option<Hold> {
+        let changed = |m: &DMatrix<f64>, k: usize| m.row(k) != m.row(k - 1);
+        let mut factor = 0;
+        let mut starts = Vec::new();
+        let mut changes = Vec::new();
+        for e in &self.experiments {
+            let at: Vec<usize> = (1..e.u.nrows())
+                .filter(|&k| changed(&e.u, k) || e.r.as_ref().is_some_and(|r| changed(r, k)))
+                .collect();
+            if at.len() < MIN_HOLD_CHANGES {
+                return None;
+            }
+            factor = at.windows(2).fold(factor, |g, w| gcd(g, w[1] - w[0]));
+            starts.push(at[0]);
+            changes.push(at.len());
+        }
+        if factor < 2 {
+            return None;
+        }
+        let phase: Vec<usize> = starts.iter().map(|s| s % factor).collect();
+        for ((e, &p), &n) in self.experiments.iter().zip(&phase).zip(&changes) {
+            let blocks = (e.u.nrows() - p) / factor;
+            if (n as f64) < HOLD_CHANGES * blocks.saturating_sub(1) as f64 {
+                return None;
+            }
+            if let Some(l) = e.periodic {
+                if l.period % factor != 0 || l.transient < p || (l.transient - p) % factor != 0 {
+                    return None;
+                }
+            }
+        }
+        Some(Hold { factor, phase })
+    }
+
+    /// The first sample of each block of `hold`: the logs at the rate their inputs change,
+    /// each row's input held until the next and its outputs measured at its start, as the
+    /// log's own rows are (a periodic layout in blocks).
+    pub fn decimated(&self, hold: &Hold) -> Dataset {
+        let experiments = self
+            .experiments
+            .iter()
+            .zip(&hold.phase)
+            .map(|(e, &p)| {
+                let rows: Vec<usize> = (p..e.u.nrows()).step_by(hold.factor).collect();
+                let pick = |m: &DMatrix<f64>| m.select_rows(&rows);
+                Experiment {
+                    name: e.name.clone(),
+                    u: pick(&e.u),
+                    y: pick(&e.y),
+                    r: e.r.as_ref().map(pick),
+                    periodic: e.periodic.map(|l| Periodic {
+                        period: l.period / hold.factor,
+                        periods: l.periods,
+                        transient: (l.transient - p) / hold.factor,
+                    }),
+                }
+            })
+            .collect();
+        Dataset {
+            sample_rate_hz: self.sample_rate_hz / hold.factor as f64,
+            inputs: self.inputs.clone(),
+            outputs: self.outputs.clone(),
+            experiments,
+        }
+    }
+
     /// True when every experiment is periodic (see [`Dataset::periodic_layouts`]).
     pub fn is_periodic(&self) -> bool {
         self.periodic_layouts().is_some()
@@ -478,6 +568,15 @@ pub fn detect_period(r: &DMatrix<f64>) -> Option<Periodic> {
 /// rounding, far below any period of a multisine or noise sequence of another length.
 const METADATA_REPETITION_TOLERANCE: f64 = 1e-3;
 
+/// Greatest common divisor (`gcd(0, b) = b`).
+fn gcd(a: usize, b: usize) -> usize {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
+    }
+}
+
 /// Refuses `period_samples` metadata that the logged excitation `r` contradicts: the periodic
 /// estimate would average unrelated stretches as periods and call the result noise-free.
 fn check_repeats(experiment: &str, inputs: &[String], r: &DMatrix<f64>, p: Periodic) -> Result<()> {
@@ -628,6 +727,97 @@ fn same_samples(a: &DMatrix<f64>, b: &DMatrix<f64>) -> bool {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    /// Experiments of `blocks` blocks of `factor` samples after `phase` samples that hold the
+    /// value before the first block, the input and excitation moving at each block start
+    /// (`moves`: which blocks change), the output changing at every sample.
+    fn held(
+        factor: usize,
+        phases: &[usize],
+        blocks: usize,
+        moves: impl Fn(usize) -> bool,
+    ) -> Dataset {
+        let experiments = phases
+            .iter()
+            .map(|&p| {
+                let n = p + blocks * factor;
+                let level = |k: usize| {
+                    let b = k.saturating_sub(p) / factor;
+                    let b = if k < p { 0 } else { b + 1 };
+                    // A new level at each moving block, kept otherwise.
+                    (0..=b).filter(|&j| j == 0 || moves(j)).count() as f64
+                };
+                let u = DMatrix::from_fn(n, 1, |k, _| level(k).sin());
+                Experiment {
+                    name: format!("phase {p}"),
+                    r: Some(u.map(|v| 0.5 * v)),
+                    y: DMatrix::from_fn(n, 1, |k, _| (0.37 * k as f64).cos()),
+                    u,
+                    periodic: None,
+                }
+            })
+            .collect();
+        Dataset {
+            sample_rate_hz: 1000.0,
+            inputs: vec!["u".into()],
+            outputs: vec!["y".into()],
+            experiments,
+        }
+    }
+
+    proptest! {
+        /// Inputs held over `factor` samples from each experiment's own phase are found with
+        /// that factor and phase, and the decimated logs are the block starts at the block
+        /// rate.
+        #[test]
+        fn held_inputs_are_read_at_their_own_rate(
+            factor in 2usize..12,
+            phases in proptest::collection::vec(0usize..11, 1..4),
+            blocks in 40usize..90,
+        ) {
+            let phases: Vec<usize> = phases.iter().map(|p| p % factor).collect();
+            let data = held(factor, &phases, blocks, |_| true);
+            let hold = data.input_hold().unwrap();
+            prop_assert_eq!(hold.factor, factor);
+            prop_assert_eq!(&hold.phase, &phases);
+            let d = data.decimated(&hold);
+            prop_assert_eq!(d.sample_rate_hz, 1000.0 / factor as f64);
+            for (e, (full, &p)) in d.experiments.iter().zip(data.experiments.iter().zip(&phases)) {
+                prop_assert_eq!(e.u.nrows(), (full.u.nrows() - p).div_ceil(factor));
+                for j in 0..e.u.nrows() {
+                    prop_assert_eq!(e.u[(j, 0)], full.u[(p + j * factor, 0)]);
+                    prop_assert_eq!(e.y[(j, 0)], full.y[(p + j * factor, 0)]);
+                }
+            }
+        }
+    }
+
+    /// Inputs that change at single samples, or on a grid they keep their level at half the
+    /// time (a PRBS on a slower clock), or a periodic layout not made of whole blocks, are
+    /// read at every sample.
+    #[test]
+    fn inputs_not_held_or_held_like_a_prbs_keep_every_sample() {
+        assert!(held(1, &[0], 200, |_| true).input_hold().is_none());
+        assert!(held(7, &[3], 200, |b| (b * 37 + 11) % 17 < 8)
+            .input_hold()
+            .is_none());
+        assert!(held(7, &[3], 200, |b| b % 20 != 0).input_hold().is_some());
+        let mut periodic = held(10, &[0], 100, |_| true);
+        periodic.experiments[0].periodic = Some(Periodic {
+            period: 25,
+            periods: 40,
+            transient: 0,
+        });
+        assert!(periodic.input_hold().is_none());
+        periodic.experiments[0].periodic = Some(Periodic {
+            period: 50,
+            periods: 20,
+            transient: 0,
+        });
+        let hold = periodic.input_hold().unwrap();
+        let p = periodic.decimated(&hold).experiments[0].periodic.unwrap();
+        assert_eq!((p.period, p.periods, p.transient), (5, 20, 0));
+    }
 
     /// One experiment of 2000 samples whose single output is `y(k)`.
     fn one_output(y: impl Fn(usize) -> f64) -> Dataset {

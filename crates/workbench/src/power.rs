@@ -1697,13 +1697,20 @@ impl PowerResult {
             ),
         });
         if let Some(ratio) = &self.noise_ratio {
+            // The campaigns of the smallest value: an effect changes the loop the noise
+            // passes through, so the ratio read at a large one is not the calibration's.
             s.push_str(&format!(
-                "simulated / logged period-to-period noise rms per output: {}\n",
+                "simulated / logged period-to-period noise rms per output: {} (the campaigns at \
+                 {} = {})\n",
                 ratio
                     .iter()
                     .map(|r| format!("{r:.2}"))
                     .collect::<Vec<_>>()
-                    .join(", ")
+                    .join(", "),
+                self.parameter,
+                self.values
+                    .first()
+                    .map_or_else(String::new, |v| fmt_num(v.value))
             ));
         }
         if let Some(n) = &self.process_noise_shape {

@@ -1777,10 +1777,16 @@ impl Workbench {
         if d.conclusion.unexplained {
             return None;
         }
-        let found = if d.conclusion.found.is_empty() {
-            "nothing added".to_string()
-        } else {
-            format!("{} found", d.conclusion.found.join(", "))
+        let c = &d.conclusion;
+        let found = match (c.found.is_empty(), c.tentative.is_empty()) {
+            (true, true) => "nothing added".to_string(),
+            (false, true) => format!("{} found", c.found.join(", ")),
+            (true, false) => format!("{} added, tentative", c.tentative.join(", ")),
+            (false, false) => format!(
+                "{} found, {} tentative",
+                c.found.join(", "),
+                c.tentative.join(", ")
+            ),
         };
         Some(format!(
             "under the time-domain criterion (--criterion time: the nonlinear model itself) the same logs read explained, {found}: the misfit here may be the linearization's at the logs' amplitude, which the FRF criterion compares"

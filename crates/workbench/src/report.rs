@@ -86,6 +86,15 @@ fn summary(wb: &Workbench, d: &Discovery, parameters: bool) -> String {
     if let Some(distortion) = &wb.frf().distortion {
         let _ = writeln!(s, "linearity: {}", distortion.sentence());
     }
+    if let Some(q) = wb.hold() {
+        let _ = writeln!(
+            s,
+            "input hold: the inputs change every {q} samples of the logs, so they are read at \
+             the inputs' rate, {} Hz, the first sample of each hold (the time criterion's one-step \
+             prediction at the logs' rate would be nearly all sensor noise)",
+            fmt_num(wb.data().sample_rate_hz)
+        );
+    }
     // The FRF criterion's cost is judged against the FRF's noise reference; the time
     // criterion's (a prediction error in absolute units) by its innovations' tests.
     let normalized = if wb.criterion() == crate::Criterion::Time {
@@ -599,6 +608,7 @@ pub fn json(wb: &Workbench, d: &Discovery) -> Value {
     for (k, v) in [
         ("estimator", json!(wb.frf().estimator)),
         ("welch_reason", json!(wb.welch_reason())),
+        ("input_hold_samples", json!(wb.hold())),
         ("frequencies_hz", json!(wb.frf().freqs_hz())),
         ("distortion", json!(wb.frf().distortion)),
         ("zero_response_p_value", json!(wb.zero_response_p_value())),

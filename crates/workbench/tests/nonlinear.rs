@@ -50,7 +50,8 @@ fn file(text: &str) -> workbench::Result<ModelFile> {
 /// What [`simulate`] hides in the pendulum: dry friction `tc` at the joint (smoothed over
 /// 0.05 rad/s like the file), a sensor offset `bias`, a flexible sensor mount of [`MODE`]
 /// flexed by `mode_gain` times the angular acceleration, a first-order actuator lag `lag` (s),
-/// the angle read in counts of `step` rad (0: not quantized), at `fs` Hz.
+/// the angle read in counts of `step` rad (0: not quantized), at `fs` Hz, the controller
+/// (and the excitation) updated every `hold` samples.
 #[derive(Clone, Copy)]
 struct Truth {
     tc: f64,
@@ -59,6 +60,7 @@ struct Truth {
     lag: f64,
     step: f64,
     fs: f64,
+    hold: usize,
 }
 
 const CLEAN: Truth = Truth {
@@ -68,6 +70,7 @@ const CLEAN: Truth = Truth {
     lag: 0.0,
     step: 0.0,
     fs: 100.0,
+    hold: 1,
 };
 
 /// The seeds of a study that takes a minute or more per seed: the first on every run, all of
@@ -104,8 +107,8 @@ fn campaign_with_mode(tc: f64, bias: f64, gain: f64, seed: u64) -> Dataset {
     )
 }
 
-/// Two records of 6000 samples of the pendulum `theta'' = k sin(theta) + c torque` (k = 25,
-/// c = 12) under `truth`. Feedback `u = -5 y - 1.2 omega + r` on the measured angle and the
+/// Two records of 6000 controller samples of the pendulum `theta'' = k sin(theta) + c torque`
+/// (k = 25, c = 12) under `truth`. Feedback `u = -5 y - 1.2 omega + r` on the measured angle and the
 /// true rate, `r` white noise of rms 0.6 held per sample, torque noise, angle noise 1e-3 rad
 /// (1e-4 rad when quantized, so that the counts show).
 fn simulate(truth: Truth, seed: u64) -> Dataset {
@@ -115,7 +118,7 @@ fn simulate(truth: Truth, seed: u64) -> Dataset {
     let mut rng = StdRng::seed_from_u64(seed);
     let mut experiments = Vec::new();
     for e in 0..2 {
-        let n = 6000;
+        let n = 6000 * truth.hold;
         let (mut u, mut y, mut r) = (
             DMatrix::zeros(n, 1),
             DMatrix::zeros(n, 1),
@@ -130,8 +133,13 @@ fn simulate(truth: Truth, seed: u64) -> Dataset {
             } else {
                 read
             };
-            r[(i, 0)] = 0.6 * rng.sample::<f64, _>(StandardNormal);
-            u[(i, 0)] = -5.0 * y[(i, 0)] - 1.2 * om + r[(i, 0)];
+            if i % truth.hold == 0 {
+                r[(i, 0)] = 0.6 * rng.sample::<f64, _>(StandardNormal);
+                u[(i, 0)] = -5.0 * y[(i, 0)] - 1.2 * om + r[(i, 0)];
+            } else {
+                r[(i, 0)] = r[(i - 1, 0)];
+                u[(i, 0)] = u[(i - 1, 0)];
+            }
             let w = 0.02 * rng.sample::<f64, _>(StandardNormal);
             let h = t / 50.0;
             for _ in 0..50 {
@@ -854,6 +862,52 @@ operating_point = { a = 0 }
                 "seed {seed}: {summary}"
             );
         }
+    }
+}
+
+/// Logs taken at 1 kHz of a loop whose controller runs at 100 Hz (the input held over ten
+/// samples), a 30 ms actuator lag and dry friction of 0.1 hidden: the time criterion reads
+/// them at the inputs' rate and finds both, every parameter within 3 standard errors,
+/// explained, on 3 of 3 seeds. At every sample its one-step prediction is nearly all sensor
+/// noise: seed 43 read "explained" with the lag and a viscous friction, k 74.4 ± 2.5 and c
+/// 33.9 ± 1.0 for 25 and 12, tau 89 ms (seeds 41 and 42 found both, k 1.5 errors low). The
+/// FRF criterion keeps every sample.
+#[test]
+fn logs_faster_than_the_controller_are_read_at_the_inputs_rate() {
+    let truth = Truth {
+        lag: 0.03,
+        tc: 0.1,
+        fs: 1000.0,
+        hold: 10,
+        ..CLEAN
+    };
+    for seed in [41, 42, 43] {
+        let wb = workbench(simulate(truth, seed));
+        assert_eq!(wb.hold(), Some(10));
+        assert_eq!(wb.data().sample_rate_hz, 100.0);
+        assert_eq!(wb.data().experiments[0].u.nrows(), 6000);
+        let d = wb.discover().unwrap();
+        let summary = workbench::report::table(&wb, &d);
+        assert!(
+            summary.contains("input hold: the inputs change every 10 samples"),
+            "{summary}"
+        );
+        assert_eq!(
+            d.conclusion.found,
+            ["actuator_lag", "dry"],
+            "seed {seed}: {summary}"
+        );
+        assert!(!d.conclusion.unexplained, "seed {seed}: {summary}");
+        let params = &d.steps.last().unwrap().params;
+        for (name, truth) in [("k", 25.0), ("c", 12.0), ("tc", 0.1), ("tau", 0.03)] {
+            let p = params.iter().find(|p| p.name == name).unwrap();
+            assert!(
+                (p.value - truth).abs() < 3.0 * p.std.unwrap(),
+                "seed {seed}, {name}: {summary}"
+            );
+        }
+        let frf = workbench_with(PENDULUM, simulate(truth, seed), Some(Criterion::Frf));
+        assert_eq!((frf.hold(), frf.data().sample_rate_hz), (None, 1000.0));
     }
 }
 
