@@ -144,9 +144,21 @@ pub fn unstable_loop(
             (g > GROWTH).then(|| format!("grows {g:.1e}-fold over {seconds:.0} s"))
         }
     };
+    // A nonlinear model is checked through its linearization, whose slope a law that is not
+    // smooth at the operating point does not share with the loop (a cart's dry friction
+    // smoothed over a small speed is a huge damping there: the true plant's linearization
+    // failed this check with its own controller).
+    let (what, unless) = if model.structure().is_nonlinear() {
+        (
+            "the fitted model's linearization at the operating point",
+            "; unless a law in it is not smooth there (dry friction, a dead zone), whose slope at the operating point the loop never sees",
+        )
+    } else {
+        ("the fitted model", "")
+    };
     Ok(grown.map(|how| {
         format!(
-            "the fitted model is unstable in closed loop with the model file's controller (its response to a disturbance {how}), while the logged loop held: the fit is wrong where the loop's stability margins lie, which closed-loop logs barely excite, or the [controller] in the file is not the one that ran; do not design on this model before finding out which"
+            "{what} is unstable in closed loop with the model file's controller (its response to a disturbance {how}), while the logged loop held: the fit is wrong where the loop's stability margins lie, which closed-loop logs barely excite, or the [controller] in the file is not the one that ran{unless}; do not design on this model before finding out which"
         )
     }))
 }
@@ -384,5 +396,23 @@ mod tests {
                 );
             }
         }
+        // The same pendulum written as a nonlinear model is checked through its
+        // linearization, and the sentence says so.
+        let nonlinear = "[nonlinear]\nf.theta = \"omega\"\nf.omega = \"(m*g*l*sin(theta) + T)/Jp\"\nh.theta = \"theta\"\noperating_point = { theta = 0, omega = 0, T = 0 }\n";
+        let base = crate::model_file::tests::PENDULUM;
+        let start = base.find("[linear]").unwrap();
+        let text = format!(
+            "{}{nonlinear}\n[controller]\nsample_rate_hz = 100\nK = [[3.0, 0.3]]\n",
+            base[..start].replace("value = 0.5,", "value = 1.5,")
+        );
+        let model = Model::new(Arc::new(
+            ModelFile::parse(&text, Path::new("p.toml")).unwrap(),
+        ));
+        let said = unstable_loop(&model, &[], &data).unwrap().unwrap();
+        assert!(
+            said.starts_with("the fitted model's linearization at the operating point is unstable")
+                && said.contains("not smooth there"),
+            "{said}"
+        );
     }
 }
