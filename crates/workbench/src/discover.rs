@@ -1435,12 +1435,13 @@ impl Workbench {
 
     /// The record of a fitted model: diagnosis, time-domain fit and residual tests.
     fn step_from(&self, fitted: Fitted, base_cost: Option<f64>) -> Result<Step> {
+        let absorbed_noise = fitted.r.information.absorbed();
         let diagnosis = diagnose(
             &self.frf,
             self.weighting(&fitted),
             &self.noise,
             &fitted.r.model_frf.lines,
-            fitted.r.information.absorbed(),
+            absorbed_noise,
         );
         let Fitted {
             model,
@@ -1473,7 +1474,6 @@ impl Workbench {
         if time_fit.kalman.is_some() {
             residual_tests.residual = "innovations of the stationary Kalman predictor".into();
         }
-        let absorbed_noise = r.information.absorbed();
         let (expected, _) = self.noise.fitted_level(absorbed_noise);
         let base = base_cost.unwrap_or(r.cost);
         Ok(Step {

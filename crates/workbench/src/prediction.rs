@@ -1833,43 +1833,49 @@ impl Workbench {
                 .iter()
                 .map(|s| (s.added.as_deref(), s.candidates.as_slice())),
         );
-        let why: Vec<String> = why.into_iter().collect();
         let offset = found
             .iter()
             .any(|f| f == "sensor_bias" || f == "input_bias")
             .then(|| OFFSET_CAVEAT.to_string());
-        let conclusion = Conclusion::settle(found, why, rivals, unexplained, verdict, LEVEL)
-            .with_candidates(super::discover::Candidates::of(&self.model, true))
-            .with_near_misses(&last.candidates)
-            .with_test(EXCITATION_TEST)
-            .with_warnings(
-                match &last_model {
-                    Some(m) => {
-                        let mut why: Vec<String> = self
-                            .far_warning(m, &last.params, unexplained)?
-                            .0
-                            .into_iter()
-                            .collect();
-                        why.extend(super::discover::unmeasured_effects(m, &last.params)?);
-                        why.extend(super::closed_loop::unstable_loop(
-                            m,
-                            &last.params,
-                            &self.data,
-                        )?);
-                        why
-                    }
-                    None => Vec::new(),
+        let conclusion = Conclusion::settle(
+            found,
+            why.into_iter().collect(),
+            rivals,
+            unexplained,
+            verdict,
+            LEVEL,
+        )
+        .with_candidates(super::discover::Candidates::of(&self.model, true))
+        .with_near_misses(&last.candidates)
+        .with_test(EXCITATION_TEST)
+        .with_warnings(
+            match &last_model {
+                Some(m) => {
+                    let mut why: Vec<String> = self
+                        .far_warning(m, &last.params, unexplained)?
+                        .0
+                        .into_iter()
+                        .collect();
+                    why.extend(super::discover::unmeasured_effects(m, &last.params)?);
+                    why.extend(super::closed_loop::unstable_loop(
+                        m,
+                        &last.params,
+                        &self.data,
+                    )?);
+                    why
                 }
-                .into_iter()
-                .chain(offset)
-                .chain(
-                    unexplained
-                        .then(|| quantization_warning(&self.data))
-                        .flatten(),
-                )
-                .chain(self.data.excitation_gap())
-                .collect(),
-            );
+                None => Vec::new(),
+            }
+            .into_iter()
+            .chain(offset)
+            .chain(
+                unexplained
+                    .then(|| quantization_warning(&self.data))
+                    .flatten(),
+            )
+            .chain(self.data.excitation_gap())
+            .collect(),
+        );
         Ok(Discovery {
             weighting: weighting.to_string(),
             steps,
@@ -2006,12 +2012,13 @@ impl Workbench {
                 against,
             );
         }
+        let absorbed_noise = f.r.information.absorbed();
         let diagnosis = diagnose(
             &self.frf,
             &self.cost,
             &self.noise,
             &f.r.model_frf.lines,
-            f.r.information.absorbed(),
+            absorbed_noise,
         );
         Ok(Step {
             added: f.added,
@@ -2019,7 +2026,7 @@ impl Workbench {
             cost,
             reduction_percent: 100.0 * (1.0 - cost / base_cost),
             normalized_cost: cost / n_res,
-            absorbed_noise: f.r.information.absorbed(),
+            absorbed_noise,
             params: f.r.params,
             diagnosis,
             time_fit,
