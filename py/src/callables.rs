@@ -5,7 +5,7 @@
 //! added. Every call takes the GIL, so the predictor's records and candidates share
 //! one interpreter: a fit costs about one Python call per model evaluation (README, "Your own
 //! system").
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 use nalgebra::DMatrix;
 use numpy::{PyArray1, PyArrayMethods};
@@ -15,6 +15,7 @@ use pyo3::types::{PyDict, PyMappingProxy};
 use workbench::dynamics::Dynamics;
 use workbench::model::StateSpace;
 
+use crate::interrupt::Raised;
 use crate::real::real_array;
 
 /// `f`, `h` and where the model is linearized and the predictor starts.
@@ -230,11 +231,13 @@ pub struct PyDynamics {
     /// The enabled declared effects.
     pub extras: Vec<Extra>,
     /// The first exception of a user's callable, for the caller.
-    pub error: Arc<Mutex<Option<PyErr>>>,
+    pub error: Arc<Raised>,
 }
 
 impl PyDynamics {
     fn eval(&self, output: bool, x: &[f64], u: &[f64], out: &mut [f64]) -> sim::Result<()> {
+        // A cancelled run calls no more Python on its way to its next check.
+        self.error.cancel().check()?;
         Python::attach(|py| {
             self.callables.eval(
                 py,
@@ -248,9 +251,7 @@ impl PyDynamics {
         })
         .map_err(|err| {
             let message = err.to_string();
-            if let Ok(mut slot) = self.error.lock() {
-                slot.get_or_insert(err);
-            }
+            self.error.keep(err);
             sim::SimError::invalid(self.model.clone(), if output { "h" } else { "f" }, message)
         })
     }

@@ -64,6 +64,7 @@ impl IntoPyError for sim::SimError {
                 SimError::new_err(message)
             }
             E::UnsafeOutput { .. } => Error::new_err(message),
+            E::Cancelled => pyo3::exceptions::PyKeyboardInterrupt::new_err(message),
         }
     }
 }

@@ -9,6 +9,7 @@ mod errors;
 mod event_est;
 mod flying_platform;
 mod geometry;
+mod interrupt;
 mod log;
 mod pmpc;
 mod power;

@@ -9,8 +9,10 @@ use pyo3::prelude::*;
 use workbench::model::ModelStructure;
 use workbench::model_file::ModelFile;
 use workbench::power::{self, Outcome, Study, StudyOptions, StudySpec};
+use workbench::Cancel;
 
 use crate::errors::to_py_err;
+use crate::interrupt::interruptible;
 use crate::real::Real;
 use crate::workbench::criterion_of;
 
@@ -71,15 +73,17 @@ fn jobs(spec: &str) -> PyResult<Vec<(usize, usize)>> {
     Ok(spec_of(spec)?.jobs())
 }
 
-/// Runs the campaigns `jobs` of the study on `threads` threads without the GIL; returns their
-/// outcomes as JSON text (a list).
+/// Runs the campaigns `jobs` of the study on `threads` threads without the GIL (Ctrl-C stops
+/// them at their next fit iteration); returns their outcomes as JSON text (a list).
 #[pyfunction]
 #[pyo3(signature = (spec, jobs, threads = 1))]
 fn run(py: Python<'_>, spec: &str, jobs: Vec<(usize, usize)>, threads: usize) -> PyResult<String> {
     let spec = spec_of(spec)?;
-    let outcomes = py
-        .detach(|| Study::new(spec).map(|study| power::run(&study, &jobs, threads, &|_| {})))
-        .map_err(to_py_err)?;
+    let cancel = Cancel::default();
+    let outcomes = interruptible(py, &cancel, false, || {
+        Study::new(spec).and_then(|study| power::run(&study, &jobs, threads, &|_| {}, &cancel))
+    })?
+    .map_err(to_py_err)?;
     to_text(&outcomes)
 }
 

@@ -25,6 +25,7 @@ use workbench::{load, Dataset, Discovery, EstimatorChoice, Experiment, ModelFile
 
 use crate::callables::{Callables, Extra, PyDynamics};
 use crate::errors::{to_py_err, ModelError};
+use crate::interrupt::{interruptible, Raised};
 use crate::real::{real_array, Real};
 
 fn to_dict<'py>(py: Python<'py>, value: &serde_json::Value) -> PyResult<Bound<'py, PyAny>> {
@@ -221,7 +222,7 @@ impl Effect {
 #[derive(Debug)]
 struct PyEffect {
     effect: Py<Effect>,
-    error: Arc<Mutex<Option<PyErr>>>,
+    error: Arc<Raised>,
 }
 
 impl PyEffect {
@@ -346,11 +347,10 @@ impl EffectTrait for PyEffect {
     }
 
     fn apply(&self, theta: &[f64], ss: &mut StateSpace) -> sim::Result<()> {
+        self.error.cancel().check()?;
         Python::attach(|py| self.call(py, theta, ss)).map_err(|err| {
             let message = err.to_string();
-            if let Ok(mut slot) = self.error.lock() {
-                slot.get_or_insert(err);
-            }
+            self.error.keep(err);
             sim::SimError::invalid(
                 format!("effect {}", self.effect.get().name),
                 "Python callable",
@@ -375,7 +375,7 @@ struct PyStructure {
     /// workbench's own copy, by `suspect` and `add`: the structure's effects, as a model
     /// file's `[effects]`.
     declared: Mutex<Vec<Arc<Py<Effect>>>>,
-    error: Arc<Mutex<Option<PyErr>>>,
+    error: Arc<Raised>,
 }
 
 /// How a Python model is given.
@@ -656,6 +656,7 @@ impl ModelStructure for PyStructure {
     }
 
     fn state_space(&self, enabled: &[String], theta: &[f64]) -> sim::Result<StateSpace> {
+        self.error.cancel().check()?;
         Python::attach(|py| self.call(py, enabled, theta)).map_err(|err| self.stash(err))
     }
 
@@ -695,9 +696,7 @@ impl PyStructure {
     /// Keeps the first exception of a user's callable for the caller.
     fn stash(&self, err: PyErr) -> sim::SimError {
         let message = err.to_string();
-        if let Ok(mut slot) = self.error.lock() {
-            slot.get_or_insert(err);
-        }
+        self.error.keep(err);
         sim::SimError::invalid(self.label(), "Python callable", message)
     }
 }
@@ -779,7 +778,7 @@ struct Model {
     python: Option<PyStructure>,
     /// Matrix-form effects, offered to discovery.
     effects: Vec<Py<Effect>>,
-    error: Arc<Mutex<Option<PyErr>>>,
+    error: Arc<Raised>,
 }
 
 #[pymethods]
@@ -927,7 +926,7 @@ impl Model {
             }
         }
         workbench::model::check_parameters(&params).map_err(to_py_err)?;
-        let error = Arc::new(Mutex::new(None));
+        let error = Arc::new(Raised::default());
         let structure = PyStructure {
             name: name.to_string(),
             states,
@@ -991,7 +990,7 @@ impl Model {
             structure: Arc::new(file),
             python: None,
             effects: Vec::new(),
-            error: Arc::new(Mutex::new(None)),
+            error: Arc::new(Raised::default()),
         })
     }
 
@@ -1016,7 +1015,7 @@ impl Model {
     /// The matrices at the documented values: `{"A", "B", "C", "D"}` as numpy arrays.
     fn matrices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let s = Arc::clone(&self.structure);
-        let ss = run_with(&self.error, py, move || {
+        let ss = run_with(&self.error, self.python.is_some(), py, move || {
             let theta: Vec<f64> = s.parameters(&[])?.iter().map(|p| p.value).collect();
             s.state_space(&[], &theta)
         })?;
@@ -1170,8 +1169,11 @@ struct Workbench {
     /// This workbench's copy of a Python model, to which `suspect` and `add` declare effects
     /// in nonlinear form.
     python: Option<Arc<PyStructure>>,
-    /// First Python exception raised by a user effect during the running call.
-    error: Arc<Mutex<Option<PyErr>>>,
+    /// First Python exception raised by a user effect during the running call; its
+    /// [`Cancel`] stops the running call.
+    error: Arc<Raised>,
+    /// Whether a run calls Python: a Python model, or an effect given as a callable.
+    calls_python: bool,
 }
 
 /// Why the Cubli workbench takes no Python effect.
@@ -1244,7 +1246,7 @@ impl Workbench {
         own.declare(Arc::new(user.unbind()), &wb.model().enabled())?;
         let probe = wb.model().with_effect(&name).map_err(to_py_err);
         let checked = probe.and_then(|probe| {
-            run_with(&self.error, py, || {
+            run_with(&self.error, true, py, || {
                 probe.state_space(&probe.documented()?).map(|_| ())
             })
         });
@@ -1264,42 +1266,29 @@ impl Workbench {
         py: Python<'_>,
         f: impl FnOnce() -> sim::Result<T> + Send,
     ) -> PyResult<T> {
-        run_with(&self.error, py, f)
+        run_with(&self.error, self.calls_python, py, f)
     }
 }
 
-/// Runs `f` without the GIL; an exception a user's callable raised during the run (a model's
-/// `f`/`h`, an effect's) is re-raised unchanged, whether or not the run failed (kept in
-/// `error`). A panic in the run becomes a `stabilis.Error` naming it as a bug, not a
-/// `PanicException` that `except Exception` misses (a model with every parameter held once
-/// panicked under the time criterion).
+/// Runs `f` without the GIL, stopped by Ctrl-C or by a user's exception ([`interruptible`]);
+/// an exception a user's callable raised during the run (a model's `f`/`h`, an effect's) is
+/// re-raised unchanged, whether or not the run failed (kept in `error`).
 fn run_with<T: Send>(
-    error: &Mutex<Option<PyErr>>,
+    error: &Raised,
+    calls_python: bool,
     py: Python<'_>,
     f: impl FnOnce() -> sim::Result<T> + Send,
 ) -> PyResult<T> {
-    if let Ok(mut slot) = error.lock() {
-        slot.take();
-    }
-    let result = py.detach(|| std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)));
-    let stashed = error.lock().ok().and_then(|mut slot| slot.take());
+    error.take();
+    let result = interruptible(py, error.cancel(), calls_python, f);
     // A user's exception reaches the caller even when the run went on without it: a fit
     // takes a failed evaluation for a step too far and backs off, which turned an effect
     // that raised (or returned NaN) beyond some value into a plausible misfit verdict.
-    match (result, stashed) {
+    match (result, error.take()) {
+        (Err(interrupt), _) => Err(interrupt),
         (_, Some(err)) => Err(err),
         (Ok(Ok(v)), None) => Ok(v),
         (Ok(Err(e)), None) => Err(to_py_err(e)),
-        (Err(panic), None) => {
-            let what = panic
-                .downcast_ref::<&str>()
-                .map(|s| s.to_string())
-                .or_else(|| panic.downcast_ref::<String>().cloned())
-                .unwrap_or_else(|| "no message".into());
-            Err(crate::errors::Error::new_err(format!(
-                "internal error (a bug in stabilis; please report it with the model and logs): {what}"
-            )))
-        }
     }
 }
 
@@ -1307,10 +1296,10 @@ impl Workbench {
     /// Runs `discover` (or the one-step `fit`), keeps the result for `report` and returns its
     /// JSON.
     fn keep(&mut self, py: Python<'_>, discover: bool) -> PyResult<serde_json::Value> {
-        let error = &self.error;
+        let (error, calls_python) = (&self.error, self.calls_python);
         Ok(match &mut self.inner {
             Inner::Frf { wb, last } => {
-                let d = run_with(error, py, || {
+                let d = run_with(error, calls_python, py, || {
                     if discover {
                         wb.discover()
                     } else {
@@ -1322,7 +1311,7 @@ impl Workbench {
                 value
             }
             Inner::Cubli { bench, last } => {
-                let d = run_with(error, py, || {
+                let d = run_with(error, calls_python, py, || {
                     if discover {
                         bench.discover()
                     } else {
@@ -1368,7 +1357,7 @@ impl Workbench {
             None => (
                 systems::shipped(system).map_err(to_py_err)?,
                 Vec::new(),
-                Arc::new(Mutex::new(None)),
+                Arc::new(Raised::default()),
             ),
             Some(m) => {
                 let m: Py<Model> = match m.cast::<Model>() {
@@ -1402,6 +1391,7 @@ impl Workbench {
                 (Source::Structure(structure), effects, Arc::clone(&m.error))
             }
         };
+        let calls_python = python.is_some() || !effects.is_empty();
         let paths: Option<Vec<PathBuf>> = match data {
             None => None,
             Some(d) => d.extract::<Vec<PathBuf>>().ok(),
@@ -1429,7 +1419,7 @@ impl Workbench {
                 let shipped_default = model.is_none() && system == "flying_platform";
                 let dataset = match dataset {
                     Some(d) => d,
-                    None => run_with(&error, py, || match &paths {
+                    None => run_with(&error, calls_python, py, || match &paths {
                         Some(p) => load::load(s.system(), &s.inputs(), &s.outputs(), p),
                         None if shipped_default => embedded_dataset(),
                         None => Err(sim::SimError::invalid(
@@ -1440,7 +1430,7 @@ impl Workbench {
                     })?,
                 };
                 check_rate(sample_rate_hz, dataset.sample_rate_hz)?;
-                let mut wb = run_with(&error, py, move || {
+                let mut wb = run_with(&error, calls_python, py, move || {
                     workbench::Workbench::with_options(
                         s,
                         dataset,
@@ -1459,6 +1449,7 @@ impl Workbench {
                     }))
                     .map_err(to_py_err)?;
                 }
+                wb.set_cancel(error.cancel().clone());
                 Inner::Frf {
                     wb: Box::new(wb),
                     last: None,
@@ -1483,6 +1474,7 @@ impl Workbench {
         };
         Ok(Self {
             inner,
+            calls_python,
             python,
             error,
         })
@@ -1510,6 +1502,7 @@ impl Workbench {
         name: Option<String>,
     ) -> PyResult<()> {
         let user = user_effect(py, effect, params, bounds, units, name)?;
+        self.calls_python = true;
         if user.get().nonlinear() {
             return self.declare(py, user, false);
         }
@@ -1613,6 +1606,7 @@ impl Workbench {
             .map_err(to_py_err);
         }
         let user = user_effect(py, effect, params, bounds, units, name)?;
+        self.calls_python = true;
         if user.get().nonlinear() {
             return self.declare(py, user, true);
         }

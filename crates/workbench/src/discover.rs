@@ -1864,6 +1864,8 @@ impl Workbench {
                 super::Criterion::Frf => {}
             }
         }
+        // A candidate whose fit was cancelled is recorded as failed, and the search goes on.
+        self.cancel.check()?;
         Ok(d)
     }
 

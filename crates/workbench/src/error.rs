@@ -138,6 +138,9 @@ pub enum SimError {
         #[source]
         source: Box<dyn std::error::Error + Send + Sync>,
     },
+    /// The run was stopped from outside before its end ([`crate::Cancel`]): it has no result.
+    #[error("the run was cancelled before its end")]
+    Cancelled,
 }
 
 impl SimError {
@@ -176,7 +179,8 @@ impl SimError {
     }
 
     /// The process exit code for this error: 2 for bad input (the user can fix it: a missing
-    /// directory, a file without permission), 1 when the machine failed us (a full disk).
+    /// directory, a file without permission), 1 when the machine failed us (a full disk), 130
+    /// (as for SIGINT) for a cancelled run.
     pub fn exit_code(&self) -> i32 {
         match self {
             Self::Io { source, .. }
@@ -187,6 +191,7 @@ impl SimError {
             {
                 1
             }
+            Self::Cancelled => 130,
             _ => 2,
         }
     }

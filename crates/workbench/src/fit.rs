@@ -9,6 +9,7 @@ use serde::Serialize;
 use super::cost::{LineCorrelation, WeightedCost};
 use super::frf::{model_noise, FrfEstimate, LineMap, ModelFrf};
 use super::model::{Model, Parameter};
+use crate::cancel::Cancel;
 use crate::error::{Result, SimError};
 
 /// Fit settings.
@@ -29,6 +30,8 @@ pub struct FitOptions {
     /// Stop as soon as the cost's Gauss-Newton model says it cannot fall below this even
     /// with twice the predicted decrease (a candidate that cannot become significant).
     pub give_up_above: Option<f64>,
+    /// Checked at every iteration: once set, the fit ends with [`SimError::Cancelled`].
+    pub cancel: Cancel,
 }
 
 impl Default for FitOptions {
@@ -40,6 +43,7 @@ impl Default for FitOptions {
             rank_tolerance: 1e-6,
             hold: None,
             give_up_above: None,
+            cancel: Cancel::default(),
         }
     }
 }
@@ -345,6 +349,7 @@ pub fn solve(
     let mut iterations = 0;
     let mut r = criterion.residuals(&theta)?;
     loop {
+        opts.cancel.check()?;
         let (used, d, gave_up) =
             levenberg_marquardt(criterion, params, &held, &mut theta, &mut r, opts)?;
         iterations += used;
@@ -575,6 +580,7 @@ fn levenberg_marquardt(
     let mut lambda = 1e-3;
     let mut growth = 2.0;
     for it in 0..opts.max_iterations {
+        opts.cancel.check()?;
         let jtj = j.transpose() * &j;
         let grad = j.transpose() * &*r;
         let moving = moving(&free, params, theta, &grad);
@@ -788,6 +794,11 @@ mod tests {
         assert!(!r.gave_up);
         assert_eq!(r.free, 2);
         assert!((r.cost - 1.0).abs() < 1e-9, "{}", r.cost);
+        // A cancelled fit returns no result.
+        let opts = FitOptions::default();
+        opts.cancel.cancel();
+        let r = solve(&criterion, &params, None, &opts);
+        assert!(matches!(r, Err(SimError::Cancelled)), "{r:?}");
     }
 
     /// The information of `j` (n x p) under the correlation `omega`, its parameters named

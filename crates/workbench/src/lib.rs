@@ -16,6 +16,7 @@
 //! flying platform and the Cubli; a user writes a model file, [`ModelFile`]). Below the chain
 //! lie the data it reads and writes: [`log`] (MCAP and CSV logs), [`output`] (never over an
 //! input, temporary file + rename), [`limits`] (memory budgets) and the one [`error`] type.
+pub mod cancel;
 pub mod closed_loop;
 pub mod coherence;
 pub mod cost;
@@ -50,6 +51,7 @@ pub mod welch;
 
 use std::sync::Arc;
 
+pub use cancel::Cancel;
 pub use dataset::{Dataset, Experiment, Periodic};
 pub use discover::{CandidateScore, Discovery, Step, Verdict};
 pub use fit::{FitOptions, FitResult, ParamEstimate};
@@ -77,6 +79,8 @@ pub struct Workbench {
     noise: NoiseReference,
     model: Model,
     criterion: Criterion,
+    /// Stops this workbench's runs from outside ([`Workbench::set_cancel`]).
+    cancel: Cancel,
 }
 
 /// Choices a user may make about the data; the defaults take everything from the data.
@@ -262,6 +266,7 @@ impl Workbench {
             noise,
             model,
             criterion,
+            cancel: Cancel::default(),
         })
     }
 
@@ -330,10 +335,18 @@ impl Workbench {
         Ok(())
     }
 
-    /// Fit options for this data (zero-order hold at the sample period).
+    /// Shares `cancel` with this workbench's runs: once it is set, a run (and each clone's)
+    /// stops at its next fit iteration with [`SimError::Cancelled`] (Ctrl-C from Python).
+    pub fn set_cancel(&mut self, cancel: Cancel) {
+        self.cancel = cancel;
+    }
+
+    /// Fit options for this data (zero-order hold at the sample period, the workbench's
+    /// [`Cancel`]).
     pub fn fit_options(&self) -> FitOptions {
         FitOptions {
             hold: Some(1.0 / self.data.sample_rate_hz),
+            cancel: self.cancel.clone(),
             ..FitOptions::default()
         }
     }
@@ -354,6 +367,8 @@ impl Workbench {
         d.conclusion = d
             .conclusion
             .with_candidates(discover::Candidates::of(&self.model, false));
+        // A step whose fits were cancelled may have been recorded as failed, not returned.
+        self.cancel.check()?;
         Ok(d)
     }
 }

@@ -34,6 +34,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 
+use super::cancel::Cancel;
 use super::closed_loop::{controller_rate, growth, run_loop, GROWTH};
 use super::dataset::{Dataset, Experiment, Periodic};
 use super::diagnose::LEVEL;
@@ -1227,8 +1228,8 @@ impl Study {
     }
 
     /// One campaign: simulate, discover, and what was found. Never fails: a failure is the
-    /// outcome's `error`.
-    pub fn campaign(&self, value_index: usize, campaign: usize) -> Outcome {
+    /// outcome's `error` (also a discovery stopped by `cancel`, which [`run`] does not return).
+    pub fn campaign(&self, value_index: usize, campaign: usize, cancel: &Cancel) -> Outcome {
         let mut out = Outcome {
             value_index,
             campaign,
@@ -1242,7 +1243,7 @@ impl Study {
         };
         let result = self.simulate(value_index, campaign).and_then(|data| {
             out.noise_rms = period_noise_rms(&data);
-            Workbench::with_options(
+            let mut wb = Workbench::with_options(
                 self.structure.clone(),
                 data,
                 estimator_choice(&self.spec.estimator)?,
@@ -1250,8 +1251,9 @@ impl Study {
                     band_hz: self.spec.band_hz,
                     criterion: self.spec.criterion,
                 },
-            )?
-            .discover_alone(&mut |_: &str| {})
+            )?;
+            wb.set_cancel(cancel.clone());
+            wb.discover_alone(&mut |_: &str| {})
         });
         match result {
             Err(e) => out.error = Some(e.to_string()),
@@ -1284,13 +1286,16 @@ impl Study {
 }
 
 /// Runs `jobs` on `threads` threads (at least one), calling `progress(done)` after each
-/// campaign; the outcomes come back in the order of `jobs`.
+/// campaign; the outcomes come back in the order of `jobs`. Once `cancel` is set no campaign
+/// starts, the running ones stop at their next fit iteration, and the run returns
+/// [`SimError::Cancelled`].
 pub fn run(
     study: &Study,
     jobs: &[(usize, usize)],
     threads: usize,
     progress: &(dyn Fn(usize) + Sync),
-) -> Vec<Outcome> {
+    cancel: &Cancel,
+) -> Result<Vec<Outcome>> {
     let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
     let slots: Mutex<Vec<Option<Outcome>>> = Mutex::new(vec![None; jobs.len()]);
@@ -1298,8 +1303,10 @@ pub fn run(
         for _ in 0..threads.clamp(1, jobs.len().max(1)) {
             scope.spawn(|| loop {
                 let i = next.fetch_add(1, Ordering::Relaxed);
-                let Some(&(v, c)) = jobs.get(i) else { break };
-                let outcome = study.campaign(v, c);
+                let Some(&(v, c)) = jobs.get(i).filter(|_| !cancel.is_cancelled()) else {
+                    break;
+                };
+                let outcome = study.campaign(v, c, cancel);
                 if let Ok(mut s) = slots.lock() {
                     s[i] = Some(outcome);
                 }
@@ -1307,7 +1314,8 @@ pub fn run(
             });
         }
     });
-    slots
+    cancel.check()?;
+    Ok(slots
         .into_inner()
         .unwrap_or_default()
         .into_iter()
@@ -1325,7 +1333,7 @@ pub fn run(
                 noise_rms: None,
             })
         })
-        .collect()
+        .collect())
 }
 
 /// The aggregate of one value.
@@ -2024,11 +2032,26 @@ D = [[-4.0, -3.0]]
         assert_eq!(back, spec);
         let study = Study::new(back).unwrap();
         let jobs = study.jobs();
-        let serial = run(&study, &jobs, 1, &|_| {});
+        let serial = run(&study, &jobs, 1, &|_| {}, &Cancel::default()).unwrap();
         let reversed: Vec<_> = jobs.iter().rev().copied().collect();
-        let mut parallel = run(&study, &reversed, 3, &|_| {});
+        let mut parallel = run(&study, &reversed, 3, &|_| {}, &Cancel::default()).unwrap();
         parallel.reverse();
         assert_eq!(serial, parallel);
+        // Cancelled after its first campaign, a run starts no other and returns no outcome.
+        let cancel = Cancel::default();
+        let done = AtomicUsize::new(0);
+        let stopped = run(
+            &study,
+            &jobs,
+            1,
+            &|n| {
+                done.store(n, Ordering::Relaxed);
+                cancel.cancel();
+            },
+            &cancel,
+        );
+        assert!(matches!(stopped, Err(SimError::Cancelled)), "{stopped:?}");
+        assert_eq!(done.load(Ordering::Relaxed), 1);
         // Different campaigns draw different noise; the same campaign the same.
         let a = study.simulate(1, 0).unwrap();
         let b = study.simulate(1, 1).unwrap();

@@ -21,6 +21,7 @@ use workbench::load;
 use workbench::model::ModelStructure;
 use workbench::model_file::ModelFile;
 use workbench::power::{self, Outcome, Study, StudyOptions, StudySpec};
+use workbench::Cancel;
 
 /// Environment variable naming the Python interpreter of `--scheduler`.
 pub const PYTHON_VAR: &str = "STABILIS_PYTHON";
@@ -169,11 +170,17 @@ fn in_process(spec: &StudySpec, threads: Option<usize>) -> Result<Vec<Outcome>> 
         .or_else(|| std::thread::available_parallelism().ok().map(|n| n.get()))
         .unwrap_or(1);
     let reporter = Mutex::new(Reporter::new(jobs.len()));
-    let outcomes = power::run(&study, &jobs, threads, &|done| {
-        if let Ok(mut r) = reporter.lock() {
-            r.done(done);
-        }
-    });
+    let outcomes = power::run(
+        &study,
+        &jobs,
+        threads,
+        &|done| {
+            if let Ok(mut r) = reporter.lock() {
+                r.done(done);
+            }
+        },
+        &Cancel::default(),
+    )?;
     if let Ok(r) = reporter.lock() {
         r.finish();
     }
