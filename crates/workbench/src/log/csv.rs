@@ -64,15 +64,31 @@ pub fn read_csv(path: impl AsRef<Path>) -> Result<Table> {
         .collect();
     let mut table = Table::new(path.display().to_string(), fields);
     let mut values = Vec::with_capacity(header.len());
+    // The last row's time and line: a time that does not increase is named by its line here,
+    // where the file's lines are known (the table names samples).
+    let mut before: Option<(f64, usize)> = None;
     for record in reader.records() {
         let record = record.map_err(|e| csv_error(e.to_string()))?;
-        // The line from the record's byte offset. After a Windows line end (`\r\n`) the reader
-        // places a record on the `\n` that ends the line before, and counts lines the same way,
-        // so such a file named the line before the bad one: that `\n` is counted here too.
+        // The line from the record's byte offset. The reader may place a record on the line
+        // end before it (after a Windows `\r\n`) or on a comment line before it, and counts
+        // lines the same way, so such a file named an earlier line than the bad one: line ends
+        // and comment lines are skipped here.
         let line = || {
             record.position().map_or(0, |p| {
-                let end = (p.byte() as usize + 1).min(text.len());
-                1 + text[..end].iter().filter(|&&b| b == b'\n').count()
+                let mut at = (p.byte() as usize).min(text.len());
+                while at < text.len() {
+                    if matches!(text[at], b'\n' | b'\r') {
+                        at += 1;
+                    } else if text[at] == b'#' {
+                        at += text[at..]
+                            .iter()
+                            .position(|&b| b == b'\n')
+                            .unwrap_or(text.len() - at);
+                    } else {
+                        break;
+                    }
+                }
+                1 + text[..at].iter().filter(|&&b| b == b'\n').count()
             })
         };
         values.clear();
@@ -102,6 +118,13 @@ pub fn read_csv(path: impl AsRef<Path>) -> Result<Table> {
                 values.push(value);
             }
         }
+        if let Some((t0, line0)) = before.filter(|&(t0, _)| t <= t0) {
+            return Err(csv_error(format!(
+                "line {}: t = {t} s does not increase (line {line0} is at t = {t0} s): rows must be in time order, each sample once",
+                line()
+            )));
+        }
+        before = Some((t, line()));
         table.push(t, &values)?;
     }
     Ok(table)

@@ -372,12 +372,29 @@ fn csv_errors_are_named() {
             "# rig 3\r\nt,x\r\n0,1\r\n0.1,one\r\n",
             "line 4, column \"x\": \"one\" is not a number",
         ),
+        // A comment line before the bad row: the row's own line (it read "line 3").
+        (
+            "word-after-comment.csv",
+            "t,x\n0,1\n# note\n0.1,one\n",
+            "line 4, column \"x\": \"one\" is not a number",
+        ),
         (
             "nan-crlf.csv",
             "t,x\r\n0,1\r\n1,nan\r\n",
             "nan-crlf.csv line 3",
         ),
         ("ragged.csv", "t,x\n0,1\n1\n", "bad CSV file"),
+        // A time that does not increase is named by its line, past comments (sample 2 of 4).
+        (
+            "unordered.csv",
+            "# rig 3\nt,x\n0,1\n# pause\n0.2,2\n0.1,3\n0.3,4\n",
+            "line 6: t = 0.1 s does not increase (line 5 is at t = 0.2 s)",
+        ),
+        (
+            "repeated-crlf.csv",
+            "t,x\r\n0,1\r\n0.1,2\r\n0.1,2\r\n",
+            "line 4: t = 0.1 s does not increase (line 3 is at t = 0.1 s)",
+        ),
         ("empty.csv", " \n", "the file is empty"),
         (
             "decimal-comma.csv",
