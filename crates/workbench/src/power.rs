@@ -76,6 +76,9 @@ pub struct StudySpec {
     pub effect: String,
     /// Its parameter set to each value.
     pub parameter: String,
+    /// The parameter's unit as the model gives it (empty: none given).
+    #[serde(default)]
+    pub unit: String,
     /// Values of the parameter, increasing; 0 is the effect absent (the nominal model).
     pub values: Vec<f64>,
     /// The parameter's bounds in the model sized to the logs, which the values are checked
@@ -330,6 +333,7 @@ pub fn prepare(
         model_path: model_path.display().to_string(),
         effect: options.effect.clone(),
         parameter: parameter.name,
+        unit: parameter.unit,
         values: options.values.clone(),
         bounds,
         campaigns: options.campaigns,
@@ -1397,6 +1401,8 @@ pub struct PowerResult {
     pub effect: String,
     /// Its parameter.
     pub parameter: String,
+    /// The parameter's unit (empty: none given).
+    pub unit: String,
     /// Campaigns per value.
     pub campaigns: usize,
     /// Seed.
@@ -1557,6 +1563,7 @@ pub fn aggregate(spec: &StudySpec, outcomes: &[Outcome]) -> Result<PowerResult> 
         process_noise_shape: spec.process_noise_shape.clone(),
         effect: spec.effect.clone(),
         parameter: spec.parameter.clone(),
+        unit: spec.unit.clone(),
         campaigns: spec.campaigns,
         seed: spec.seed,
         level: LEVEL,
@@ -1618,11 +1625,25 @@ pub fn aggregate(spec: &StudySpec, outcomes: &[Outcome]) -> Result<PowerResult> 
 }
 
 impl PowerResult {
+    /// `", unit"` for labels, or nothing when the model gives no unit.
+    fn in_unit(&self) -> String {
+        if self.unit.is_empty() {
+            String::new()
+        } else {
+            format!(", {}", self.unit)
+        }
+    }
+
     /// The summary for people: one row per value, then the smallest detectable value.
     pub fn table(&self) -> String {
         let mut s = format!(
-            "power of {} ({}), {} campaigns per value, seed {}; {}\n",
-            self.effect, self.parameter, self.campaigns, self.seed, self.interval
+            "power of {} ({}{}), {} campaigns per value, seed {}; {}\n",
+            self.effect,
+            self.parameter,
+            self.in_unit(),
+            self.campaigns,
+            self.seed,
+            self.interval
         );
         s.push_str(&format!(
             "{:>12} {:>9} {:>17} {:>9} {:>7} {:>11} {:>12} {:>10} {:>6}\n",
@@ -1779,7 +1800,7 @@ impl PowerResult {
             markers: false,
             band: None,
         };
-        let label = format!("{} ({})", self.parameter, self.effect);
+        let label = format!("{} ({}){}", self.parameter, self.effect, self.in_unit());
         let mut body = format!(
             "<h1>Detection power of {}</h1><p>{} campaigns per value, seed {}. {}.</p>",
             escape(&self.effect),
@@ -1836,7 +1857,7 @@ impl PowerResult {
             body.push_str(&chart(
                 "estimate where found (mean, band one standard deviation)",
                 XAxis::linear(&label),
-                &self.parameter,
+                &format!("{}{}", self.parameter, self.in_unit()),
                 &[mean, truth],
             ));
         }
@@ -1883,7 +1904,7 @@ B = [[0], ["1/M"]]
 C = [[1, 0]]
 [effects.friction]
 description = "viscous friction -b v"
-parameters = { b = { value = 0.5, min = 0.0, max = 50.0 } }
+parameters = { b = { value = 0.5, min = 0.0, max = 50.0, unit = "N s/m" } }
 A = { "v,v" = "-b/M" }
 [controller]
 sample_rate_hz = 50
@@ -2030,6 +2051,7 @@ D = [[-4.0, -3.0]]
         let text = serde_json::to_string(&spec).unwrap();
         let back: StudySpec = serde_json::from_str(&text).unwrap();
         assert_eq!(back, spec);
+        assert_eq!(spec.unit, "N s/m");
         let study = Study::new(back).unwrap();
         let jobs = study.jobs();
         let serial = run(&study, &jobs, 1, &|_| {}, &Cancel::default()).unwrap();
@@ -2369,6 +2391,7 @@ D = [[-4.0, -3.0]]
             model_path: String::new(),
             effect: "friction".into(),
             parameter: "b".into(),
+            unit: "N s/m".into(),
             values,
             bounds: [0.0, 50.0],
             campaigns,
@@ -2465,6 +2488,9 @@ D = [[-4.0, -3.0]]
         assert!(m > 4e-6 && m < 8e-6, "{m}");
         let table = r.table();
         assert!(!table.contains("0.0000"), "{table}");
+        // The parameter's unit names the values, in the table and on the report's axes.
+        assert!(table.starts_with("power of friction (b, N s/m)"), "{table}");
+        assert!(r.html().contains("b (friction), N s/m"));
         for v in ["2.000e-6", "4.000e-6", "8.000e-6", "1.600e-5", "8.400e-6"] {
             assert!(table.contains(v), "{v} missing from\n{table}");
         }
