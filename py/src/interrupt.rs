@@ -70,9 +70,10 @@ pub fn interruptible<R: Send>(
             .name("stabilis-run".into())
             .stack_size(STACK)
             .spawn_scoped(scope, move || {
-                // The thread keeps one Python thread state for the whole run, released but not
-                // destroyed: a Python model's every call would otherwise create and destroy
-                // one (measured: a cart-pole's discovery 60 times slower).
+                // Should the run call Python after all, the thread keeps one Python thread
+                // state for the whole run, released but not destroyed: each call would
+                // otherwise create and destroy one (a Python model's discovery run here was
+                // 60 times slower).
                 let result = Python::attach(|py| {
                     py.detach(|| std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)))
                 });
