@@ -27,6 +27,10 @@ SCRIPT = r"""
 import json, os, signal, sys, threading, time
 import stabilis
 
+# As in an interactive interpreter: a test runner's worker may ignore SIGINT, and a child
+# inherits that.
+signal.signal(signal.SIGINT, signal.default_int_handler)
+
 wb = stabilis.Workbench(model=sys.argv[1], data=[sys.argv[2]])
 start = time.monotonic()
 full = wb.discover()
@@ -74,6 +78,10 @@ def test_ctrl_c_stops_a_model_files_discovery_and_leaves_the_workbench_as_it_was
 SCRIPT_CALLABLES = r"""
 import json, os, signal, sys, threading, time
 import stabilis
+
+# As in an interactive interpreter: a test runner's worker may ignore SIGINT, and a child
+# inherits that.
+signal.signal(signal.SIGINT, signal.default_int_handler)
 import test_nonlinear_independent as t
 
 wb = stabilis.Workbench(model=t.python_cart_pole(stabilis), data=[sys.argv[1]])
