@@ -21,9 +21,9 @@ import independent_furuta as fu
 
 MODEL = Path(__file__).parent / "data" / "furuta.toml"
 
-# The discovery once to its end, again with a SIGINT sent at a share of that time, and a third
-# time on the same workbench, which must give the first one's result: the stop left nothing.
-SCRIPT = r"""
+# What both cases run first: `interrupted(wb, seconds)` runs `wb.discover()` with a SIGINT sent
+# after `seconds`; it returns whether KeyboardInterrupt was raised, and when.
+PRELUDE = r"""
 import json, os, signal, sys, threading, time
 import stabilis
 
@@ -31,21 +31,28 @@ import stabilis
 # inherits that.
 signal.signal(signal.SIGINT, signal.default_int_handler)
 
+
+def interrupted(wb, seconds):
+    threading.Timer(seconds, os.kill, (os.getpid(), signal.SIGINT)).start()
+    start = time.monotonic()
+    try:
+        wb.discover()
+        return False, time.monotonic() - start
+    except KeyboardInterrupt:
+        return True, time.monotonic() - start
+"""
+
+# The discovery once to its end, again with a SIGINT sent at a share of that time, and a third
+# time on the same workbench, which must give the first one's result: the stop left nothing.
+SCRIPT = PRELUDE + r"""
 wb = stabilis.Workbench(model=sys.argv[1], data=[sys.argv[2]])
 start = time.monotonic()
 full = wb.discover()
 whole = time.monotonic() - start
-threading.Timer(float(sys.argv[3]) * whole, os.kill, (os.getpid(), signal.SIGINT)).start()
-start = time.monotonic()
-try:
-    wb.discover()
-    interrupted = False
-except KeyboardInterrupt:
-    interrupted = True
-stopped = time.monotonic() - start
+stop, stopped = interrupted(wb, float(sys.argv[3]) * whole)
 again = wb.discover()
 print(json.dumps({
-    "whole": whole, "stopped": stopped, "interrupted": interrupted,
+    "whole": whole, "stopped": stopped, "interrupted": stop,
     "found": [full["found"], again["found"]],
     "cost": [full["steps"][-1]["cost"], again["steps"][-1]["cost"]],
 }))
@@ -75,24 +82,12 @@ def test_ctrl_c_stops_a_model_files_discovery_and_leaves_the_workbench_as_it_was
 
 
 # A Python model (the cart-pole's Lagrange equations as callables) with a SIGINT after 1 s.
-SCRIPT_CALLABLES = r"""
-import json, os, signal, sys, threading, time
-import stabilis
-
-# As in an interactive interpreter: a test runner's worker may ignore SIGINT, and a child
-# inherits that.
-signal.signal(signal.SIGINT, signal.default_int_handler)
+SCRIPT_CALLABLES = PRELUDE + r"""
 import test_nonlinear_independent as t
 
 wb = stabilis.Workbench(model=t.python_cart_pole(stabilis), data=[sys.argv[1]])
-threading.Timer(1.0, os.kill, (os.getpid(), signal.SIGINT)).start()
-start = time.monotonic()
-try:
-    wb.discover()
-    interrupted = False
-except KeyboardInterrupt:
-    interrupted = True
-print(json.dumps({"stopped": time.monotonic() - start, "interrupted": interrupted}))
+stop, stopped = interrupted(wb, 1.0)
+print(json.dumps({"stopped": stopped, "interrupted": stop}))
 """
 
 
