@@ -64,33 +64,14 @@ pub fn read_csv(path: impl AsRef<Path>) -> Result<Table> {
         .collect();
     let mut table = Table::new(path.display().to_string(), fields);
     let mut values = Vec::with_capacity(header.len());
-    // The last row's time and line: a time that does not increase is named by its line here,
-    // where the file's lines are known (the table names samples).
-    let mut before: Option<(f64, usize)> = None;
+    // The last row's time and byte offset: a time that does not increase is named by its line
+    // here, where the file's lines are known (the table names samples). Lines are counted
+    // only for a message: counting them at every row made reading quadratic in the rows.
+    let mut before: Option<(f64, Option<u64>)> = None;
     for record in reader.records() {
         let record = record.map_err(|e| csv_error(e.to_string()))?;
-        // The line from the record's byte offset. The reader may place a record on the line
-        // end before it (after a Windows `\r\n`) or on a comment line before it, and counts
-        // lines the same way, so such a file named an earlier line than the bad one: line ends
-        // and comment lines are skipped here.
-        let line = || {
-            record.position().map_or(0, |p| {
-                let mut at = (p.byte() as usize).min(text.len());
-                while at < text.len() {
-                    if matches!(text[at], b'\n' | b'\r') {
-                        at += 1;
-                    } else if text[at] == b'#' {
-                        at += text[at..]
-                            .iter()
-                            .position(|&b| b == b'\n')
-                            .unwrap_or(text.len() - at);
-                    } else {
-                        break;
-                    }
-                }
-                1 + text[..at].iter().filter(|&&b| b == b'\n').count()
-            })
-        };
+        let byte = record.position().map(|p| p.byte());
+        let line = || byte.map_or(0, |b| line_at(&text, b));
         values.clear();
         let mut t = 0.0;
         for (i, (cell, name)) in record.iter().zip(&header).enumerate() {
@@ -118,16 +99,38 @@ pub fn read_csv(path: impl AsRef<Path>) -> Result<Table> {
                 values.push(value);
             }
         }
-        if let Some((t0, line0)) = before.filter(|&(t0, _)| t <= t0) {
+        if let Some((t0, byte0)) = before.filter(|&(t0, _)| t <= t0) {
             return Err(csv_error(format!(
-                "line {}: t = {t} s does not increase (line {line0} is at t = {t0} s): rows must be in time order, each sample once",
-                line()
+                "line {}: t = {t} s does not increase (line {} is at t = {t0} s): rows must be in time order, each sample once",
+                line(),
+                byte0.map_or(0, |b| line_at(&text, b))
             )));
         }
-        before = Some((t, line()));
+        before = Some((t, byte));
         table.push(t, &values)?;
     }
     Ok(table)
+}
+
+/// The line of the record the reader places at byte `byte` of `text`. The reader may place a
+/// record on the line end before it (after a Windows `\r\n`) or on a comment line before it,
+/// and counts lines the same way, so such a file named an earlier line than the bad one: line
+/// ends and comment lines are skipped here.
+fn line_at(text: &[u8], byte: u64) -> usize {
+    let mut at = (byte as usize).min(text.len());
+    while at < text.len() {
+        if matches!(text[at], b'\n' | b'\r') {
+            at += 1;
+        } else if text[at] == b'#' {
+            at += text[at..]
+                .iter()
+                .position(|&b| b == b'\n')
+                .unwrap_or(text.len() - at);
+        } else {
+            break;
+        }
+    }
+    1 + text[..at].iter().filter(|&&b| b == b'\n').count()
 }
 
 /// The field delimiter: a comma, or else the semicolon or tab that separates the header row's
