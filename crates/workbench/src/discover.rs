@@ -1864,7 +1864,8 @@ impl Workbench {
                 super::Criterion::Frf => {}
             }
         }
-        // A candidate whose fit was cancelled is recorded as failed, and the search goes on.
+        // The cross-checks above keep no result of a cancelled run, and the time criterion's
+        // search records a cancelled candidate as failed.
         self.cancel.check()?;
         Ok(d)
     }
@@ -1872,9 +1873,17 @@ impl Workbench {
     /// The discovery under the workbench's criterion alone, without the other's cross-check
     /// (what a power study counts, and what a cross-check runs).
     pub fn discover_alone(&self, progress: &mut dyn FnMut(&str)) -> Result<Discovery> {
-        if self.criterion == super::Criterion::Time {
-            return self.discover_time(progress, false);
-        }
+        let d = match self.criterion {
+            super::Criterion::Time => self.discover_time(progress, false)?,
+            super::Criterion::Frf => self.discover_frf(progress)?,
+        };
+        // A candidate whose fit was cancelled is recorded as failed, and the search goes on.
+        self.cancel.check()?;
+        Ok(d)
+    }
+
+    /// The discovery under the FRF criterion.
+    fn discover_frf(&self, progress: &mut dyn FnMut(&str)) -> Result<Discovery> {
         progress("fitting the starting model");
         let start = self.fitted(&self.model, None, None)?;
         // Candidates are tested whether or not the total cost is at the noise level: an
