@@ -250,9 +250,8 @@ impl PyDynamics {
             )
         })
         .map_err(|err| {
-            let message = err.to_string();
-            self.error.keep(err);
-            sim::SimError::invalid(self.model.clone(), if output { "h" } else { "f" }, message)
+            let which = if output { "h" } else { "f" };
+            self.error.keep_as(err, self.model.clone(), which)
         })
     }
 }

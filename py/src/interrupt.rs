@@ -29,12 +29,15 @@ pub struct Raised {
 }
 
 impl Raised {
-    /// Keeps `err` unless an earlier one is kept, and cancels the run.
-    pub fn keep(&self, err: PyErr) {
+    /// Keeps `err` unless an earlier one is kept, cancels the run, and returns the error the
+    /// run sees in its place: `name`'s `value` failed with the exception's message.
+    pub fn keep_as(&self, err: PyErr, name: impl Into<String>, value: &str) -> sim::SimError {
+        let message = err.to_string();
         if let Ok(mut slot) = self.first.lock() {
             slot.get_or_insert(err);
         }
         self.cancel.cancel();
+        sim::SimError::invalid(name, value, message)
     }
 
     /// The kept exception, leaving none.

@@ -349,13 +349,8 @@ impl EffectTrait for PyEffect {
     fn apply(&self, theta: &[f64], ss: &mut StateSpace) -> sim::Result<()> {
         self.error.cancel().check()?;
         Python::attach(|py| self.call(py, theta, ss)).map_err(|err| {
-            let message = err.to_string();
-            self.error.keep(err);
-            sim::SimError::invalid(
-                format!("effect {}", self.effect.get().name),
-                "Python callable",
-                message,
-            )
+            let name = format!("effect {}", self.effect.get().name);
+            self.error.keep_as(err, name, "Python callable")
         })
     }
 }
@@ -695,9 +690,7 @@ impl ModelStructure for PyStructure {
 impl PyStructure {
     /// Keeps the first exception of a user's callable for the caller.
     fn stash(&self, err: PyErr) -> sim::SimError {
-        let message = err.to_string();
-        self.error.keep(err);
-        sim::SimError::invalid(self.label(), "Python callable", message)
+        self.error.keep_as(err, self.label(), "Python callable")
     }
 }
 
