@@ -120,6 +120,10 @@ pub struct StudySpec {
     /// the Kalman estimate takes it).
     #[serde(default)]
     pub process_noise_shape: Option<NoiseShape>,
+    /// How precisely a fit sizes the parameter on the logs and on the simulated records
+    /// ([`Study::sizing`]; `None` in a spec written before it was computed).
+    #[serde(default)]
+    pub sizing: Option<Sizing>,
 }
 
 /// A low-pass process noise: each sample's draw of the estimated covariance passed through a
@@ -358,6 +362,7 @@ pub fn prepare(
         noise_calibration: None,
         noise_warnings: Vec::new(),
         process_noise_shape: None,
+        sizing: None,
     };
     if let Some(measured) = spec.measured_noise_rms.clone() {
         let band = options
@@ -412,6 +417,7 @@ pub fn prepare(
         spec.noise_calibration = Some((cq, cr));
         spec.noise_warnings = Study::new(spec.clone())?.noise_check(data, band)?;
     }
+    spec.sizing = Some(Study::new(spec.clone())?.sizing(data)?);
     Ok(spec)
 }
 
@@ -452,6 +458,108 @@ pub struct NoiseWarning {
     pub ratio: f64,
     /// The warning for people.
     pub message: String,
+}
+
+/// How precisely a fit of the model with the effect sizes the studied parameter, on the logs
+/// and on the study's own simulated records of the nominal model. The discovery finds an
+/// effect about where its value stands a few standard errors from 0, so the two errors say
+/// before any campaign whether the values studied can be found at all, and whether the
+/// simulated noise hides the effect as the logged noise does: the band noise check compares
+/// spectra per output, this compares the noise along the effect itself (a disturbance torque
+/// on a pendulum's body, where the model's noise enters at its input, can match every
+/// output's spectrum and still hide a pivot friction half as much as the logs do).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Sizing {
+    /// The parameter's estimate in the fit to the logs.
+    pub logs_estimate: f64,
+    /// Its standard error there; `None` when the fit held it at its documented value (the
+    /// logs cannot separate it from the other parameters).
+    pub logs_std: Option<f64>,
+    /// The median of its standard errors in the same fit to [`SIZING_DRAWS`] simulated
+    /// records of the nominal model (random stream `u64::MAX - 2`); `None` when a fit held it.
+    pub simulated_std: Option<f64>,
+    /// The parameters the outputs cannot tell the studied one from, in the model with the
+    /// effect at the logs' fit ([`super::identifiability`]): a refit of these absorbs the
+    /// effect whatever its size.
+    #[serde(default)]
+    pub trades_against: Vec<String>,
+    /// What they say about the study, for people (empty: nothing to say).
+    pub warnings: Vec<String>,
+}
+
+/// Simulated records whose fits give [`Sizing::simulated_std`]. The standard error of one
+/// record varies by 10-20 % from draw to draw; the median of five by about half that.
+pub const SIZING_DRAWS: usize = 5;
+
+/// How many of the logs' standard errors the largest value studied must lie from 0: below it
+/// no campaign is likely to tell the effect from noise, whatever the discovery.
+pub const SIZED_APART: f64 = 2.0;
+
+/// How far the simulated records' standard error may be from the logs', as a factor either
+/// way, before the study warns that its noise hides the effect more or less than the logs'.
+pub const SIZING_TOLERANCE: f64 = 1.5;
+
+impl Sizing {
+    /// The warnings for `values` of `parameter` (its `unit`, possibly empty) of `effect`.
+    fn warn(&mut self, effect: &str, parameter: &str, unit: &str, values: &[f64]) {
+        let unit = if unit.is_empty() {
+            String::new()
+        } else {
+            format!(" {unit}")
+        };
+        if !self.trades_against.is_empty() {
+            self.warnings.push(format!(
+                "the outputs cannot tell {parameter} from {} (the identifiability analysis of \
+                 the model with {effect}): a refit of the model absorbs {effect} at any size, so \
+                 no value studied can be found as {effect}",
+                self.trades_against.join(", ")
+            ));
+            return;
+        }
+        let Some(logs) = self.logs_std else {
+            self.warnings.push(format!(
+                "the logs cannot size {parameter}: a fit of the model with {effect} to them holds \
+                 it at its documented value (the outputs cannot tell it from the other \
+                 parameters with this excitation), so a campaign that sees {effect} cannot \
+                 measure it; the detection rates say how often a held effect is found"
+            ));
+            return;
+        };
+        // A study of the value 0 alone asks for its false discoveries only.
+        let largest = values.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        if largest > 0.0 && largest < SIZED_APART * logs {
+            self.warnings.push(format!(
+                "the largest value studied, {parameter} = {}{unit}, is {:.2} standard errors \
+                 from 0 where a fit of the model with {effect} to the logs sizes it to ±{}{unit}: \
+                 no value studied is likely to be told from noise (from about {}{unit}, \
+                 {SIZED_APART} standard errors, it may)",
+                fmt_num(largest),
+                largest / logs,
+                fmt_num(logs),
+                fmt_num(SIZED_APART * logs)
+            ));
+        }
+        if let Some(sim) = self.simulated_std {
+            let ratio = logs / sim;
+            if !(1.0 / SIZING_TOLERANCE..=SIZING_TOLERANCE).contains(&ratio) {
+                let (how, likely) = if ratio > 1.0 {
+                    ("more", "too high, and its threshold too small")
+                } else {
+                    ("less", "too low, and its threshold too large")
+                };
+                self.warnings.push(format!(
+                    "a fit of the model with {effect} sizes {parameter} to ±{}{unit} on the \
+                     logs and to ±{}{unit} on the study's simulated records: the logged noise \
+                     hides {effect} {:.2} times as much as the simulated (it enters {how} along \
+                     the effect than the estimated noise sources do), so the detection rates are \
+                     likely {likely}, by about that factor in {parameter}",
+                    fmt_num(logs),
+                    fmt_num(sim),
+                    ratio
+                ));
+            }
+        }
+    }
 }
 
 /// How far an output's simulated period-to-period noise rms may be from the logged one,
@@ -851,6 +959,14 @@ enum Plant {
     Nonlinear(Model, Vec<f64>),
 }
 
+/// The model with the effect fitted to one set of records ([`Study::sizing`]).
+struct Sized {
+    model: Model,
+    theta: Vec<f64>,
+    /// The studied parameter's estimate.
+    estimate: super::fit::ParamEstimate,
+}
+
 /// A study ready to run: the spec checked and parsed once.
 #[derive(Debug, Clone)]
 pub struct Study {
@@ -1231,6 +1347,112 @@ impl Study {
         Ok(warnings)
     }
 
+    /// How precisely the model with the effect sizes the parameter on `logs` and on the
+    /// study's simulated records ([`Sizing`]), with its warnings for the study's values.
+    pub fn sizing(&self, logs: &Dataset) -> Result<Sizing> {
+        // The logs first, then the simulated records, drawn in order and fitted on threads.
+        let mut rng = ChaCha8Rng::seed_from_u64(self.spec.seed);
+        rng.set_stream(u64::MAX - 2);
+        let label = ("nominal model", "fitted".to_string());
+        let mut records = vec![logs.clone()];
+        for _ in 0..SIZING_DRAWS {
+            records.push(self.logs(
+                &self.nominal,
+                &label,
+                &mut rng,
+                &self.noise_factor,
+                &self.sensor_sd,
+            )?);
+        }
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let next = AtomicUsize::new(0);
+        let slots: Mutex<Vec<Option<Result<Sized>>>> =
+            Mutex::new((0..records.len()).map(|_| None).collect());
+        std::thread::scope(|scope| {
+            for _ in 0..threads.clamp(1, records.len()) {
+                scope.spawn(|| loop {
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    let Some(data) = records.get(i) else {
+                        break;
+                    };
+                    let fitted = self.sized(data.clone());
+                    if let Ok(mut s) = slots.lock() {
+                        s[i] = Some(fitted);
+                    }
+                });
+            }
+        });
+        let mut fits = slots.into_inner().unwrap_or_default().into_iter().map(|f| {
+            f.unwrap_or_else(|| Err(SimError::invalid("sizing", "fit", "its thread failed")))
+        });
+        let on_logs = fits
+            .next()
+            .unwrap_or_else(|| Err(SimError::invalid("sizing", "fit", "no logs")))?;
+        let simulated_std = fits
+            .map(|f| f.map(|s| s.estimate.std))
+            .collect::<Result<Vec<Option<f64>>>>()?
+            .into_iter()
+            .collect::<Option<Vec<f64>>>()
+            .map(|mut v| {
+                v.sort_by(f64::total_cmp);
+                v[v.len() / 2]
+            });
+        // The parameters the outputs cannot tell the studied one from (at the logs' fit).
+        let trades_against: Vec<String> =
+            super::identifiability::analyse(&on_logs.model, &on_logs.theta)?
+                .unseparated
+                .into_iter()
+                .filter(|group| group.contains(&self.spec.parameter))
+                .flatten()
+                .filter(|p| *p != self.spec.parameter)
+                .fold(Vec::new(), |mut all, p| {
+                    if !all.contains(&p) {
+                        all.push(p);
+                    }
+                    all
+                });
+        let on_logs = on_logs.estimate;
+        let mut sizing = Sizing {
+            logs_estimate: on_logs.value,
+            logs_std: on_logs.std.filter(|_| !on_logs.held),
+            simulated_std,
+            trades_against,
+            warnings: Vec::new(),
+        };
+        let spec = &self.spec;
+        sizing.warn(&spec.effect, &spec.parameter, &spec.unit, &spec.values);
+        Ok(sizing)
+    }
+
+    /// The studied parameter as the model with the effect, fitted to `data` under the study's
+    /// estimator and criterion, reports it.
+    fn sized(&self, data: Dataset) -> Result<Sized> {
+        let mut wb = Workbench::with_options(
+            self.structure.clone(),
+            data,
+            estimator_choice(&self.spec.estimator)?,
+            DataOptions {
+                band_hz: self.spec.band_hz,
+                criterion: self.spec.criterion,
+            },
+        )?;
+        wb.add(&self.spec.effect)?;
+        let model = wb.model().clone();
+        let slot = model
+            .parameters()?
+            .iter()
+            .position(|p| p.name == self.spec.parameter)
+            .ok_or_else(|| {
+                SimError::invalid("parameter", &self.spec.parameter, "not in the model")
+            })?;
+        let r = wb.fit_sized(slot)?;
+        Ok(Sized {
+            model,
+            estimate: r.params[slot].clone(),
+            theta: r.theta,
+        })
+    }
+
     /// One campaign: simulate, discover, and what was found. Never fails: a failure is the
     /// outcome's `error` (also a discovery stopped by `cancel`, which [`run`] does not return).
     pub fn campaign(&self, value_index: usize, campaign: usize, cancel: &Cancel) -> Outcome {
@@ -1425,6 +1647,8 @@ pub struct PowerResult {
     pub noise_warnings: Vec<NoiseWarning>,
     /// The process noise's colour, when not white.
     pub process_noise_shape: Option<NoiseShape>,
+    /// How precisely a fit sizes the parameter on the logs and on the simulated records.
+    pub sizing: Option<Sizing>,
     /// How the campaigns were simulated.
     pub policy: String,
 }
@@ -1561,6 +1785,7 @@ pub fn aggregate(spec: &StudySpec, outcomes: &[Outcome]) -> Result<PowerResult> 
         noise_ratio,
         noise_warnings: spec.noise_warnings.clone(),
         process_noise_shape: spec.process_noise_shape.clone(),
+        sizing: spec.sizing.clone(),
         effect: spec.effect.clone(),
         parameter: spec.parameter.clone(),
         unit: spec.unit.clone(),
@@ -1631,6 +1856,15 @@ impl PowerResult {
             String::new()
         } else {
             format!(", {}", self.unit)
+        }
+    }
+
+    /// `" unit"` after a number, or nothing when the model gives no unit.
+    fn unit_suffix(&self) -> String {
+        if self.unit.is_empty() {
+            String::new()
+        } else {
+            format!(" {}", self.unit)
         }
     }
 
@@ -1755,8 +1989,26 @@ impl PowerResult {
                 n.white_mismatch
             ));
         }
-        for w in &self.noise_warnings {
-            s.push_str(&format!("warning: {}\n", w.message));
+        if let Some(z) = &self.sizing {
+            let std = |v: Option<f64>| {
+                v.map_or("held (not sized)".to_string(), |v| {
+                    format!("±{}{}", fmt_num(v), self.unit_suffix())
+                })
+            };
+            s.push_str(&format!(
+                "sizing: the model with {} fitted to the logs: {} = {} {}; to the study's \
+                 simulated nominal records: {} (median of {})\n",
+                self.effect,
+                self.parameter,
+                fmt_num(z.logs_estimate),
+                std(z.logs_std),
+                std(z.simulated_std),
+                SIZING_DRAWS
+            ));
+        }
+        let sizing = self.sizing.iter().flat_map(|z| z.warnings.iter());
+        for w in self.noise_warnings.iter().map(|w| &w.message).chain(sizing) {
+            s.push_str(&format!("warning: {w}\n"));
         }
         for f in &self.failures {
             s.push_str(&format!(
@@ -2086,6 +2338,123 @@ D = [[-4.0, -3.0]]
         assert!(serial.iter().all(|o| o.error.is_none()), "{serial:?}");
     }
 
+    /// The sizing's standard error is the scatter of the campaigns' estimates: on 3 of 3 seeds
+    /// the simulated records' error is within 1.6 times (both ways) of the standard deviation
+    /// of 20 campaigns' estimates at 20 standard errors (0.83 on each seed: the fit's error
+    /// reads the scatter a little small), the logs' within 1.5 of the simulated (1.01-1.28),
+    /// and the study warns of nothing.
+    #[test]
+    fn the_sizing_predicts_the_campaigns_scatter() {
+        for seed in [7, 8, 9] {
+            let logs = coloured_logs(MODEL, (2, 4), 1e-3, 0.0, &[1e-4], seed);
+            let spec = prepare(
+                MODEL,
+                Path::new("cart.toml"),
+                logs,
+                &options(vec![0.0, 2.0], 20),
+            )
+            .unwrap();
+            let z = spec.sizing.clone().unwrap();
+            assert!(z.warnings.is_empty(), "seed {seed}: {z:?}");
+            let (logs_std, sim) = (z.logs_std.unwrap(), z.simulated_std.unwrap());
+            assert!(
+                (1.0 / SIZING_TOLERANCE..=SIZING_TOLERANCE).contains(&(logs_std / sim)),
+                "seed {seed}: {z:?}"
+            );
+            let at = StudySpec {
+                values: vec![20.0 * sim],
+                ..spec
+            };
+            let study = Study::new(at.clone()).unwrap();
+            let out = run(&study, &study.jobs(), 2, &|_| {}, &Cancel::default()).unwrap();
+            let r = aggregate(&at, &out).unwrap();
+            assert!(
+                r.values[0].detection_rate >= 0.8,
+                "seed {seed}: {}",
+                r.table()
+            );
+            let scatter = r.values[0].estimate_std.unwrap();
+            assert!(
+                (1.0 / 1.6..=1.6).contains(&(sim / scatter)),
+                "seed {seed}: simulated std {sim}, campaigns' scatter {scatter}"
+            );
+        }
+    }
+
+    /// Values the logs cannot size apart from 0, noise that hides the effect less than the
+    /// logs' and an effect the outputs cannot tell from a nominal parameter are each named;
+    /// the campaigns then bear the warnings out.
+    #[test]
+    fn the_sizing_warns_where_the_study_cannot_be_trusted() {
+        let logs = logs(2);
+        let spec = prepare(
+            MODEL,
+            Path::new("cart.toml"),
+            logs.clone(),
+            &options(vec![0.0, 2.0], 20),
+        )
+        .unwrap();
+        let logs_std = spec.sizing.as_ref().unwrap().logs_std.unwrap();
+        // A largest value of half a standard error: named, and found in at most 2 of 20.
+        let small = StudySpec {
+            values: vec![0.0, 0.5 * logs_std],
+            ..spec.clone()
+        };
+        let study = Study::new(small.clone()).unwrap();
+        let z = study.sizing(&logs).unwrap();
+        assert!(
+            matches!(z.warnings.as_slice(), [w] if w.contains("0.50 standard errors from 0")),
+            "{z:?}"
+        );
+        let out = run(&study, &study.jobs(), 2, &|_| {}, &Cancel::default()).unwrap();
+        let r = aggregate(&small, &out).unwrap();
+        assert!(r.values[1].detection_rate <= 0.1, "{}", r.table());
+        // Noise sources a ninth of the estimated (a third in rms): the simulated records size
+        // the friction 3.1 times as precisely as the logs, and the study says its rates are
+        // likely too high.
+        let mut quiet = spec.clone();
+        quiet
+            .process_noise
+            .iter_mut()
+            .flatten()
+            .for_each(|q| *q /= 9.0);
+        quiet.sensor_noise.iter_mut().for_each(|r| *r /= 9.0);
+        let z = Study::new(quiet).unwrap().sizing(&logs).unwrap();
+        let ratio = z.logs_std.unwrap() / z.simulated_std.unwrap();
+        assert!((2.4..3.6).contains(&ratio), "{z:?}");
+        assert!(
+            matches!(z.warnings.as_slice(), [w] if w.contains("likely too high")),
+            "{z:?}"
+        );
+        // A payload that adds to the cart's mass: the outputs see M + m only.
+        let payload = format!(
+            "{MODEL}\n[effects.payload]\ndescription = \"a payload on the cart\"\n\
+             parameters = {{ m = {{ value = 0.2, min = 0.0, max = 5.0, unit = \"kg\" }} }}\n\
+             B = {{ \"v,F\" = \"1/(M+m)\" }}\n"
+        );
+        let spec = prepare(
+            &payload,
+            Path::new("cart.toml"),
+            logs,
+            &StudyOptions {
+                effect: "payload".into(),
+                ..options(vec![0.0, 0.5], 4)
+            },
+        )
+        .unwrap();
+        let z = spec.sizing.clone().unwrap();
+        assert_eq!(z.trades_against, ["M"], "{z:?}");
+        assert!(
+            matches!(z.warnings.as_slice(), [w] if w.contains("cannot tell m from M")),
+            "{z:?}"
+        );
+        let study = Study::new(spec.clone()).unwrap();
+        let out = run(&study, &study.jobs(), 2, &|_| {}, &Cancel::default()).unwrap();
+        let r = aggregate(&spec, &out).unwrap();
+        assert_eq!(r.values[1].detection_rate, 0.0, "{}", r.table());
+        assert!(r.table().contains("warning: the outputs cannot tell m"));
+    }
+
     #[test]
     fn a_lag_study_takes_zero_and_the_bounds_sized_to_the_logs() {
         // The logs' lines are 0.2 Hz apart, so `tau` runs to 1 / (2 pi 0.2) = 0.8 s, beyond the
@@ -2408,6 +2777,7 @@ D = [[-4.0, -3.0]]
             noise_calibration: None,
             noise_warnings: Vec::new(),
             process_noise_shape: None,
+            sizing: None,
         }
     }
 

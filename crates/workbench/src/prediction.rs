@@ -1126,9 +1126,17 @@ impl Workbench {
     /// quarter of the `PROBE^2` the error says, the error is the one its rise gives (at most
     /// [`MAX_WIDENING`] times; a parameter that reaches it is poorly determined). It costs two
     /// designs and refits per free parameter; a probe that fails leaves its parameter as it is.
-    fn widened_errors(&self, model: &Model, r: &mut FitResult) -> Result<Option<String>> {
+    ///
+    /// `only`: widen that parameter's error alone (the others keep the fixed predictor's).
+    fn widened_errors(
+        &self,
+        model: &Model,
+        r: &mut FitResult,
+        only: Option<usize>,
+    ) -> Result<Option<String>> {
         let params = model.parameters()?;
         let free: Vec<usize> = (0..r.params.len())
+            .filter(|&i| only.is_none_or(|o| o == i))
             .filter(|&i| r.params[i].std.is_some_and(|s| s > 0.0 && s.is_finite()))
             .collect();
         // The -2 log-likelihood at `theta` with parameter `pin` held there and the others
@@ -1370,9 +1378,23 @@ impl Workbench {
 
     /// Fits the current model by prediction error and records it (`compare` and `fit` with
     /// the time-domain criterion).
+    /// The current model's fit under the workbench's criterion, with the error of parameter
+    /// `i` as a discovery reports it (under the time criterion widened, for it alone): a
+    /// power study's sizing, without the verdict's diagnosis and the other errors' probes.
+    pub(crate) fn fit_sized(&self, i: usize) -> Result<FitResult> {
+        match self.criterion {
+            Criterion::Frf => Ok(self.fit_reweighted(&self.model, None)?.0),
+            Criterion::Time => {
+                let (mut r, _, _) = self.fit_starting()?;
+                self.widened_errors(&self.model, &mut r, Some(i))?;
+                Ok(r)
+            }
+        }
+    }
+
     pub(crate) fn compare_time(&self) -> Result<Discovery> {
         let (mut r, design, start_note) = self.fit_starting()?;
-        let widened = self.widened_errors(&self.model, &mut r)?;
+        let widened = self.widened_errors(&self.model, &mut r, None)?;
         let fitted = Fitted {
             model: self.model.clone(),
             added: None,
@@ -1462,7 +1484,7 @@ impl Workbench {
         };
         // What a user reads: the final model's errors as the logs determine them.
         let widened = match done.last_mut().filter(|_| explain) {
-            Some(last) => self.widened_errors(&last.model.clone(), &mut last.r)?,
+            Some(last) => self.widened_errors(&last.model.clone(), &mut last.r, None)?,
             None => None,
         };
         let selected = done.clone();
@@ -1510,7 +1532,7 @@ impl Workbench {
             d.conclusion.explain_alone = vec![sentence];
             return Ok(d);
         }
-        let widened = self.widened_errors(&fitted.model.clone(), &mut fitted.r)?;
+        let widened = self.widened_errors(&fitted.model.clone(), &mut fitted.r, None)?;
         let left_out = (selected.len() > 1).then(|| {
             format!(
                 "; the selection's tentative [{}] are left out",
