@@ -388,8 +388,8 @@ impl PyStructure {
         model_label(&self.name)
     }
 
-    /// The same model under another system name.
-    fn named(&self, py: Python<'_>, name: String) -> Self {
+    /// The same model under another system name, keeping its callables' exceptions in `error`.
+    fn named(&self, py: Python<'_>, name: String, error: Arc<Raised>) -> Self {
         Self {
             name,
             states: self.states.clone(),
@@ -402,7 +402,7 @@ impl PyStructure {
                 Form::Nonlinear(c) => Form::Nonlinear(Arc::new(c.clone_ref(py))),
             },
             declared: Mutex::new(self.declared_effects()),
-            error: Arc::clone(&self.error),
+            error,
         }
     }
 
@@ -953,7 +953,7 @@ impl Model {
             structure.declare(Arc::new(e), &[])?;
             structure.call(py, std::slice::from_ref(&name), &theta)?;
         }
-        let python = Some(structure.named(py, name.to_string()));
+        let python = Some(structure.named(py, name.to_string(), Arc::clone(&error)));
         Ok(Self {
             structure: Arc::new(structure),
             python,
@@ -1353,6 +1353,10 @@ impl Workbench {
                 Arc::new(Raised::default()),
             ),
             Some(m) => {
+                // This workbench's own slot, shared with its copy of a Python model and its
+                // effects: a run of another workbench of the same model neither cancels this
+                // one's nor takes its exception.
+                let error = Arc::new(Raised::default());
                 let m: Py<Model> = match m.cast::<Model>() {
                     Ok(m) => m.clone().unbind(),
                     Err(_) => {
@@ -1375,13 +1379,13 @@ impl Workbench {
                             }
                             _ => own.name.clone(),
                         };
-                        let own = Arc::new(own.named(py, name));
+                        let own = Arc::new(own.named(py, name, Arc::clone(&error)));
                         python = Some(Arc::clone(&own));
                         own
                     }
                     (None, _) => Arc::clone(&m.structure),
                 };
-                (Source::Structure(structure), effects, Arc::clone(&m.error))
+                (Source::Structure(structure), effects, error)
             }
         };
         let calls_python = python.is_some() || !effects.is_empty();

@@ -3,6 +3,8 @@ candidates (one that adds a state), errors by name. The data are simulated here 
 exact zero-order-hold discretisation of the truth (independent of stabilis)."""
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import pytest
 from scipy.signal import cont2discrete, dlsim
@@ -266,3 +268,61 @@ def test_sample_rate_hz_that_contradicts_the_logs_is_a_value_error(tmp_path):
     # The embedded flying-platform dataset carries its rate (50 Hz) too.
     with pytest.raises(ValueError, match="sample_rate_hz=200 contradicts the data, which were recorded at 50 Hz"):
         stabilis.Workbench(sample_rate_hz=200.0)
+
+
+def test_two_workbenches_of_one_python_model_keep_their_own_exceptions():
+    # Each workbench keeps its own slot for a user's exception and its own stop flag: a
+    # workbench whose model raises on one thread while another workbench of the same
+    # stabilis.Model runs on a second thread gets its exception, and the other its result,
+    # the one it gives alone. (With one slot per stabilis.Model the second run was stopped
+    # and raised the first one's exception.)
+    data = experiments(plant(42.0, 2.4, 31.0))
+    running = threading.Event()
+    calls = {"B": 0}
+
+    def shared(p):
+        thread = threading.current_thread().name
+        if thread == "A":
+            raise Boom("A's model fails")
+        if thread == "B":
+            calls["B"] += 1
+            if calls["B"] == 20:
+                running.set()
+        return matrices(p)
+
+    m = stabilis.Model(states=["q", "qdot"], inputs=["u"], outputs=["q"], name="oscillator",
+                       parameters={"k": (40.0, 1.0, 400.0), "c": {"value": 2.0, "min": 0.0},
+                                   "g": 30.0},
+                       matrices=shared)
+    alone = stabilis.Workbench(model=m, data=data, sample_rate_hz=FS).discover()
+    a = stabilis.Workbench(model=m, data=data, sample_rate_hz=FS)
+    b = stabilis.Workbench(model=m, data=data, sample_rate_hz=FS)
+    out = {}
+
+    def run_a():
+        running.wait(60)
+        try:
+            a.fit()
+            out["A"] = "returned"
+        except Boom as e:
+            out["A"] = str(e)
+            out["A while B ran"] = not out_b_done.is_set()
+
+    def run_b():
+        try:
+            out["B"] = b.discover()
+        except BaseException as e:  # noqa: BLE001 - the test reports what B raised
+            out["B"] = repr(e)
+        out_b_done.set()
+
+    out_b_done = threading.Event()
+    threads = [threading.Thread(target=run_a, name="A"), threading.Thread(target=run_b, name="B")]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(300)
+    assert out["A"] == "A's model fails", out
+    assert out["A while B ran"], "B ended before A raised: the test did not overlap them"
+    assert isinstance(out["B"], dict), out["B"]
+    assert out["B"]["found"] == alone["found"] and out["B"]["unexplained"] is False
+    assert out["B"]["steps"][-1]["cost"] == pytest.approx(alone["steps"][-1]["cost"], rel=1e-12)
