@@ -1425,10 +1425,9 @@ impl Study {
         Ok(sizing)
     }
 
-    /// The studied parameter as the model with the effect, fitted to `data` under the study's
-    /// estimator and criterion, reports it.
-    fn sized(&self, data: Dataset) -> Result<Sized> {
-        let mut wb = Workbench::with_options(
+    /// A workbench of the nominal model on `data` under the study's estimator and criterion.
+    fn workbench(&self, data: Dataset) -> Result<Workbench> {
+        Workbench::with_options(
             self.structure.clone(),
             data,
             estimator_choice(&self.spec.estimator)?,
@@ -1436,7 +1435,13 @@ impl Study {
                 band_hz: self.spec.band_hz,
                 criterion: self.spec.criterion,
             },
-        )?;
+        )
+    }
+
+    /// The studied parameter as the model with the effect, fitted to `data` under the study's
+    /// estimator and criterion, reports it.
+    fn sized(&self, data: Dataset) -> Result<Sized> {
+        let mut wb = self.workbench(data)?;
         wb.add(&self.spec.effect)?;
         let model = wb.model().clone();
         let slot = model
@@ -1470,15 +1475,7 @@ impl Study {
         };
         let result = self.simulate(value_index, campaign).and_then(|data| {
             out.noise_rms = period_noise_rms(&data);
-            let mut wb = Workbench::with_options(
-                self.structure.clone(),
-                data,
-                estimator_choice(&self.spec.estimator)?,
-                DataOptions {
-                    band_hz: self.spec.band_hz,
-                    criterion: self.spec.criterion,
-                },
-            )?;
+            let mut wb = self.workbench(data)?;
             wb.set_cancel(cancel.clone());
             wb.discover_alone(&mut |_: &str| {})
         });
