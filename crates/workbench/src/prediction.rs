@@ -1376,8 +1376,6 @@ impl Workbench {
         Ok((with, r, score))
     }
 
-    /// Fits the current model by prediction error and records it (`compare` and `fit` with
-    /// the time-domain criterion).
     /// The current model's fit under the workbench's criterion, with the error of parameter
     /// `i` as a discovery reports it (under the time criterion widened, for it alone): a
     /// power study's sizing, without the verdict's diagnosis and the other errors' probes.
@@ -1392,6 +1390,8 @@ impl Workbench {
         }
     }
 
+    /// Fits the current model by prediction error and records it (`compare` and `fit` with
+    /// the time-domain criterion).
     pub(crate) fn compare_time(&self) -> Result<Discovery> {
         let (mut r, design, start_note) = self.fit_starting()?;
         let widened = self.widened_errors(&self.model, &mut r, None)?;
