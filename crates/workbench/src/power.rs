@@ -471,13 +471,15 @@ pub struct NoiseWarning {
 /// output's spectrum and still hide a pivot friction half as much as the logs do).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Sizing {
-    /// The parameter's estimate in the fit to the logs.
-    pub logs_estimate: f64,
+    /// The parameter's estimate in the fit to the logs; `None` when that fit failed (the
+    /// study runs without a sizing, and a warning says why).
+    pub logs_estimate: Option<f64>,
     /// Its standard error there; `None` when the fit held it at its documented value (the
     /// logs cannot separate it from the other parameters).
     pub logs_std: Option<f64>,
     /// The median of its standard errors in the same fit to [`SIZING_DRAWS`] simulated
-    /// records of the nominal model (random stream `u64::MAX - 2`); `None` when a fit held it.
+    /// records of the nominal model (random stream `u64::MAX - 2`); `None` when a fit held
+    /// it or failed.
     pub simulated_std: Option<f64>,
     /// The parameters the outputs cannot tell the studied one from, in the model with the
     /// effect at the logs' fit ([`super::identifiability`]): a refit of these absorbs the
@@ -1383,14 +1385,41 @@ impl Study {
                 });
             }
         });
-        let mut fits = slots.into_inner().unwrap_or_default().into_iter().map(|f| {
+        self.sizing_of(slots.into_inner().unwrap_or_default().into_iter().map(|f| {
             f.unwrap_or_else(|| Err(SimError::invalid("sizing", "fit", "its thread failed")))
-        });
-        let on_logs = fits
+        }))
+    }
+
+    /// The sizing from the fits to the logs (first) and to the simulated records.
+    fn sizing_of(&self, mut fits: impl Iterator<Item = Result<Sized>>) -> Result<Sizing> {
+        let spec = &self.spec;
+        // A fit that fails leaves the study without a sizing, not without its campaigns (whose
+        // discoveries record a candidate whose fit fails and go on); a cancel stops it.
+        let on_logs = match fits
             .next()
-            .unwrap_or_else(|| Err(SimError::invalid("sizing", "fit", "no logs")))?;
+            .unwrap_or_else(|| Err(SimError::invalid("sizing", "fit", "no logs")))
+        {
+            Ok(fitted) => fitted,
+            Err(SimError::Cancelled) => return Err(SimError::Cancelled),
+            Err(e) => {
+                return Ok(Sizing {
+                    logs_estimate: None,
+                    logs_std: None,
+                    simulated_std: None,
+                    trades_against: Vec::new(),
+                    warnings: vec![format!(
+                        "no sizing: the model with {} could not be fitted to the logs ({e}); \
+                         the detection rates stand without it",
+                        spec.effect
+                    )],
+                })
+            }
+        };
         let simulated_std = fits
-            .map(|f| f.map(|s| s.estimate.std))
+            .map(|f| match f {
+                Err(SimError::Cancelled) => Err(SimError::Cancelled),
+                other => Ok(other.ok().and_then(|s| s.estimate.std)),
+            })
             .collect::<Result<Vec<Option<f64>>>>()?
             .into_iter()
             .collect::<Option<Vec<f64>>>()
@@ -1400,8 +1429,9 @@ impl Study {
             });
         // The parameters the outputs cannot tell the studied one from (at the logs' fit).
         let trades_against: Vec<String> =
-            super::identifiability::analyse(&on_logs.model, &on_logs.theta)?
-                .unseparated
+            super::identifiability::analyse(&on_logs.model, &on_logs.theta)
+                .map(|a| a.unseparated)
+                .unwrap_or_default()
                 .into_iter()
                 .filter(|group| group.contains(&self.spec.parameter))
                 .flatten()
@@ -1414,13 +1444,12 @@ impl Study {
                 });
         let on_logs = on_logs.estimate;
         let mut sizing = Sizing {
-            logs_estimate: on_logs.value,
+            logs_estimate: Some(on_logs.value),
             logs_std: on_logs.std.filter(|_| !on_logs.held),
             simulated_std,
             trades_against,
             warnings: Vec::new(),
         };
-        let spec = &self.spec;
         sizing.warn(&spec.effect, &spec.parameter, &spec.unit, &spec.values);
         Ok(sizing)
     }
@@ -1987,7 +2016,11 @@ impl PowerResult {
                 n.white_mismatch
             ));
         }
-        if let Some(z) = &self.sizing {
+        if let Some((z, estimate)) = self
+            .sizing
+            .as_ref()
+            .and_then(|z| Some((z, z.logs_estimate?)))
+        {
             let std = |v: Option<f64>| {
                 v.map_or("held (not sized)".to_string(), |v| {
                     format!("±{}{}", fmt_num(v), self.unit_suffix())
@@ -1998,7 +2031,7 @@ impl PowerResult {
                  simulated nominal records: {} (median of {})\n",
                 self.effect,
                 self.parameter,
-                fmt_num(z.logs_estimate),
+                fmt_num(estimate),
                 std(z.logs_std),
                 std(z.simulated_std),
                 SIZING_DRAWS
@@ -2433,7 +2466,7 @@ D = [[-4.0, -3.0]]
         let spec = prepare(
             &payload,
             Path::new("cart.toml"),
-            logs,
+            logs.clone(),
             &StudyOptions {
                 effect: "payload".into(),
                 ..options(vec![0.0, 0.5], 4)
@@ -2451,6 +2484,20 @@ D = [[-4.0, -3.0]]
         let r = aggregate(&spec, &out).unwrap();
         assert_eq!(r.values[1].detection_rate, 0.0, "{}", r.table());
         assert!(r.table().contains("warning: the outputs cannot tell m"));
+        // A fit to the logs that fails leaves the study without a sizing, which says why; a
+        // cancel stops it.
+        let study = Study::new(spec).unwrap();
+        let failed = || Err(SimError::invalid("fit", "logs", "diverged"));
+        let z = study.sizing_of([failed(), failed()].into_iter()).unwrap();
+        assert!(
+            z.logs_estimate.is_none()
+                && matches!(z.warnings.as_slice(), [w] if w.starts_with("no sizing: the model with payload could not be fitted to the logs (invalid fit = logs: diverged)")),
+            "{z:?}"
+        );
+        assert!(matches!(
+            study.sizing_of([Err(SimError::Cancelled)].into_iter()),
+            Err(SimError::Cancelled)
+        ));
     }
 
     #[test]
