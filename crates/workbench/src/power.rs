@@ -466,9 +466,10 @@ pub struct NoiseWarning {
 /// is found 19 times in 20 at 7), so the two errors say before any campaign whether the values
 /// studied can be found at all, and whether the simulated noise hides the effect as the
 /// logged noise does, which scales every rate's threshold: the band noise check compares
-/// spectra per output, this compares the noise along the effect itself (a disturbance torque
-/// on a pendulum's body, where the model's noise enters at its input, can match every
-/// output's spectrum and still hide a pivot friction half as much as the logs do).
+/// spectra per output, this compares the noise along the effect itself (on a reaction-wheel
+/// pendulum disturbed by a torque on its body, where the model's noise enters at its input,
+/// the band check warned both ways at once, and the logs hid a pivot friction about twice as
+/// much as the study's noise).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Sizing {
     /// The parameter's estimate in the fit to the logs; `None` when that fit failed (the
