@@ -1344,19 +1344,15 @@ impl Workbench {
                 )))
             }
         };
+        // This workbench's own slot, shared with its copy of a Python model and its effects:
+        // a run of another workbench of the same model neither cancels this one's nor takes
+        // its exception.
+        let error = Arc::new(Raised::default());
         // `model` is a stabilis.Model or the path of a model file.
         let mut python = None;
-        let (source, effects, error) = match model {
-            None => (
-                systems::shipped(system).map_err(to_py_err)?,
-                Vec::new(),
-                Arc::new(Raised::default()),
-            ),
+        let (source, effects) = match model {
+            None => (systems::shipped(system).map_err(to_py_err)?, Vec::new()),
             Some(m) => {
-                // This workbench's own slot, shared with its copy of a Python model and its
-                // effects: a run of another workbench of the same model neither cancels this
-                // one's nor takes its exception.
-                let error = Arc::new(Raised::default());
                 let m: Py<Model> = match m.cast::<Model>() {
                     Ok(m) => m.clone().unbind(),
                     Err(_) => {
@@ -1385,7 +1381,7 @@ impl Workbench {
                     }
                     (None, _) => Arc::clone(&m.structure),
                 };
-                (Source::Structure(structure), effects, error)
+                (Source::Structure(structure), effects)
             }
         };
         let calls_python = python.is_some() || !effects.is_empty();

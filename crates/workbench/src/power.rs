@@ -38,6 +38,7 @@ use super::cancel::Cancel;
 use super::closed_loop::{controller_rate, growth, run_loop, GROWTH};
 use super::dataset::{Dataset, Experiment, Periodic};
 use super::diagnose::LEVEL;
+use super::discover::in_parallel;
 use super::kalman::{Gain, Predictor};
 use super::model::Model;
 use super::model_file::ModelFile;
@@ -503,14 +504,19 @@ pub const SIZED_APART: f64 = 2.0;
 /// way, before the study warns that its noise hides the effect more or less than the logs'.
 pub const SIZING_TOLERANCE: f64 = 1.5;
 
+/// `" unit"` after a number, or nothing when the model gives no unit.
+fn unit_suffix(unit: &str) -> String {
+    if unit.is_empty() {
+        String::new()
+    } else {
+        format!(" {unit}")
+    }
+}
+
 impl Sizing {
     /// The warnings for `values` of `parameter` (its `unit`, possibly empty) of `effect`.
     fn warn(&mut self, effect: &str, parameter: &str, unit: &str, values: &[f64]) {
-        let unit = if unit.is_empty() {
-            String::new()
-        } else {
-            format!(" {unit}")
-        };
+        let unit = unit_suffix(unit);
         if !self.trades_against.is_empty() {
             self.warnings.push(format!(
                 "the outputs cannot tell {parameter} from {} (the identifiability analysis of \
@@ -1368,27 +1374,14 @@ impl Study {
                 &self.sensor_sd,
             )?);
         }
-        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-        let next = AtomicUsize::new(0);
-        let slots: Mutex<Vec<Option<Result<Sized>>>> =
-            Mutex::new((0..records.len()).map(|_| None).collect());
-        std::thread::scope(|scope| {
-            for _ in 0..threads.clamp(1, records.len()) {
-                scope.spawn(|| loop {
-                    let i = next.fetch_add(1, Ordering::Relaxed);
-                    let Some(data) = records.get(i) else {
-                        break;
-                    };
-                    let fitted = self.sized(data.clone());
-                    if let Ok(mut s) = slots.lock() {
-                        s[i] = Some(fitted);
-                    }
-                });
-            }
-        });
-        self.sizing_of(slots.into_inner().unwrap_or_default().into_iter().map(|f| {
-            f.unwrap_or_else(|| Err(SimError::invalid("sizing", "fit", "its thread failed")))
-        }))
+        // Each job keeps its fit's own failure; a job that panics fails the sizing alone.
+        let jobs: Vec<_> = records
+            .into_iter()
+            .map(|data| move || Ok(self.sized(data)))
+            .collect();
+        let fits =
+            in_parallel(self.with.parallel(), jobs, "sizing fit").unwrap_or_else(|e| vec![Err(e)]);
+        self.sizing_of(fits.into_iter())
     }
 
     /// The sizing from the fits to the logs (first) and to the simulated records.
@@ -1887,15 +1880,6 @@ impl PowerResult {
         }
     }
 
-    /// `" unit"` after a number, or nothing when the model gives no unit.
-    fn unit_suffix(&self) -> String {
-        if self.unit.is_empty() {
-            String::new()
-        } else {
-            format!(" {}", self.unit)
-        }
-    }
-
     /// The summary for people: one row per value, then the smallest detectable value.
     pub fn table(&self) -> String {
         let mut s = format!(
@@ -2024,7 +2008,7 @@ impl PowerResult {
         {
             let std = |v: Option<f64>| {
                 v.map_or("held (not sized)".to_string(), |v| {
-                    format!("±{}{}", fmt_num(v), self.unit_suffix())
+                    format!("±{}{}", fmt_num(v), unit_suffix(&self.unit))
                 })
             };
             s.push_str(&format!(

@@ -71,7 +71,6 @@ pub fn read_csv(path: impl AsRef<Path>) -> Result<Table> {
     for record in reader.records() {
         let record = record.map_err(|e| csv_error(e.to_string()))?;
         let byte = record.position().map(|p| p.byte());
-        let line = || byte.map_or(0, |b| line_at(&text, b));
         values.clear();
         let mut t = 0.0;
         for (i, (cell, name)) in record.iter().zip(&header).enumerate() {
@@ -83,12 +82,12 @@ pub fn read_csv(path: impl AsRef<Path>) -> Result<Table> {
                 };
                 csv_error(format!(
                     "line {}, column {name:?}: {cell:?} is not a number{hint}",
-                    line()
+                    line_at(&text, byte)
                 ))
             })?;
             if !value.is_finite() {
                 return Err(SimError::NotFinite {
-                    context: format!("{} line {}", path.display(), line()),
+                    context: format!("{} line {}", path.display(), line_at(&text, byte)),
                     field: name.clone(),
                     value: cell.to_string(),
                 });
@@ -102,8 +101,8 @@ pub fn read_csv(path: impl AsRef<Path>) -> Result<Table> {
         if let Some((t0, byte0)) = before.filter(|&(t0, _)| t <= t0) {
             return Err(csv_error(format!(
                 "line {}: t = {t} s does not increase (line {} is at t = {t0} s): rows must be in time order, each sample once",
-                line(),
-                byte0.map_or(0, |b| line_at(&text, b))
+                line_at(&text, byte),
+                line_at(&text, byte0)
             )));
         }
         before = Some((t, byte));
@@ -112,11 +111,14 @@ pub fn read_csv(path: impl AsRef<Path>) -> Result<Table> {
     Ok(table)
 }
 
-/// The line of the record the reader places at byte `byte` of `text`. The reader may place a
-/// record on the line end before it (after a Windows `\r\n`) or on a comment line before it,
-/// and counts lines the same way, so such a file named an earlier line than the bad one: line
-/// ends and comment lines are skipped here.
-fn line_at(text: &[u8], byte: u64) -> usize {
+/// The line of the record the reader places at byte `byte` of `text` (0 when the reader gives
+/// no position). The reader may place a record on the line end before it (after a Windows
+/// `\r\n`) or on a comment line before it, and counts lines the same way, so such a file named
+/// an earlier line than the bad one: line ends and comment lines are skipped here.
+fn line_at(text: &[u8], byte: Option<u64>) -> usize {
+    let Some(byte) = byte else {
+        return 0;
+    };
     let mut at = (byte as usize).min(text.len());
     while at < text.len() {
         if matches!(text[at], b'\n' | b'\r') {
