@@ -155,8 +155,8 @@ def test_power_rises_with_the_friction_and_reaches_95_percent_where_one_campaign
     assert LADDER[0] < md["value"] < B_LARGE
     # The sizing: a fit of the model with the friction sizes b on these logs about as
     # precisely as on the study's simulated records, and that error is the scatter of the
-    # campaigns' estimates where all find it (measured here: logs / simulated 1.31, logs /
-    # scatter 0.82; logs / simulated 0.88-1.37 over 12 seeds of these short logs).
+    # campaigns' estimates where all find it (measured here: logs / simulated 1.32, logs /
+    # scatter 0.82; logs / simulated 0.88-1.38 over 12 seeds of these short logs).
     s = r["sizing"]
     print("sizing", s, "scatter at", B_LARGE, top["estimate_std"])
     assert s["warnings"] == [] and s["trades_against"] == [], s
@@ -302,7 +302,7 @@ def test_the_study_names_noise_it_does_not_reproduce(tmp_path):
                      for w in r["noise_warnings"]])
         assert r["noise_warnings"], r
         # The friction acts on the cart, where the torque does not hide it more than the
-        # study's noise does: the sizing agrees within its tolerance (logs / simulated 1.06
+        # study's noise does: the sizing agrees within its tolerance (logs / simulated 1.00
         # and 0.80), so the band warning on theta does not concern this study.
         s = r["sizing"]
         print(seed, "sizing", s)

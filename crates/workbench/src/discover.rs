@@ -1320,6 +1320,12 @@ impl Workbench {
         self.step_from(fitted, base_cost)
     }
 
+    /// The FRF fit of `model` from its documented values as a step reports it: re-weighted,
+    /// then refined ([`Self::refined`]).
+    pub(crate) fn fit_refined(&self, model: &Model) -> Result<FitResult> {
+        Ok(self.refined(self.fitted(model, None, None)?)?.r)
+    }
+
     /// Fits `model` from `start` (see [`Workbench::fit_reweighted`]).
     fn fitted(
         &self,

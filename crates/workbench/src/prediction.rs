@@ -1381,7 +1381,7 @@ impl Workbench {
     /// power study's sizing, without the verdict's diagnosis and the other errors' probes.
     pub(crate) fn fit_sized(&self, i: usize) -> Result<FitResult> {
         match self.criterion {
-            Criterion::Frf => Ok(self.fit_reweighted(&self.model, None)?.0),
+            Criterion::Frf => self.fit_refined(&self.model),
             Criterion::Time => {
                 let (mut r, _, _) = self.fit_starting()?;
                 self.widened_errors(&self.model, &mut r, Some(i))?;
