@@ -5,13 +5,16 @@
 //! unbiased under feedback because the reference R is independent of the noise). The noise
 //! covariance of `vec Ĝ` follows by error propagation, `Σ_e (w_e w_e^H) ⊗ C_e`, where `C_e`
 //! is the covariance of the period mean of `Y - Ĝ U`, estimated from the whole record's
-//! bins beside the line (see [`FrfLine::noise_spectra`]) and pooled across experiments.
+//! bins around the line (see [`FrfLine::noise_spectra`]) and pooled across experiments. The
+//! record's transient is taken out of the line and of those bins by a local polynomial
+//! ([`super::transient`]).
 use nalgebra::DMatrix;
 use serde::Serialize;
 
-use super::dataset::{column_moves, Dataset, Periodic};
+use super::dataset::{column_moves, Dataset};
 use super::distortion::Distortion;
 use super::spectra::{excited_bins, period_mean, Dft, C64};
+use super::transient::{self, local_noise, LocalNoise};
 use crate::error::{Result, SimError};
 
 /// Complex matrix.
@@ -81,9 +84,10 @@ pub struct FrfLine {
     pub coherence: Option<Vec<f64>>,
     /// When the covariance is `M ⊗ S` (noise pooled over experiments): `(M, S)`.
     pub kronecker: Option<(CMatrix, CMatrix)>,
-    /// Periodic estimates: per experiment the whole record's transforms `(U, Y)` (channels x
-    /// `P - 1`) at the bins beside the line that no period harmonic holds, scaled by `sqrt(P)`
-    /// to per-period noise, from which [`model_noise`] re-estimates `S` with a model; empty
+    /// Periodic estimates: per experiment the whole record's transforms `(U, Y)` around the
+    /// line at the bins no period harmonic holds, scaled to per-period noise, with the
+    /// record's transient taken out (channels x degrees of freedom, see
+    /// [`super::transient`]), from which [`model_noise`] re-estimates `S` with a model; empty
     /// for Welch.
     ///
     /// Why not each period's deviation from the period mean: a period's transform of a system
@@ -94,10 +98,13 @@ pub struct FrfLine {
     /// the next (an arm or a cart the loop holds loosely) the deviations overstate the noise:
     /// on a loop with a mode of two periods' time constant the mean's variance was 0.67-0.77
     /// of what they said, on every line, and the true model's cost 0.835 of the reference. The
-    /// whole record's bins see the noise at the mean's resolution and one transient, as the
-    /// mean does; `P - 1` of them lie between harmonic `k P` and the next, the degrees of
-    /// freedom of the deviations.
+    /// whole record's bins see the noise at the mean's resolution and one transient, which
+    /// the local polynomial takes out of them and of the line.
     pub noise_spectra: Vec<(CMatrix, CMatrix)>,
+    /// Periodic estimates: per experiment the noise variance of the period mean with the
+    /// transient taken out, in units of the per-period `S`: `(1 + inflation) / P` (see
+    /// [`super::transient::LocalNoise::inflation`]); empty for Welch.
+    pub mean_variance: Vec<f64>,
     /// Welch estimates: the window's kernel, through which the line sees the plant's response
     /// at the bins beside it (see [`KernelTap`]); empty for periodic estimates, whose lines
     /// see the response at their own frequency.
@@ -238,8 +245,6 @@ pub struct FrfEstimate {
     pub sample_rate_hz: f64,
     /// One entry per excited line, ascending in frequency.
     pub lines: Vec<FrfLine>,
-    /// Periods of each experiment (for the noise-level reference distribution).
-    pub periods: Vec<usize>,
     /// Complex degrees of freedom of the pooled noise covariance.
     pub noise_dof: usize,
     /// Segmentation of a Welch estimate (non-periodic logs).
@@ -361,30 +366,46 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
         ));
     }
 
+    // Per experiment and line, the noise around the line with the record's transient taken
+    // out (see [`super::transient`]).
+    let local: Vec<(Vec<LocalNoise>, Vec<LocalNoise>)> = data
+        .experiments
+        .iter()
+        .zip(&layouts)
+        .map(|(e, l)| (local_noise(&e.u, l, &bins), local_noise(&e.y, l, &bins)))
+        .collect();
     let spectra: Vec<ExperimentSpectra> = data
         .experiments
         .iter()
         .zip(&layouts)
-        .map(|(e, l)| {
-            // The transform of the period mean is the mean of the periods' transforms.
-            let block = |m: &DMatrix<f64>| -> Vec<Vec<C64>> {
+        .zip(&local)
+        .map(|((e, l), (lu, ly))| {
+            // The transform of the period mean is the mean of the periods' transforms; the
+            // transient's estimate is taken out of the inputs and outputs (a logged
+            // excitation repeats exactly and has none).
+            let block = |m: &DMatrix<f64>, out: Option<&[LocalNoise]>| -> Vec<Vec<C64>> {
                 let means: Vec<Vec<f64>> = (0..m.ncols())
                     .map(|c| period_mean(m, c, l.transient, n, l.periods))
                     .collect();
                 bins.iter()
-                    .map(|&k| {
+                    .enumerate()
+                    .map(|(bi, &k)| {
                         means
                             .iter()
-                            .map(|x| dft.bin(x.iter().copied(), k))
+                            .enumerate()
+                            .map(|(c, x)| {
+                                dft.bin(x.iter().copied(), k)
+                                    - out.map_or(C64::new(0.0, 0.0), |o| o[bi].transient[c])
+                            })
                             .collect()
                     })
                     .collect()
             };
             ExperimentSpectra {
-                u: block(&e.u),
-                y: block(&e.y),
+                u: block(&e.u, Some(lu)),
+                y: block(&e.y, Some(ly)),
                 r: if use_iv {
-                    e.r.as_ref().map(block)
+                    e.r.as_ref().map(|r| block(r, None))
                 } else {
                     None
                 },
@@ -392,19 +413,7 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
         })
         .collect();
 
-    // Per experiment and line, the whole record's transforms beside the line.
-    let beside: Vec<Vec<(CMatrix, CMatrix)>> = data
-        .experiments
-        .iter()
-        .zip(&layouts)
-        .map(|(e, l)| {
-            let u = beside_lines(&e.u, l, &bins);
-            let y = beside_lines(&e.y, l, &bins);
-            u.into_iter().zip(y).collect()
-        })
-        .collect();
-    let periods: Vec<usize> = layouts.iter().map(|l| l.periods).collect();
-    let noise_dof: usize = periods.iter().map(|p| p - 1).sum();
+    let noise_dof: usize = layouts.iter().map(|l| transient::dof(n, l.periods)).sum();
     let mut lines = Vec::with_capacity(bins.len());
     for (bi, &k) in bins.iter().enumerate() {
         let freq_hz = k as f64 * data.sample_rate_hz / n as f64;
@@ -420,13 +429,22 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
             u.adjoint() * invert(&(&u * u.adjoint()), "U U^H", freq_hz)?
         };
         let g = &y * &weights;
-        let noise_spectra: Vec<(CMatrix, CMatrix)> = beside.iter().map(|e| e[bi].clone()).collect();
+        let noise_spectra: Vec<(CMatrix, CMatrix)> = local
+            .iter()
+            .map(|(lu, ly)| (lu[bi].noise.clone(), ly[bi].noise.clone()))
+            .collect();
         let s = period_noise(&noise_spectra, &g, noise_dof);
-        // Pooled noise: Cov(vec Ĝ) = Σ_e (w_e w_e^H / P_e) ⊗ S = M ⊗ S.
+        // The period mean's noise variance per experiment, in units of the per-period S.
+        let mean_variance: Vec<f64> = layouts
+            .iter()
+            .zip(&local)
+            .map(|(l, (_, ly))| (1.0 + ly[bi].inflation) / l.periods as f64)
+            .collect();
+        // Pooled noise: Cov(vec Ĝ) = Σ_e (w_e w_e^H v_e) ⊗ S = M ⊗ S.
         let mut m = CMatrix::zeros(nu, nu);
-        for (e, &p) in periods.iter().enumerate() {
+        for (e, &v) in mean_variance.iter().enumerate() {
             let w = weights.row(e).transpose();
-            m += &w * w.adjoint() / C64::from(p as f64);
+            m += &w * w.adjoint() * C64::from(v);
         }
         let cov = m.kronecker(&s);
         lines.push(FrfLine {
@@ -440,6 +458,7 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
             coherence: None,
             kronecker: Some((m, s)),
             noise_spectra,
+            mean_variance,
             kernel: Vec::new(),
             previous: Vec::new(),
         });
@@ -454,65 +473,11 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
         outputs: data.outputs.clone(),
         sample_rate_hz: data.sample_rate_hz,
         lines,
-        periods,
         noise_dof,
         welch: None,
         detected_period,
         distortion,
     })
-}
-
-/// Offsets from a line's bin `k P` of the whole record's bins beside it, `-⌊(P-1)/2⌋ ..
-/// ⌊P/2⌋` without 0: `P - 1` bins, none a period harmonic, each line's own.
-fn offsets(periods: usize) -> Vec<isize> {
-    let below = ((periods - 1) / 2) as isize;
-    (1..=below)
-        .map(|d| -d)
-        .chain(1..=(periods / 2) as isize)
-        .collect()
-}
-
-/// The whole record's transforms of the columns of `m` after `layout.transient`, normalised by
-/// the record's length and scaled by `sqrt(P)` (to per-period noise), at the bins beside each
-/// line of `bins` (see [`offsets`]): one matrix channels x `P - 1` per line.
-///
-/// Bin `k P + j` of the record is `Σ_t e^(-2πi (kP + j) t / (nP)) z_j[t]` with the
-/// demodulated period sum `z_j[t] = Σ_p x[pn + t] e^(-2πi j p / P)`, so each offset costs one
-/// pass over the record and then `n` per line, not `nP` per line.
-pub(crate) fn beside_lines(m: &DMatrix<f64>, layout: &Periodic, bins: &[usize]) -> Vec<CMatrix> {
-    let (n, p) = (layout.period, layout.periods);
-    let whole = n * p;
-    let table = Dft::new(whole);
-    let offsets = offsets(p);
-    let scale = (p as f64).sqrt() / whole as f64;
-    let mut out: Vec<CMatrix> = bins
-        .iter()
-        .map(|_| CMatrix::zeros(m.ncols(), offsets.len()))
-        .collect();
-    for c in 0..m.ncols() {
-        let x = m.column(c);
-        for (i, &j) in offsets.iter().enumerate() {
-            // e^(-2πi j q / P) is the twiddle j q n of the whole record.
-            let shift = j.rem_euclid(p as isize) as usize;
-            let z: Vec<C64> = (0..n)
-                .map(|t| {
-                    (0..p)
-                        .map(|q| table.twiddle(shift * q * n) * x[layout.transient + q * n + t])
-                        .sum()
-                })
-                .collect();
-            for (line, &k) in out.iter_mut().zip(bins) {
-                let bin = ((k * p) as isize + j) as usize;
-                let v: C64 = z
-                    .iter()
-                    .enumerate()
-                    .map(|(t, zt)| table.twiddle(bin * t) * zt)
-                    .sum();
-                line[(c, i)] = v * scale;
-            }
-        }
-    }
-    out
 }
 
 /// Whether `choice` resolves to the instrumental-variable estimate on `data` (`Auto` picks it
@@ -594,7 +559,7 @@ fn period_noise(spectra: &[(CMatrix, CMatrix)], g: &CMatrix, dof: usize) -> CMat
 
 /// Noise covariance `S` of every line re-estimated from the residual of the model FRF
 /// `model` (as the estimate's lines see it, [`LineMap::seen`]): for periodic estimates `y - G u` at the whole record's
-/// bins beside each line ([`period_noise`]), for Welch estimates the segment residual projected away
+/// bins around each line, the transient taken out ([`period_noise`]), for Welch estimates the segment residual projected away
 /// from the weights ([`super::welch::model_noise`]). This is what the instrumental-variable
 /// cost is weighted with in discovery: at the true model its distribution is the Monte-Carlo
 /// reference's.
@@ -636,40 +601,4 @@ pub(crate) fn invert(a: &CMatrix, what: &str, freq_hz: f64) -> Result<CMatrix> {
             "cannot invert",
         )
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use proptest::prelude::*;
-
-    proptest! {
-        /// The demodulated transforms beside the lines are the record's DFT at those bins,
-        /// computed directly, to 1e-12; there are `P - 1` per line, none a period harmonic.
-        #[test]
-        fn bins_beside_the_lines_are_the_records_dft(
-            n in 4usize..12,
-            p in 2usize..7,
-            transient in 0usize..5,
-            seed in 0u64..1000,
-        ) {
-            let len = transient + n * p;
-            let m = DMatrix::from_fn(len, 2, |i, c| ((i * 7 + c * 3 + seed as usize) % 11) as f64 - 5.0 + (i as f64 * 0.37).sin());
-            let layout = Periodic { period: n, periods: p, transient };
-            let bins: Vec<usize> = (1..n.div_ceil(2)).collect();
-            let got = beside_lines(&m, &layout, &bins);
-            let dft = Dft::new(n * p);
-            for (line, &k) in got.iter().zip(&bins) {
-                prop_assert_eq!(line.ncols(), p - 1);
-                for (i, &j) in offsets(p).iter().enumerate() {
-                    let bin = ((k * p) as isize + j) as usize;
-                    prop_assert!(bin % p != 0);
-                    for c in 0..2 {
-                        let want = dft.bin((transient..len).map(|t| m[(t, c)]), bin) * (p as f64).sqrt();
-                        prop_assert!((line[(c, i)] - want).norm() < 1e-12, "{} against {}", line[(c, i)], want);
-                    }
-                }
-            }
-        }
-    }
 }

@@ -47,6 +47,7 @@ pub mod search;
 pub mod spectra;
 pub mod stats;
 pub mod timedomain;
+mod transient;
 pub mod welch;
 
 use std::sync::Arc;

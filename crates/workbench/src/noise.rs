@@ -54,7 +54,7 @@ impl ComplexWishart {
             return Err(SimError::invalid(
                 "noise degrees of freedom",
                 n,
-                format!("need at least {p} (each experiment's periods after its first, less one, summed over the experiments: a single record of four periods gives 2) to estimate the {p}x{p} noise covariance of the periodic FRF: log more periods per experiment, or more experiments"),
+                format!("need at least {p} (each experiment's periods after its first, less one, up to 4 and 2 P - 5 for P beyond, summed over the experiments: a single record of four periods gives 2) to estimate the {p}x{p} noise covariance of the periodic FRF: log more periods per experiment, or more experiments"),
             ));
         }
         let diag = (0..p)
@@ -101,18 +101,19 @@ impl NoiseReference {
             .iter()
             .map(|line| {
                 let mut m = CMatrix::zeros(nu, nu);
-                for (e, &p) in frf.periods.iter().enumerate() {
+                for (e, &v) in line.mean_variance.iter().enumerate() {
                     let we = line.weights.row(e).transpose();
-                    m += &we * we.adjoint() / C64::from(p as f64);
+                    m += &we * we.adjoint() * C64::from(v);
                 }
                 m
             })
             .collect();
         Self::from_draws(&ms, ny, draws, seed, &mut |k, rng| {
-            let w = &frf.lines[k].weights;
+            let line = &frf.lines[k];
+            let w = &line.weights;
             let mut err = CMatrix::zeros(ny, nu);
-            for (e, &p) in frf.periods.iter().enumerate() {
-                let mean = CMatrix::from_fn(ny, 1, |_, _| complex_normal(rng) / (p as f64).sqrt());
+            for (e, &v) in line.mean_variance.iter().enumerate() {
+                let mean = CMatrix::from_fn(ny, 1, |_, _| complex_normal(rng) * v.sqrt());
                 err += &mean * w.row(e);
             }
             let s = wishart.sample(rng, &complex_normal) / C64::from(dof as f64);

@@ -2426,8 +2426,11 @@ D = [[-4.0, -3.0]]
         let r = aggregate(&small, &out).unwrap();
         assert!(r.values[1].detection_rate <= 0.1, "{}", r.table());
         // Noise sources a ninth of the estimated (a third in rms): the simulated records size
-        // the friction 3.1 times as precisely as the logs, and the study says its rates are
-        // likely too high.
+        // the friction 3.1 times as precisely as at the estimated noise (the logs' error
+        // 4.25 times the simulated, 1.36 times at the estimated noise), and the study says
+        // its rates are likely too high.
+        let full = spec.sizing.as_ref().unwrap();
+        let full_ratio = full.logs_std.unwrap() / full.simulated_std.unwrap();
         let mut quiet = spec.clone();
         quiet
             .process_noise
@@ -2437,7 +2440,7 @@ D = [[-4.0, -3.0]]
         quiet.sensor_noise.iter_mut().for_each(|r| *r /= 9.0);
         let z = Study::new(quiet).unwrap().sizing(&logs).unwrap();
         let ratio = z.logs_std.unwrap() / z.simulated_std.unwrap();
-        assert!((2.4..3.6).contains(&ratio), "{z:?}");
+        assert!((2.4..3.6).contains(&(ratio / full_ratio)), "{z:?}");
         assert!(
             matches!(z.warnings.as_slice(), [w] if w.contains("likely too high")),
             "{z:?}"
@@ -2483,6 +2486,36 @@ D = [[-4.0, -3.0]]
             study.sizing_of([Err(SimError::Cancelled)].into_iter()),
             Err(SimError::Cancelled)
         ));
+    }
+
+    /// The verdict's false alarms on the nominal model are at its level: 100 nominal
+    /// campaigns of 1, 2 and 4 records (4 periods of 250 samples after a 100-sample start,
+    /// under feedback, process and sensor noise), on logs of 2 seeds, read "unexplained" in at
+    /// most 4 (measured 1 of 100 in each of the six; binomial at 1 %: 4 or more in 1.8 % of
+    /// such runs), and find no effect. With the record's transient left in the line and its
+    /// noise estimate, 3, 7 and 23 of 100 on the first seed (2, 4 and 21 on the second).
+    #[test]
+    fn nominal_campaigns_read_unexplained_at_the_level() {
+        for experiments in [1, 2, 4] {
+            for seed in [7, 8] {
+                let logs = coloured_logs(MODEL, (experiments, 4), 1e-3, 0.0, &[1e-4], seed);
+                let spec = prepare(
+                    MODEL,
+                    Path::new("cart.toml"),
+                    logs,
+                    &options(vec![0.0], 100),
+                )
+                .unwrap();
+                let study = Study::new(spec.clone()).unwrap();
+                let out = run(&study, &study.jobs(), 2, &|_| {}, &Cancel::default()).unwrap();
+                let r = aggregate(&spec, &out).unwrap();
+                let v = &r.values[0];
+                let what = format!("{experiments} records, seed {seed}");
+                assert!(out.iter().all(|o| o.error.is_none()), "{what}: {out:?}");
+                assert!(v.unexplained_rate <= 0.04, "{what}: {}", r.table());
+                assert_eq!(v.detection_rate, 0.0, "{what}: {}", r.table());
+            }
+        }
     }
 
     #[test]

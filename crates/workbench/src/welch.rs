@@ -492,6 +492,7 @@ pub fn welch_frf(
             coherence: Some(coherence),
             kronecker: Some((m, s)),
             noise_spectra: Vec::new(),
+            mean_variance: Vec::new(),
             kernel,
             previous: Vec::new(),
         });
@@ -527,7 +528,6 @@ pub fn welch_frf(
             outputs: data.outputs.clone(),
             sample_rate_hz: fs,
             lines,
-            periods: vec![1; segments],
             noise_dof: dof,
             welch: Some(layout),
             detected_period: None,
