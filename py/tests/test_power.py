@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import statistics
 import os
 import subprocess
 import sys
@@ -301,13 +302,37 @@ def test_the_study_names_noise_it_does_not_reproduce(tmp_path):
         print(seed, [(w["output"], w["band_hz"], round(w["ratio"], 2))
                      for w in r["noise_warnings"]])
         assert r["noise_warnings"], r
-        # The friction acts on the cart, where the torque does not hide it more than the
-        # study's noise does: the sizing agrees within its tolerance (logs / simulated 1.00
-        # and 0.80), so the band warning on theta does not concern this study.
+        # The friction acts on the cart. With the record's transient taken out of the FRF the
+        # logs size it to ±0.014 (the slow modes' wandering the torque drives is no longer
+        # read as noise; 8 independent seeds' estimates scatter by 0.012,
+        # test_the_logs_error_of_the_friction_is_the_scatter_of_independent_logs), while the
+        # study's simulated records size it to ±0.037: its noise, matched to the logs'
+        # period-to-period deviations, carries that wandering as noise. The sizing says its
+        # rates are likely too low (measured 0.38 on both seeds).
         s = r["sizing"]
         print(seed, "sizing", s)
-        assert 1 / 1.5 < s["logs_std"] / s["simulated_std"] < 1.5, s
+        assert s["logs_std"] / s["simulated_std"] < 1 / 1.5, s
+        assert any("likely too low" in w for w in s["warnings"]), s
         for w in r["noise_warnings"]:
             assert w["output"] == "theta" and w["band_hz"] is not None, w
             assert w["ratio"] > 1.5 and "likely too low" in w["message"], w
             assert w["band_hz"][0] >= 3 and "theta at" in w["message"], w
+
+
+@pytest.mark.campaign
+def test_the_logs_error_of_the_friction_is_the_scatter_of_independent_logs(tmp_path):
+    # The sizing's error on the logs is what independent logs bear out: 8 seeds of the
+    # cart-pole with a friction of 0.06 and ten times the pole torque noise; the estimates'
+    # standard deviation against the mean reported error (measured 0.0122 against 0.0142, a
+    # ratio 0.86; an 8-sample standard deviation is itself uncertain by about 27 %).
+    estimates, errors = [], []
+    for seed in range(1, 9):
+        d = tmp_path / f"torque{seed}"
+        ic.campaign(d, plant=ic.Plant(b=0.06), seed=seed, torque_noise=0.02)
+        s = stabilis.power(MODEL, [d], effect="cart_friction", values=[0.0], campaigns=1,
+                           seed=3, progress=False)["sizing"]
+        estimates.append(s["logs_estimate"])
+        errors.append(s["logs_std"])
+    ratio = statistics.stdev(estimates) / statistics.mean(errors)
+    print("scatter / reported error", ratio, estimates, errors)
+    assert 0.5 < ratio < 1.6, (estimates, errors)
