@@ -604,6 +604,9 @@ fn levenberg_marquardt(
         let dmax = jtj_m.diagonal().max();
         let mut accepted = None;
         for _ in 0..30 {
+            // Each trial evaluates the criterion: a run of rejected steps is as long as
+            // iterations.
+            opts.cancel.check()?;
             let mut a = jtj_m.clone();
             for i in 0..a.nrows() {
                 a[(i, i)] += lambda * jtj_m[(i, i)].max(1e-12 * dmax.max(1e-300));

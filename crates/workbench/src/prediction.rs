@@ -1141,7 +1141,12 @@ impl Workbench {
             .collect();
         // The -2 log-likelihood at `theta` with parameter `pin` held there and the others
         // refitted under a design at `theta`.
+        // A stopped run ends a profile before its design; the loop below then returns the
+        // stop (a refit's own stop reads as a failed profile).
         let profile = |theta: &[f64], pin: Option<usize>| -> Option<f64> {
+            if self.cancel.is_cancelled() {
+                return None;
+            }
             let mut bounded = params.clone();
             if let Some(i) = pin {
                 bounded[i].lower = theta[i];
@@ -1165,6 +1170,7 @@ impl Workbench {
         };
         let mut changed = Vec::new();
         for &i in &free {
+            self.cancel.check()?;
             let (q, x) = (&params[i], r.theta[i]);
             let fixed = r.params[i].std.unwrap_or(0.0);
             let cap = MAX_WIDENING * fixed;
@@ -1199,6 +1205,7 @@ impl Workbench {
                     _ => break,
                 }
             }
+            self.cancel.check()?;
             let Some(wide) = wide else {
                 continue;
             };

@@ -1052,7 +1052,10 @@ fn far_documented_values_reach_the_same_discovery() {
         // The documented model fits 374 times better with the angle scaled by 1/57.3, yet the
         // logs' own best factor is 1.6 times that: no unit is named.
         assert!(
-            !d.conclusion.warnings.iter().any(|w| w.contains("scaled by")),
+            !d.conclusion
+                .warnings
+                .iter()
+                .any(|w| w.contains("scaled by")),
             "seed {seed}: {:?}",
             d.conclusion.warnings
         );
