@@ -2366,6 +2366,28 @@ mod tests {
     }
 
     proptest! {
+        /// A unit is picked when the cost's own minimum lies within 10 % of it, up to half the
+        /// grid's step, and not when it lies farther: a cost whose minimum is at `c r`, for
+        /// any factor `c` of either sign over twelve decades.
+        #[test]
+        fn a_factor_is_picked_when_the_cost_is_lowest_near_it(
+            c in (-6.0f64..6.0).prop_map(|e| 10f64.powf(e)),
+            sign in prop::bool::ANY,
+            log_r in -1.2f64..1.2,
+        ) {
+            use super::{picked, PICK_WITHIN};
+            let c = if sign { c } else { -c };
+            let at = (c * log_r.exp()).abs().ln();
+            let got = picked(c, |x| (x.abs().ln() - at).powi(2));
+            let half_step = 3f64.ln() / 40.0 / 2.0;
+            if log_r.abs() <= PICK_WITHIN.ln() - half_step {
+                prop_assert!(got);
+            }
+            if log_r.abs() >= PICK_WITHIN.ln() + half_step {
+                prop_assert!(!got);
+            }
+        }
+
         /// Every added effect ends in exactly one list, in its order; a caveat makes them all
         /// tentative, a rivalry those it names; the reasons are kept exactly when something is
         /// tentative.
