@@ -440,12 +440,7 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
             .zip(&local)
             .map(|(l, (_, ly))| (1.0 + ly[bi].inflation) / l.periods as f64)
             .collect();
-        // Pooled noise: Cov(vec Ĝ) = Σ_e (w_e w_e^H v_e) ⊗ S = M ⊗ S.
-        let mut m = CMatrix::zeros(nu, nu);
-        for (e, &v) in mean_variance.iter().enumerate() {
-            let w = weights.row(e).transpose();
-            m += &w * w.adjoint() * C64::from(v);
-        }
+        let m = pooled_weights(&weights, &mean_variance);
         let cov = m.kronecker(&s);
         lines.push(FrfLine {
             freq_hz,
@@ -478,6 +473,18 @@ pub fn periodic_frf(data: &Dataset, choice: EstimatorChoice) -> Result<FrfEstima
         detected_period,
         distortion,
     })
+}
+
+/// `M` of a periodic line's pooled noise, `Cov(vec Ĝ) = Σ_e (w_e w_e^H v_e) ⊗ S = M ⊗ S`:
+/// `weights` (experiments x inputs) and the period mean's noise variance `v_e` per experiment
+/// ([`FrfLine::mean_variance`]).
+pub(crate) fn pooled_weights(weights: &CMatrix, mean_variance: &[f64]) -> CMatrix {
+    let mut m = CMatrix::zeros(weights.ncols(), weights.ncols());
+    for (e, &v) in mean_variance.iter().enumerate() {
+        let w = weights.row(e).transpose();
+        m += &w * w.adjoint() * C64::from(v);
+    }
+    m
 }
 
 /// Whether `choice` resolves to the instrumental-variable estimate on `data` (`Auto` picks it

@@ -15,7 +15,7 @@ use rand::{Rng, SeedableRng};
 use rand_distr::{ChiSquared, Distribution, StandardNormal};
 use serde::Serialize;
 
-use super::frf::{CMatrix, FrfEstimate};
+use super::frf::{pooled_weights, CMatrix, FrfEstimate};
 use super::spectra::C64;
 use crate::error::{Result, SimError};
 
@@ -99,14 +99,7 @@ impl NoiseReference {
         let ms: Vec<CMatrix> = frf
             .lines
             .iter()
-            .map(|line| {
-                let mut m = CMatrix::zeros(nu, nu);
-                for (e, &v) in line.mean_variance.iter().enumerate() {
-                    let we = line.weights.row(e).transpose();
-                    m += &we * we.adjoint() * C64::from(v);
-                }
-                m
-            })
+            .map(|line| pooled_weights(&line.weights, &line.mean_variance))
             .collect();
         Self::from_draws(&ms, ny, draws, seed, &mut |k, rng| {
             let line = &frf.lines[k];

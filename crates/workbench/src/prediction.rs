@@ -1170,7 +1170,6 @@ impl Workbench {
         };
         let mut changed = Vec::new();
         for &i in &free {
-            self.cancel.check()?;
             let (q, x) = (&params[i], r.theta[i]);
             let fixed = r.params[i].std.unwrap_or(0.0);
             let cap = MAX_WIDENING * fixed;
