@@ -26,7 +26,8 @@ fn to_text<T: serde::Serialize>(value: &T) -> PyResult<String> {
 }
 
 /// Fits the nominal model of the model file `model` to the logs `data`, estimates their noise
-/// and returns the study as JSON text.
+/// and returns the study as JSON text; without the GIL (Ctrl-C stops it at its next fit
+/// iteration).
 #[pyfunction]
 #[pyo3(signature = (model, data, effect, values, campaigns, seed, estimator = "auto", criterion = None))]
 #[allow(clippy::too_many_arguments)]
@@ -42,28 +43,28 @@ fn prepare(
     criterion: Option<&str>,
 ) -> PyResult<String> {
     let criterion = criterion_of(criterion)?;
-    let spec = py
-        .detach(|| {
-            let text = std::fs::read_to_string(&model).map_err(|e| sim::SimError::io(&model, e))?;
-            let file = ModelFile::parse(&text, &model)?;
-            let logs =
-                workbench::load::load(file.system(), &file.inputs(), &file.outputs(), &data)?;
-            power::prepare(
-                &text,
-                &model,
-                logs,
-                &StudyOptions {
-                    effect,
-                    values: values.0,
-                    campaigns,
-                    seed,
-                    estimator: estimator.to_string(),
-                    band_hz: None,
-                    criterion,
-                },
-            )
-        })
-        .map_err(to_py_err)?;
+    let cancel = Cancel::default();
+    let spec = interruptible(py, &cancel, false, || {
+        let text = std::fs::read_to_string(&model).map_err(|e| sim::SimError::io(&model, e))?;
+        let file = ModelFile::parse(&text, &model)?;
+        let logs = workbench::load::load(file.system(), &file.inputs(), &file.outputs(), &data)?;
+        power::prepare(
+            &text,
+            &model,
+            logs,
+            &StudyOptions {
+                effect,
+                values: values.0,
+                campaigns,
+                seed,
+                estimator: estimator.to_string(),
+                band_hz: None,
+                criterion,
+                cancel: cancel.clone(),
+            },
+        )
+    })?
+    .map_err(to_py_err)?;
     to_text(&spec)
 }
 

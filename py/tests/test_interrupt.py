@@ -104,3 +104,41 @@ def test_ctrl_c_stops_a_python_models_discovery(tmp_path):
     out = json.loads(done.stdout.splitlines()[-1])
     assert out["interrupted"], out
     assert out["stopped"] < 5.0, out
+
+
+# A power study's preparation (the nominal fit, the noise search and calibration, the sizing's
+# fits) once to its end, then with a SIGINT at a share of that time.
+SCRIPT_PREPARE = PRELUDE + r"""
+from stabilis import power_study
+
+def prepare():
+    return power_study.prepare(sys.argv[1], [sys.argv[2]], effect="cart_friction",
+                               values=[0.0], campaigns=1, seed=3)
+
+start = time.monotonic()
+prepare()
+whole = time.monotonic() - start
+threading.Timer(float(sys.argv[3]) * whole, os.kill, (os.getpid(), signal.SIGINT)).start()
+start = time.monotonic()
+try:
+    prepare()
+    stop = False
+except KeyboardInterrupt:
+    stop = True
+print(json.dumps({"whole": whole, "stopped": time.monotonic() - start, "interrupted": stop}))
+"""
+
+
+@pytest.mark.parametrize("share", (0.2, 0.7))
+def test_ctrl_c_stops_a_power_studys_preparation(tmp_path, share):
+    # The cart-pole with ten times the pole torque noise: its study also scales the noise
+    # along the friction, five more fits.
+    ic.campaign(tmp_path, plant=ic.Plant(), seed=1, torque_noise=0.02)
+    model = Path(__file__).parent / "data" / "cart_pole.toml"
+    done = subprocess.run([sys.executable, "-c", SCRIPT_PREPARE, str(model), str(tmp_path),
+                           str(share)], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout.splitlines()[-1])
+    print(out)
+    assert out["interrupted"], out
+    assert out["stopped"] < share * out["whole"] + 0.3 * (1 - share) * out["whole"], out

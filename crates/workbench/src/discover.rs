@@ -14,6 +14,8 @@ use super::search::{forward_selection, Search};
 use super::stats::{chi2_sf, f_sf};
 use super::timedomain::{time_fit, TimeFit, DEFAULT_HORIZON, DEFAULT_WINDOW};
 use super::Workbench;
+use std::sync::Mutex;
+
 use crate::error::{Result, SimError};
 
 /// Score of one candidate effect at one step.
@@ -1449,6 +1451,8 @@ impl Workbench {
         let opts = self.fit_options();
         Ok(
             match fit_noise_weighted(&f.model, &self.frf, Some(&f.r.theta), &opts) {
+                // A stop is the run's, not a refit that failed.
+                Err(SimError::Cancelled) => return Err(SimError::Cancelled),
                 Ok((r, weighting))
                     if !r.gave_up
                         && r.params
@@ -2035,6 +2039,9 @@ impl Search for FrfSearch<'_> {
 
 /// Runs independent jobs on scoped threads (on this one, in order, when not `parallel`) and
 /// returns their results in order (a job that panics is reported as an error naming `what`).
+/// As many threads as the machine has cores take the jobs in turn: a thread per job made six
+/// sizing fits of a power study share two cores, each building its workbench three times as
+/// long, and a stop waited for all of them (0.6 s against 0.2 s).
 pub(crate) fn in_parallel<T, F>(parallel: bool, jobs: Vec<F>, what: &str) -> Result<Vec<T>>
 where
     T: Send,
@@ -2043,21 +2050,42 @@ where
     if !parallel {
         return jobs.into_iter().map(|f| f()).collect();
     }
+    let count = jobs.len();
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(count);
+    let queue = Mutex::new(jobs.into_iter().enumerate());
+    let done: Vec<Mutex<Option<Result<T>>>> = (0..count).map(|_| Mutex::new(None)).collect();
     std::thread::scope(|scope| {
-        let handles: Vec<_> = jobs.into_iter().map(|f| scope.spawn(f)).collect();
-        handles
-            .into_iter()
-            .map(|h| {
-                h.join().unwrap_or_else(|_| {
-                    Err(SimError::invalid(
-                        what,
-                        "panicked",
-                        "a worker thread failed",
-                    ))
-                })
-            })
-            .collect()
-    })
+        for _ in 0..threads {
+            scope.spawn(|| loop {
+                let Some((i, job)) = locked(&queue).next() else {
+                    break;
+                };
+                let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(job))
+                    .unwrap_or_else(|_| {
+                        Err(SimError::invalid(
+                            what,
+                            "panicked",
+                            "a worker thread failed",
+                        ))
+                    });
+                *locked(&done[i]) = Some(result);
+            });
+        }
+    });
+    done.into_iter()
+        .map(|slot| {
+            slot.into_inner()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .unwrap_or_else(|| Err(SimError::invalid(what, "job", "was not run")))
+        })
+        .collect()
+}
+
+/// The mutex's value, also after a panic elsewhere (every job's result is written whole).
+fn locked<V>(m: &Mutex<V>) -> std::sync::MutexGuard<'_, V> {
+    m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
 #[cfg(test)]
@@ -2363,6 +2391,50 @@ mod tests {
         assert!(named
             .sentence_given(Candidates::Absent)
             .ends_with("the model has no candidate effects to try"));
+    }
+
+    proptest! {
+        /// The jobs' results come back in the jobs' order, the same as run one after another,
+        /// whatever their count, failures and panics (a panic is its job's error, named).
+        #[test]
+        fn parallel_jobs_return_in_order(outcomes in proptest::collection::vec(0u8..3, 0..20)) {
+            let jobs = |outcomes: &[u8]| -> Vec<Box<dyn FnOnce() -> crate::Result<usize> + Send>> {
+                outcomes
+                    .iter()
+                    .enumerate()
+                    .map(|(i, o)| {
+                        let o = *o;
+                        Box::new(move || match o {
+                            0 => Ok(i * i),
+                            1 => Err(crate::SimError::invalid("job", i, "failed")),
+                            _ => panic!("job {i}"),
+                        }) as Box<dyn FnOnce() -> crate::Result<usize> + Send>
+                    })
+                    .collect()
+            };
+            let on_threads = super::in_parallel(true, jobs(&outcomes), "a test");
+            // Each job's result as run one after another (a panic as the error naming it).
+            let expected: Vec<String> = outcomes
+                .iter()
+                .enumerate()
+                .map(|(i, o)| match o {
+                    0 => format!("{}", i * i),
+                    1 => crate::SimError::invalid("job", i, "failed").to_string(),
+                    _ => crate::SimError::invalid("a test", "panicked", "a worker thread failed")
+                        .to_string(),
+                })
+                .collect();
+            let got: Vec<String> = match on_threads {
+                Ok(v) => v.iter().map(|x| x.to_string()).collect(),
+                Err(e) => vec![e.to_string()],
+            };
+            // The results collect into one `Result`: the first error in the jobs' order.
+            let want: Vec<String> = match outcomes.iter().position(|o| *o != 0) {
+                None => expected,
+                Some(k) => vec![expected[k].clone()],
+            };
+            prop_assert_eq!(got, want);
+        }
     }
 
     proptest! {

@@ -214,7 +214,7 @@ fn matrix(what: &str, rows: &[Vec<f64>], ncols: usize) -> Result<DMatrix<f64>> {
 }
 
 /// The inputs of a study: what [`prepare`] needs besides the model file and the logs.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct StudyOptions {
     /// The effect (declared in the file, or `actuator_lag` / `input_delay`).
     pub effect: String,
@@ -230,6 +230,9 @@ pub struct StudyOptions {
     pub band_hz: Option<(f64, f64)>,
     /// The discovery's criterion; `None`: its default for the model.
     pub criterion: Option<Criterion>,
+    /// Stops the preparation at its next fit iteration or simulation (Ctrl-C in Python):
+    /// `prepare` then returns [`SimError::Cancelled`].
+    pub cancel: Cancel,
 }
 
 /// Prepares a study from the model file's text (`model_path` names it in messages) and the
@@ -274,7 +277,7 @@ pub fn prepare(
     if options.campaigns == 0 {
         return Err(SimError::invalid("campaigns", 0, "must be at least 1"));
     }
-    let wb = Workbench::with_options(
+    let mut wb = Workbench::with_options(
         structure.clone(),
         data,
         estimator_choice(&options.estimator)?,
@@ -283,6 +286,7 @@ pub fn prepare(
             criterion: options.criterion,
         },
     )?;
+    wb.set_cancel(options.cancel.clone());
     let nominal_model = wb.model().clone();
     let names: Vec<String> = nominal_model
         .parameters()?
@@ -326,7 +330,9 @@ pub fn prepare(
         .map(|e| (demeaned(&e.u), demeaned(&e.y)))
         .collect();
     let pairs: Vec<(&DMatrix<f64>, &DMatrix<f64>)> = centred.iter().map(|(u, y)| (u, y)).collect();
+    options.cancel.check()?;
     let predictor = Predictor::design(&disc, &pairs, Gain::NoiseModel)?;
+    options.cancel.check()?;
     let (q, r) = predictor.covariances().ok_or_else(|| {
         SimError::invalid(
             "model",
@@ -376,10 +382,10 @@ pub fn prepare(
         let logged = band_noise(data, &bands).filter(|_| !bands.is_empty());
         let dof: Vec<usize> = bands.iter().map(|b| band_dof(data, *b)).collect();
         let study = Study::new(spec.clone())?;
-        let sensors = study.sensor_power(&bands)?;
+        let sensors = study.sensor_power(&bands, &options.cancel)?;
         let (mut factors, white_mismatch) = calibrate(
             &measured,
-            &study.process_power(&bands)?,
+            &study.process_power(&bands, &options.cancel)?,
             &sensors,
             logged.as_ref(),
             &dof,
@@ -389,6 +395,7 @@ pub fn prepare(
         if let Some(logged) = &logged {
             let mut best: Option<NoiseShape> = None;
             for correlation_s in correlation_times(&bands) {
+                options.cancel.check()?;
                 let mut trial = spec.clone();
                 let shape = NoiseShape {
                     correlation_s,
@@ -397,7 +404,7 @@ pub fn prepare(
                     terms: logged.len(),
                 };
                 trial.process_noise_shape = Some(shape.clone());
-                let process = Study::new(trial)?.process_power(&bands)?;
+                let process = Study::new(trial)?.process_power(&bands, &options.cancel)?;
                 let (f, mismatch) = calibrate(&measured, &process, &sensors, Some(logged), &dof)?;
                 let bar = best
                     .as_ref()
@@ -420,8 +427,9 @@ pub fn prepare(
             .for_each(|(r, c)| *r *= c);
         spec.noise_calibration = Some((cq, cr));
     }
-    size_along_effect(&mut spec, data, nominal_p)?;
-    spec.noise_warnings = Study::new(spec.clone())?.noise_check(data, band)?;
+    size_along_effect(&mut spec, data, nominal_p, &options.cancel)?;
+    options.cancel.check()?;
+    spec.noise_warnings = Study::new(spec.clone())?.noise_check(data, band, &options.cancel)?;
     Ok(spec)
 }
 
@@ -436,8 +444,13 @@ pub fn prepare(
 /// Only noise widens the logs' error when the nominal model explains them (`nominal_p` at
 /// least the discovery's level); a misfit widens it too (an unmodelled friction made a lag's
 /// error 5.6 times the simulated records'), and then the study warns and does not scale.
-pub fn size_along_effect(spec: &mut StudySpec, logs: &Dataset, nominal_p: f64) -> Result<()> {
-    let mut sizing = Study::new(spec.clone())?.sizing(logs)?;
+pub fn size_along_effect(
+    spec: &mut StudySpec,
+    logs: &Dataset,
+    nominal_p: f64,
+    cancel: &Cancel,
+) -> Result<()> {
+    let mut sizing = Study::new(spec.clone())?.sizing(logs, cancel)?;
     let explained = nominal_p >= LEVEL;
     if sizing.noise_scale().is_some() && !explained {
         sizing.warnings.push(format!(
@@ -458,7 +471,7 @@ pub fn size_along_effect(spec: &mut StudySpec, logs: &Dataset, nominal_p: f64) -
             spec.sensor_noise
                 .iter_mut()
                 .for_each(|r| *r *= factor * factor);
-            let mut scaled = Study::new(spec.clone())?.sizing(logs)?;
+            let mut scaled = Study::new(spec.clone())?.sizing(logs, cancel)?;
             scaled.rescaled = Some(Rescale {
                 factor,
                 unscaled_std,
@@ -1328,16 +1341,16 @@ impl Study {
     /// The nominal model's simulated period-to-period noise power with process noise alone,
     /// per output in all and per band of `bands`, averaged over [`CALIBRATION_DRAWS`] records
     /// (random stream `u64::MAX`, which no campaign uses).
-    fn process_power(&self, bands: &[(f64, f64)]) -> Result<NoisePower> {
+    fn process_power(&self, bands: &[(f64, f64)], cancel: &Cancel) -> Result<NoisePower> {
         let mut rng = ChaCha8Rng::seed_from_u64(self.spec.seed);
         rng.set_stream(u64::MAX);
         let none_r = DVector::zeros(self.sensor_sd.len());
-        self.noise_power(&mut rng, &self.noise_factor, &none_r, bands)
+        self.noise_power(&mut rng, &self.noise_factor, &none_r, bands, cancel)
     }
 
     /// The same with each sensor's noise alone, in the order of the outputs (random stream
     /// `u64::MAX - 2`). It does not depend on the process noise's colour.
-    fn sensor_power(&self, bands: &[(f64, f64)]) -> Result<Vec<NoisePower>> {
+    fn sensor_power(&self, bands: &[(f64, f64)], cancel: &Cancel) -> Result<Vec<NoisePower>> {
         let mut rng = ChaCha8Rng::seed_from_u64(self.spec.seed);
         rng.set_stream(u64::MAX - 2);
         let none_q = DMatrix::zeros(self.noise_factor.nrows(), self.noise_factor.ncols());
@@ -1345,20 +1358,21 @@ impl Study {
             .map(|j| {
                 let mut one = DVector::zeros(self.sensor_sd.len());
                 one[j] = self.sensor_sd[j];
-                self.noise_power(&mut rng, &none_q, &one, bands)
+                self.noise_power(&mut rng, &none_q, &one, bands, cancel)
             })
             .collect()
     }
 
     /// The nominal model's period-to-period noise power with the process-noise factor
     /// `factor` and sensor standard deviations `sd`, averaged over [`CALIBRATION_DRAWS`]
-    /// records drawn from `rng`.
+    /// records drawn from `rng`; `cancel` stops it before a record.
     fn noise_power(
         &self,
         rng: &mut ChaCha8Rng,
         factor: &DMatrix<f64>,
         sd: &DVector<f64>,
         bands: &[(f64, f64)],
+        cancel: &Cancel,
     ) -> Result<NoisePower> {
         let mut power = NoisePower {
             total: vec![0.0; self.outputs.len()],
@@ -1366,6 +1380,7 @@ impl Study {
         };
         let draws = CALIBRATION_DRAWS as f64;
         for _ in 0..CALIBRATION_DRAWS {
+            cancel.check()?;
             let label = ("nominal model", "fitted".to_string());
             let logs = self.logs(&self.nominal, &label, rng, factor, sd)?;
             for (s, v) in power
@@ -1393,6 +1408,7 @@ impl Study {
         &self,
         logs: &Dataset,
         band: Option<(f64, f64)>,
+        cancel: &Cancel,
     ) -> Result<Vec<NoiseWarning>> {
         let Some(measured) = period_noise_rms(logs) else {
             return Ok(Vec::new());
@@ -1404,7 +1420,13 @@ impl Study {
         let NoisePower {
             total,
             bands: banded,
-        } = self.noise_power(&mut rng, &self.noise_factor, &self.sensor_sd, &bands)?;
+        } = self.noise_power(
+            &mut rng,
+            &self.noise_factor,
+            &self.sensor_sd,
+            &bands,
+            cancel,
+        )?;
         // After a scaling along the effect the noise elsewhere differs by design: the
         // warnings then say why, and that they concern the other effects.
         let (why_total, why_band, effects) = match self
@@ -1476,14 +1498,16 @@ impl Study {
     }
 
     /// How precisely the model with the effect sizes the parameter on `logs` and on the
-    /// study's simulated records ([`Sizing`]), with its warnings for the study's values.
-    pub fn sizing(&self, logs: &Dataset) -> Result<Sizing> {
+    /// study's simulated records ([`Sizing`]), with its warnings for the study's values;
+    /// `cancel` stops its fits.
+    pub fn sizing(&self, logs: &Dataset, cancel: &Cancel) -> Result<Sizing> {
         // The logs first, then the simulated records, drawn in order and fitted on threads.
         let mut rng = ChaCha8Rng::seed_from_u64(self.spec.seed);
         rng.set_stream(u64::MAX - 2);
         let label = ("nominal model", "fitted".to_string());
         let mut records = vec![logs.clone()];
         for _ in 0..SIZING_DRAWS {
+            cancel.check()?;
             records.push(self.logs(
                 &self.nominal,
                 &label,
@@ -1495,7 +1519,7 @@ impl Study {
         // Each job keeps its fit's own failure; a job that panics fails the sizing alone.
         let jobs: Vec<_> = records
             .into_iter()
-            .map(|data| move || Ok(self.sized(data)))
+            .map(|data| move || Ok(self.sized(data, cancel)))
             .collect();
         let fits =
             in_parallel(self.with.parallel(), jobs, "sizing fit").unwrap_or_else(|e| vec![Err(e)]);
@@ -1583,8 +1607,11 @@ impl Study {
 
     /// The studied parameter as the model with the effect, fitted to `data` under the study's
     /// estimator and criterion, reports it.
-    fn sized(&self, data: Dataset) -> Result<Sized> {
+    fn sized(&self, data: Dataset, cancel: &Cancel) -> Result<Sized> {
+        // A stopped sizing builds no more workbenches (each estimates its FRF first).
+        cancel.check()?;
         let mut wb = self.workbench(data)?;
+        wb.set_cancel(cancel.clone());
         wb.add(&self.spec.effect)?;
         let model = wb.model().clone();
         let slot = model
@@ -2423,6 +2450,7 @@ D = [[-4.0, -3.0]]
             estimator: "auto".into(),
             band_hz: None,
             criterion: None,
+            cancel: Cancel::default(),
         }
     }
 
@@ -2565,7 +2593,7 @@ D = [[-4.0, -3.0]]
         );
         // Noise sources a ninth of it: the logs' error is about 3 times the simulated.
         let mut quiet = quieted(&spec);
-        size_along_effect(&mut quiet, &logs, p).unwrap();
+        size_along_effect(&mut quiet, &logs, p, &Cancel::default()).unwrap();
         let z = quiet.sizing.clone().unwrap();
         let r = z.rescaled.clone().unwrap();
         assert!((2.0..4.5).contains(&r.factor), "{z:?}");
@@ -2606,7 +2634,7 @@ D = [[-4.0, -3.0]]
         let p = nominal_p(&spec, &friction_logs);
         assert!(p < LEVEL, "{p}");
         let mut quiet = quieted(&spec);
-        size_along_effect(&mut quiet, &friction_logs, p).unwrap();
+        size_along_effect(&mut quiet, &friction_logs, p, &Cancel::default()).unwrap();
         let z = quiet.sizing.clone().unwrap();
         assert!(z.rescaled.is_none() && z.noise_scale().is_some(), "{z:?}");
         assert!(
@@ -2639,7 +2667,7 @@ D = [[-4.0, -3.0]]
             ..spec.clone()
         };
         let study = Study::new(small.clone()).unwrap();
-        let z = study.sizing(&logs).unwrap();
+        let z = study.sizing(&logs, &Cancel::default()).unwrap();
         assert!(
             matches!(z.warnings.as_slice(), [w] if w.contains("0.50 standard errors from 0")),
             "{z:?}"
@@ -2660,7 +2688,10 @@ D = [[-4.0, -3.0]]
             .flatten()
             .for_each(|q| *q /= 9.0);
         quiet.sensor_noise.iter_mut().for_each(|r| *r /= 9.0);
-        let z = Study::new(quiet).unwrap().sizing(&logs).unwrap();
+        let z = Study::new(quiet)
+            .unwrap()
+            .sizing(&logs, &Cancel::default())
+            .unwrap();
         let ratio = z.logs_std.unwrap() / z.simulated_std.unwrap();
         assert!((2.4..3.6).contains(&(ratio / full_ratio)), "{z:?}");
         assert!(

@@ -101,6 +101,8 @@ impl Args {
                 estimator: estimator.into(),
                 band_hz: None,
                 criterion: self.criterion.map(Into::into),
+                // Ctrl-C ends the process; its outputs are written by rename.
+                cancel: Cancel::default(),
             },
         )?;
         let outcomes = match &self.scheduler {
