@@ -2545,21 +2545,23 @@ D = [[-4.0, -3.0]]
         }
     }
 
+    /// The study with noise sources a ninth of `spec`'s (a third in rms).
+    fn quieted(spec: &StudySpec) -> StudySpec {
+        let mut quiet = spec.clone();
+        quiet
+            .process_noise
+            .iter_mut()
+            .flatten()
+            .for_each(|q| *q /= 9.0);
+        quiet.sensor_noise.iter_mut().for_each(|r| *r /= 9.0);
+        quiet
+    }
+
     /// Noise that hides the effect far less than the logs' is scaled until it hides it as
     /// much, measured again on the scaled noise, when the nominal model explains the logs;
     /// logs with a misfit keep the noise and say why.
     #[test]
     fn noise_that_hides_the_effect_otherwise_is_scaled_along_it() {
-        let quieted = |spec: &StudySpec| {
-            let mut quiet = spec.clone();
-            quiet
-                .process_noise
-                .iter_mut()
-                .flatten()
-                .for_each(|q| *q /= 9.0);
-            quiet.sensor_noise.iter_mut().for_each(|r| *r /= 9.0);
-            quiet
-        };
         let nominal_p = |spec: &StudySpec, logs: &Dataset| {
             let wb = Study::new(spec.clone())
                 .unwrap()
@@ -2567,22 +2569,24 @@ D = [[-4.0, -3.0]]
                 .unwrap();
             wb.noise_p_value(&wb.compare().unwrap())
         };
-        // Logs of the nominal model itself (a campaign at b = 0), which it explains.
-        let first = prepare(
-            MODEL,
-            Path::new("cart.toml"),
-            logs(2),
-            &options(vec![0.0, 2.0], 20),
-        )
-        .unwrap();
-        let logs = Study::new(first).unwrap().simulate(0, 0).unwrap();
-        let spec = prepare(
-            MODEL,
-            Path::new("cart.toml"),
-            logs.clone(),
-            &options(vec![0.0, 2.0], 20),
-        )
-        .unwrap();
+        let study_of = |logs: &Dataset| {
+            prepare(
+                MODEL,
+                Path::new("cart.toml"),
+                logs.clone(),
+                &options(vec![0.0, 2.0], 20),
+            )
+            .unwrap()
+        };
+        // The unit tests' logs carry a friction of 0.8 the nominal model lacks; a campaign of
+        // their study at b = 0 gives logs of the nominal model itself, which it explains.
+        let friction_logs = logs(2);
+        let friction = study_of(&friction_logs);
+        let logs = Study::new(friction.clone())
+            .unwrap()
+            .simulate(0, 0)
+            .unwrap();
+        let spec = study_of(&logs);
         let p = nominal_p(&spec, &logs);
         assert!(p >= LEVEL, "{p}");
         // At the calibrated noise the two errors agree within the tolerance: no scaling.
@@ -2621,19 +2625,11 @@ D = [[-4.0, -3.0]]
             matches!(z.warnings.as_slice(), [w] if w.contains("scales every noise source by")),
             "{z:?}"
         );
-        // The unit tests' logs carry a friction of 0.8 the nominal model lacks: its misfit
-        // widens the logs' error too, and the quieted study warns without scaling.
-        let friction_logs = self::logs(2);
-        let spec = prepare(
-            MODEL,
-            Path::new("cart.toml"),
-            friction_logs.clone(),
-            &options(vec![0.0, 2.0], 20),
-        )
-        .unwrap();
-        let p = nominal_p(&spec, &friction_logs);
+        // On the logs with the friction the nominal model's misfit widens the logs' error
+        // too, and the quieted study warns without scaling.
+        let p = nominal_p(&friction, &friction_logs);
         assert!(p < LEVEL, "{p}");
-        let mut quiet = quieted(&spec);
+        let mut quiet = quieted(&friction);
         size_along_effect(&mut quiet, &friction_logs, p, &Cancel::default()).unwrap();
         let z = quiet.sizing.clone().unwrap();
         assert!(z.rescaled.is_none() && z.noise_scale().is_some(), "{z:?}");
@@ -2644,7 +2640,7 @@ D = [[-4.0, -3.0]]
                     .any(|w| w.contains("does not scale its noise")),
             "{z:?}"
         );
-        assert_eq!(quiet.process_noise, quieted(&spec).process_noise);
+        assert_eq!(quiet.process_noise, quieted(&friction).process_noise);
     }
 
     /// Values the logs cannot size apart from 0, noise that hides the effect less than the
@@ -2681,14 +2677,7 @@ D = [[-4.0, -3.0]]
         // its rates are likely too high.
         let full = spec.sizing.as_ref().unwrap();
         let full_ratio = full.logs_std.unwrap() / full.simulated_std.unwrap();
-        let mut quiet = spec.clone();
-        quiet
-            .process_noise
-            .iter_mut()
-            .flatten()
-            .for_each(|q| *q /= 9.0);
-        quiet.sensor_noise.iter_mut().for_each(|r| *r /= 9.0);
-        let z = Study::new(quiet)
+        let z = Study::new(quieted(&spec))
             .unwrap()
             .sizing(&logs, &Cancel::default())
             .unwrap();
