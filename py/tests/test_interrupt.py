@@ -132,7 +132,7 @@ print(json.dumps({"whole": whole, "stopped": time.monotonic() - start, "interrup
 @pytest.mark.parametrize("share", (0.2, 0.7))
 def test_ctrl_c_stops_a_power_studys_preparation(tmp_path, share):
     # The cart-pole with ten times the pole torque noise: its study also scales the noise
-    # along the friction, five more fits.
+    # along the friction, six more fits.
     ic.campaign(tmp_path, plant=ic.Plant(), seed=1, torque_noise=0.02)
     model = Path(__file__).parent / "data" / "cart_pole.toml"
     done = subprocess.run([sys.executable, "-c", SCRIPT_PREPARE, str(model), str(tmp_path),
